@@ -1,0 +1,38 @@
+# SPDX-License-Identifier: Apache-2.0
+# Helpers shared by every folder: warnings, libraries, tests.
+
+# plumb_set_warnings(<target>): the one place that sets compiler warnings.
+function(plumb_set_warnings target)
+    target_compile_options(${target} PRIVATE -Wall -Wextra -Wpedantic)
+    if(PLUMB_WERROR)
+        target_compile_options(${target} PRIVATE -Werror)
+    endif()
+endfunction()
+
+# plumb_add_library(<name> SOURCES ... [PUBLIC_LIBS ...] [PRIVATE_LIBS ...])
+# Creates plumb_<name> with the alias plumb::<name>; include root = repository root.
+function(plumb_add_library name)
+    cmake_parse_arguments(ARG "" "" "SOURCES;PUBLIC_LIBS;PRIVATE_LIBS" ${ARGN})
+    add_library(plumb_${name} STATIC ${ARG_SOURCES})
+    add_library(plumb::${name} ALIAS plumb_${name})
+    target_include_directories(plumb_${name} PUBLIC
+        $<BUILD_INTERFACE:${PROJECT_SOURCE_DIR}> $<BUILD_INTERFACE:${PROJECT_BINARY_DIR}>)
+    target_link_libraries(plumb_${name} PUBLIC ${ARG_PUBLIC_LIBS} PRIVATE ${ARG_PRIVATE_LIBS})
+    plumb_set_warnings(plumb_${name})
+endfunction()
+
+# plumb_add_test(<name> SOURCES ... LIBS ... LABELS ... [TIMEOUT s])
+# One GoogleTest executable per module; every test case is registered with ctest and labelled.
+function(plumb_add_test name)
+    cmake_parse_arguments(ARG "" "TIMEOUT" "SOURCES;LIBS;LABELS" ${ARGN})
+    add_executable(${name} ${ARG_SOURCES})
+    target_link_libraries(${name} PRIVATE ${ARG_LIBS} plumb::testing GTest::gtest GTest::gtest_main)
+    plumb_set_warnings(${name})
+    if(NOT ARG_TIMEOUT)
+        set(ARG_TIMEOUT 600)
+    endif()
+    gtest_discover_tests(${name}
+        WORKING_DIRECTORY ${PROJECT_SOURCE_DIR}
+        PROPERTIES LABELS "${ARG_LABELS}" TIMEOUT ${ARG_TIMEOUT}
+        DISCOVERY_TIMEOUT 60)
+endfunction()

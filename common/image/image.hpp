@@ -1,0 +1,62 @@
+// SPDX-License-Identifier: Apache-2.0
+#pragma once
+
+// Row-major images with value semantics. Depth is float metres with 0 = invalid
+// (DepthImage); sensors and files carry uint16 with a depth scale (units per metre).
+
+#include <cstdint>
+#include <vector>
+
+#include "common/core/check.hpp"
+
+namespace plumb {
+
+template <typename T>
+class Image {
+  public:
+    Image() = default;
+    Image(int width, int height, T fill = T{})
+        : width_(width), height_(height), data_(static_cast<size_t>(width) * height, fill) {
+        PLUMB_CHECK(width >= 0 && height >= 0) << "image size " << width << "x" << height;
+    }
+
+    int width() const { return width_; }
+    int height() const { return height_; }
+    size_t size() const { return data_.size(); }
+    bool empty() const { return data_.empty(); }
+
+    /// Pixel at column u, row v. Not bounds-checked in release builds; see `inside`.
+    T& operator()(int u, int v) { return data_[static_cast<size_t>(v) * width_ + u]; }
+    const T& operator()(int u, int v) const { return data_[static_cast<size_t>(v) * width_ + u]; }
+    bool inside(int u, int v) const { return u >= 0 && v >= 0 && u < width_ && v < height_; }
+
+    T* data() { return data_.data(); }
+    const T* data() const { return data_.data(); }
+    std::vector<T>& pixels() { return data_; }
+    const std::vector<T>& pixels() const { return data_; }
+
+    bool operator==(const Image& other) const = default;
+
+  private:
+    int width_ = 0;
+    int height_ = 0;
+    std::vector<T> data_;
+};
+
+using DepthImage = Image<float>;       ///< metres, 0 = invalid
+using Depth16Image = Image<uint16_t>;  ///< raw sensor/file units, 0 = invalid
+using GrayImage = Image<uint8_t>;      ///< 8-bit intensity
+
+/// uint16 units -> metres: d_m = raw / depth_scale (e.g. 1000 for mm, 5000 for TUM/ICL-NUIM).
+/// Values below `min_depth_m` or above `max_depth_m` (when > 0) become 0 (invalid).
+DepthImage toMetres(const Depth16Image& raw, double depth_scale, double min_depth_m = 0.0,
+                    double max_depth_m = 0.0);
+
+/// Metres -> uint16 units, rounded to nearest; invalid, non-finite and out-of-range values become
+/// 0.
+Depth16Image toRaw(const DepthImage& depth, double depth_scale);
+
+/// Number of valid (> 0, finite) pixels.
+size_t countValid(const DepthImage& depth);
+
+}  // namespace plumb

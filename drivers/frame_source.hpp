@@ -1,0 +1,51 @@
+// SPDX-License-Identifier: Apache-2.0
+#pragma once
+
+// Every source of depth frames (sensors, recorded datasets, LCM-log replay, the simulated scanner)
+// sits behind FrameSource, so the pipeline cannot tell them apart.
+
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <optional>
+#include <string>
+
+#include "common/camera/pinhole.hpp"
+#include "common/core/status.hpp"
+#include "common/image/image.hpp"
+
+namespace plumb {
+
+struct Frame {
+    int64_t index = 0;         ///< 0-based position in the stream
+    double timestamp_s = 0.0;  ///< capture time in seconds (dataset or host clock)
+    DepthImage depth;          ///< metres, 0 = invalid, camera().width x camera().height
+    GrayImage gray;            ///< optional intensity image (empty when the source has none)
+    std::string name;          ///< file name or other identifier, for messages
+    /// Ground-truth camera-to-world pose, when the source knows it (datasets, simulator).
+    std::optional<Eigen::Isometry3d> T_W_C_gt;
+};
+
+/// A stream of depth frames. Not thread-safe: one consumer calls next() at a time.
+class FrameSource {
+  public:
+    virtual ~FrameSource() = default;
+
+    /// Intrinsics of every frame this source yields.
+    virtual const PinholeCamera& camera() const = 0;
+
+    /// The next frame. At the end of the stream returns StatusCode::kOutOfRange; any other error
+    /// (corrupt file, unplugged sensor) describes that frame, and the caller may call next() again
+    /// to skip it when the source allows (see `canSkipErrors`).
+    virtual Result<Frame> next() = 0;
+
+    /// Number of frames when known in advance (datasets, simulator), nullopt for live sensors.
+    virtual std::optional<size_t> size() const { return std::nullopt; }
+
+    /// True when next() after an error moves on to the following frame.
+    virtual bool canSkipErrors() const { return false; }
+
+    /// One line for logs: "TUM dataset ../data/x (252 frames, 640x480 fx=...)".
+    virtual std::string description() const = 0;
+};
+
+}  // namespace plumb
