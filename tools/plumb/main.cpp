@@ -64,11 +64,28 @@ int main(int argc, char** argv) {
         std::printf("plumb 0.1.0\n");
         return kExitOk;
     }
+    // Two-word commands ("eval traj") take precedence over one-word ones.
+    if (args.size() >= 2) {
+        const std::string two = args[0] + " " + args[1];
+        for (const Command& c : commands()) {
+            if (two == c.name) return c.run(std::vector<std::string>(args.begin() + 2, args.end()));
+        }
+    }
     for (const Command& c : commands()) {
         if (args[0] == c.name) {
             return c.run(std::vector<std::string>(args.begin() + 1, args.end()));
         }
     }
+    // A group word alone ("plumb eval") lists its commands.
+    bool any = false;
+    for (const Command& c : commands()) {
+        if (std::string(c.name).rfind(args[0] + " ", 0) == 0) {
+            if (!any) std::fprintf(stderr, "usage: plumb %s <what> [options]\n", args[0].c_str());
+            std::fprintf(stderr, "  %-12s %s\n", c.name, c.summary);
+            any = true;
+        }
+    }
+    if (any) return kExitUsage;
     std::fprintf(stderr, "plumb: unknown command '%s' (see plumb --help)\n", args[0].c_str());
     return kExitUsage;
 }
