@@ -38,7 +38,40 @@ struct Layout {
     std::vector<Eigen::Vector2d> room_polygon_L;
     double ceiling_height_m = 0.0;  ///< floor-to-ceiling distance, 0 if unknown
 
+    /// The wall planes, in the order they appear in `planes`.
     std::vector<const LayoutPlane*> walls() const;
+    /// The first plane of the given kind, nullptr if there is none.
+    const LayoutPlane* firstOf(LayoutPlaneKind kind) const;
 };
+
+/// A plane n.x + d = 0 (|n| = 1) in a frame the owner names.
+struct HessianPlane {
+    Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();
+    double d = 0.0;  ///< metres
+
+    /// Signed distance of x from the plane (positive on the side the normal points to), metres.
+    double signedDistance(const Eigen::Vector3d& x) const { return normal.dot(x) + d; }
+};
+
+/// The plane in frame B from the plane in frame A and T_B_A (reference §0):
+/// n_B = R n_A, d_B = d_A - n_B.t.
+HessianPlane transformPlane(const HessianPlane& plane_A, const Eigen::Isometry3d& T_B_A);
+
+/// A layout plane (given in L) expressed in the world frame with the layout's T_W_L.
+HessianPlane planeInWorld(const Layout& layout, const LayoutPlane& plane);
+
+/// Parses "floor" | "ceiling" | "wall".
+Result<LayoutPlaneKind> parseLayoutPlaneKind(const std::string& text);
+
+/// Builds the layout of a prism-shaped room from its floor outline and height, with T_W_L =
+/// identity:
+///  - id 0: floor, n = (0, 0, 1), d = 0;
+///  - id 1: ceiling, n = (0, 0, -1), d = height;
+///  - id 2 + k: the wall over polygon edge k (vertex k -> vertex k+1, wrapping), normal pointing
+///    into the room (the left side of a counter-clockwise edge), start_L/end_L = the edge.
+/// The polygon must be simple, counter-clockwise seen from above (+z), with at least 3 vertices
+/// and edges of at least 1 mm; the height must be positive. Errors say which condition failed.
+Result<Layout> makeRoomLayout(const std::vector<Eigen::Vector2d>& polygon_L,
+                              double ceiling_height_m);
 
 }  // namespace plumb

@@ -1,0 +1,214 @@
+// SPDX-License-Identifier: Apache-2.0
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <functional>
+#include <nlohmann/json.hpp>
+
+#include "common/geometry/lie.hpp"
+#include "common/layout/layout.hpp"
+#include "common/layout/layout_json.hpp"
+#include "tests/testing/shared_data.hpp"
+
+namespace plumb {
+namespace {
+
+std::vector<Eigen::Vector2d> lShapedRoom() {
+    // Counter-clockwise seen from above: a 4 x 3 m rectangle with a 1.5 x 1 m notch.
+    return {{0.0, 0.0}, {4.0, 0.0}, {4.0, 3.0}, {1.5, 3.0}, {1.5, 2.0}, {0.0, 2.0}};
+}
+
+TEST(Layout, RoomFromPolygonHasInwardWallsFloorAndCeiling) {
+    const auto polygon = lShapedRoom();
+    auto layout = makeRoomLayout(polygon, 2.6);
+    ASSERT_TRUE(layout.isOk()) << layout.status().toString();
+    ASSERT_EQ(layout->planes.size(), polygon.size() + 2);
+    const LayoutPlane* floor = layout->firstOf(LayoutPlaneKind::kFloor);
+    const LayoutPlane* ceiling = layout->firstOf(LayoutPlaneKind::kCeiling);
+    ASSERT_NE(floor, nullptr);
+    ASSERT_NE(ceiling, nullptr);
+    EXPECT_EQ(floor->normal_L, Eigen::Vector3d(0, 0, 1));
+    EXPECT_EQ(floor->d_L, 0.0);
+    EXPECT_EQ(ceiling->normal_L, Eigen::Vector3d(0, 0, -1));
+    EXPECT_EQ(ceiling->d_L, 2.6);
+    EXPECT_DOUBLE_EQ(layout->ceiling_height_m, 2.6);
+
+    // A point inside the room is on the positive side of every plane; its distance to each wall
+    // is known in closed form.
+    const Eigen::Vector3d inside(3.0, 1.0, 1.2);
+    const auto walls = layout->walls();
+    ASSERT_EQ(walls.size(), polygon.size());
+    const double expected[] = {1.0, 1.0, 2.0, 1.5, 1.0, 3.0};  // edges 0..5
+    for (size_t k = 0; k < walls.size(); ++k) {
+        const LayoutPlane& w = *walls[k];
+        EXPECT_EQ(w.id, static_cast<int>(2 + k));
+        EXPECT_NEAR(w.normal_L.norm(), 1.0, 1e-15);
+        EXPECT_EQ(w.normal_L.z(), 0.0);
+        EXPECT_NEAR(w.normal_L.dot(inside) + w.d_L, expected[k], 1e-12) << "wall " << k;
+        // The segment endpoints lie on the wall plane.
+        EXPECT_NEAR(w.normal_L.head<2>().dot(w.start_L) + w.d_L, 0.0, 1e-12);
+        EXPECT_NEAR(w.normal_L.head<2>().dot(w.end_L) + w.d_L, 0.0, 1e-12);
+        EXPECT_EQ(w.start_L, polygon[k]);
+        EXPECT_EQ(w.end_L, polygon[(k + 1) % polygon.size()]);
+    }
+    EXPECT_NEAR(floor->normal_L.dot(inside) + floor->d_L, 1.2, 1e-12);
+    EXPECT_NEAR(ceiling->normal_L.dot(inside) + ceiling->d_L, 1.4, 1e-12);
+}
+
+TEST(Layout, RoomFromPolygonRejectsBadInput) {
+    auto cw = lShapedRoom();
+    std::reverse(cw.begin(), cw.end());
+    auto r = makeRoomLayout(cw, 2.5);
+    ASSERT_FALSE(r.isOk());
+    EXPECT_EQ(r.status().code(), StatusCode::kInvalidArgument);
+    EXPECT_NE(r.status().message().find("clockwise"), std::string::npos);
+
+    EXPECT_FALSE(makeRoomLayout({{0, 0}, {1, 0}}, 2.5).isOk());
+    EXPECT_FALSE(makeRoomLayout(lShapedRoom(), 0.0).isOk());
+    EXPECT_FALSE(makeRoomLayout(lShapedRoom(), std::nan("")).isOk());
+    // Positive signed area, but edge 2 crosses edge 0.
+    auto crossing = makeRoomLayout({{0, 0}, {4, 0}, {4, 3}, {2, -1}, {0, 3}}, 2.5);
+    ASSERT_FALSE(crossing.isOk());
+    EXPECT_NE(crossing.status().message().find("edges 0 and 2 intersect"), std::string::npos);
+    auto repeated = makeRoomLayout({{0, 0}, {1, 0}, {1, 0}, {1, 1}}, 2.5);
+    ASSERT_FALSE(repeated.isOk());
+    EXPECT_NE(repeated.status().message().find("shorter than 1 mm"), std::string::npos);
+}
+
+TEST(Layout, PlaneTransformKeepsPointsOnThePlane) {
+    const HessianPlane plane_A{Eigen::Vector3d(1, 2, 2).normalized(), -0.7};
+    Vector6d xi;
+    xi << 0.3, -0.2, 0.9, 1.5, -2.0, 0.4;
+    const Eigen::Isometry3d T_B_A = lie::expSE3(xi);
+    const HessianPlane plane_B = transformPlane(plane_A, T_B_A);
+    // Points on the plane in A map to points on the plane in B; offsets along n are preserved.
+    const Eigen::Vector3d u = plane_A.normal.unitOrthogonal();
+    const Eigen::Vector3d v = plane_A.normal.cross(u);
+    const Eigen::Vector3d on_A = -plane_A.d * plane_A.normal + 0.8 * u - 1.3 * v;
+    for (double offset : {0.0, 0.25, -1.0}) {
+        const Eigen::Vector3d x_A = on_A + offset * plane_A.normal;
+        EXPECT_NEAR(plane_B.signedDistance(T_B_A * x_A), offset, 1e-12);
+    }
+    const HessianPlane back = transformPlane(plane_B, T_B_A.inverse());
+    EXPECT_NEAR((back.normal - plane_A.normal).norm(), 0.0, 1e-12);
+    EXPECT_NEAR(back.d, plane_A.d, 1e-12);
+}
+
+Layout awkwardLayout() {
+    Layout layout = makeRoomLayout(lShapedRoom(), 2.6).value();
+    Vector6d xi;
+    xi << 0.01, -0.02, 1.1, 0.1234567890123, -3.3, 0.7;
+    layout.T_W_L = lie::expSE3(xi);
+    layout.planes[3].manhattan_snapped = true;
+    layout.planes[4].d_L = 1.0 / 3.0;
+    layout.planes[5].normal_L = Eigen::Vector3d(0.1, 0.7, -0.3).normalized();
+    layout.planes[6].start_L = {M_PI, -std::exp(1.0)};
+    layout.planes[7].id = 42;
+    return layout;
+}
+
+void expectSameLayout(const Layout& a, const Layout& b) {
+    EXPECT_EQ(a.T_W_L.matrix(), b.T_W_L.matrix());
+    EXPECT_EQ(a.ceiling_height_m, b.ceiling_height_m);
+    EXPECT_EQ(a.room_polygon_L, b.room_polygon_L);
+    ASSERT_EQ(a.planes.size(), b.planes.size());
+    for (size_t i = 0; i < a.planes.size(); ++i) {
+        EXPECT_EQ(a.planes[i].id, b.planes[i].id);
+        EXPECT_EQ(a.planes[i].kind, b.planes[i].kind);
+        EXPECT_EQ(a.planes[i].normal_L, b.planes[i].normal_L);  // bit-exact
+        EXPECT_EQ(a.planes[i].d_L, b.planes[i].d_L);
+        EXPECT_EQ(a.planes[i].start_L, b.planes[i].start_L);
+        EXPECT_EQ(a.planes[i].end_L, b.planes[i].end_L);
+        EXPECT_EQ(a.planes[i].manhattan_snapped, b.planes[i].manhattan_snapped);
+    }
+}
+
+TEST(LayoutJson, RoundTripIsBitExact) {
+    const auto dir = testing::freshTempDir("layout_json_round_trip");
+    const Layout layout = awkwardLayout();
+    ASSERT_TRUE(io::writeLayoutJson(dir / "layout.json", layout).isOk());
+    auto back = io::readLayoutJson(dir / "layout.json");
+    ASSERT_TRUE(back.isOk()) << back.status().toString();
+    expectSameLayout(layout, *back);
+    // The file carries the format tag.
+    std::ifstream in(dir / "layout.json");
+    const auto doc = nlohmann::json::parse(in);
+    EXPECT_EQ(doc.at("format"), "plumb-layout-1");
+    EXPECT_EQ(doc.at("planes").at(0).at("kind"), "floor");
+}
+
+/// Parses `doc` after `edit` and returns the error.
+Status errorAfter(const std::function<void(nlohmann::json&)>& edit) {
+    nlohmann::json doc = io::layoutToJson(awkwardLayout());
+    edit(doc);
+    auto r = io::layoutFromJson(doc, "test.json");
+    return r.isOk() ? Status::ok() : r.status();
+}
+
+TEST(LayoutJson, MalformedContentNamesTheField) {
+    struct Case {
+        std::function<void(nlohmann::json&)> edit;
+        StatusCode code;
+        std::string message_part;
+    };
+    const std::vector<Case> cases = {
+        {[](auto& j) { j.erase("format"); }, StatusCode::kCorrupt, "missing field \"format\""},
+        {[](auto& j) { j["format"] = "plumb-layout-9"; }, StatusCode::kUnsupported,
+         "plumb-layout-9"},
+        {[](auto& j) { j.erase("T_W_L"); }, StatusCode::kCorrupt, "\"T_W_L\""},
+        {[](auto& j) { j["T_W_L"][0][0] = 2.0; }, StatusCode::kCorrupt, "T_W_L: rotation"},
+        {[](auto& j) { j["T_W_L"][3][0] = 1.0; }, StatusCode::kCorrupt, "last row"},
+        {[](auto& j) { j["ceiling_height_m"] = "high"; }, StatusCode::kCorrupt,
+         "test.json.ceiling_height_m: expected a number"},
+        {[](auto& j) { j["room_polygon_L"][2] = {1.0}; }, StatusCode::kCorrupt,
+         "room_polygon_L[2]"},
+        {[](auto& j) { j["planes"][3].erase("d_L"); }, StatusCode::kCorrupt,
+         "test.json.planes[3]: missing field \"d_L\""},
+        {[](auto& j) { j["planes"][2]["kind"] = "door"; }, StatusCode::kCorrupt,
+         "planes[2].kind: unknown layout plane kind 'door'"},
+        {[](auto& j) {
+             j["planes"][4]["normal_L"] = {0.0, 0.0, 2.0};
+         },
+         StatusCode::kCorrupt, "planes[4].normal_L: normal has length 2"},
+        {[](auto& j) { j["planes"][1]["normal_L"][1] = nullptr; }, StatusCode::kCorrupt,
+         "planes[1].normal_L[1]: expected a number"},
+        {[](auto& j) { j["planes"][0]["id"] = 1.5; }, StatusCode::kCorrupt,
+         "planes[0].id: expected an integer"},
+        {[](auto& j) { j["planes"][0]["manhattan_snapped"] = 1; }, StatusCode::kCorrupt,
+         "manhattan_snapped"},
+        {[](auto& j) { j["planes"] = 3; }, StatusCode::kCorrupt, "expected an array of planes"},
+    };
+    for (size_t i = 0; i < cases.size(); ++i) {
+        const Status s = errorAfter(cases[i].edit);
+        EXPECT_EQ(s.code(), cases[i].code) << "case " << i << ": " << s.toString();
+        EXPECT_NE(s.message().find(cases[i].message_part), std::string::npos)
+            << "case " << i << ": " << s.toString();
+    }
+}
+
+TEST(LayoutJson, FileErrorsAreSpecific) {
+    const auto dir = testing::freshTempDir("layout_json_errors");
+    auto missing = io::readLayoutJson(dir / "nope.json");
+    ASSERT_FALSE(missing.isOk());
+    EXPECT_EQ(missing.status().code(), StatusCode::kNotFound);
+    EXPECT_NE(missing.status().message().find("nope.json"), std::string::npos);
+
+    std::ofstream(dir / "bad.json") << "{\"format\": \"plumb-layout-1\", ";
+    auto bad = io::readLayoutJson(dir / "bad.json");
+    ASSERT_FALSE(bad.isOk());
+    EXPECT_EQ(bad.status().code(), StatusCode::kCorrupt);
+    EXPECT_NE(bad.status().message().find("invalid JSON"), std::string::npos);
+
+    std::ofstream(dir / "array.json") << "[1, 2]";
+    auto array = io::readLayoutJson(dir / "array.json");
+    ASSERT_FALSE(array.isOk());
+    EXPECT_NE(array.status().message().find("expected a JSON object"), std::string::npos);
+
+    EXPECT_EQ(io::writeLayoutJson(dir / "no_such_dir" / "x.json", Layout{}).code(),
+              StatusCode::kIoError);
+}
+
+}  // namespace
+}  // namespace plumb
