@@ -2,6 +2,7 @@
 #include "common/geometry/lie.hpp"
 
 #include <Eigen/SVD>
+#include <algorithm>
 #include <cmath>
 
 namespace plumb::lie {
@@ -35,20 +36,25 @@ Eigen::Matrix3d expSO3(const Eigen::Vector3d& omega) {
 }
 
 Eigen::Vector3d logSO3(const Eigen::Matrix3d& R) {
-    const double cos_theta = std::clamp(0.5 * (R.trace() - 1.0), -1.0, 1.0);
-    const double theta = std::acos(cos_theta);
+    // R = cos(t) I + sin(t) [a]_x + (1 - cos(t)) a a^T, so vee(R - R^T) = 2 sin(t) a and
+    // trace(R) = 1 + 2 cos(t). atan2 keeps t accurate near 0 and near pi, where acos is not.
     const Eigen::Vector3d vee(R(2, 1) - R(1, 2), R(0, 2) - R(2, 0), R(1, 0) - R(0, 1));
+    const double cos_theta = std::clamp(0.5 * (R.trace() - 1.0), -1.0, 1.0);
+    const double theta = std::atan2(0.5 * vee.norm(), cos_theta);
     if (theta < kSmallAngle) {
         // sin(theta)/theta ~ 1 - theta^2/6: omega = vee / (2 sinc(theta)).
         return 0.5 * (1.0 + theta * theta / 6.0) * vee;
     }
     if (M_PI - theta < 1e-4) {
-        // Near pi the vee part vanishes; take the axis from the symmetric part R + I = 2 a a^T
-        // (up to O((pi - theta)^2)), choosing the best-conditioned column, with its sign from vee.
-        const Eigen::Matrix3d S = 0.5 * (R + Eigen::Matrix3d::Identity());
+        // Near pi the vee part vanishes; take the axis from the symmetric part,
+        // (R + R^T)/2 - cos(t) I = (1 - cos(t)) a a^T exactly, using its best-conditioned column
+        // and the sign of vee (meaningless only at t = pi exactly, where both signs are right).
+        const Eigen::Matrix3d A =
+            (0.5 * (R + R.transpose()) - cos_theta * Eigen::Matrix3d::Identity()) /
+            (1.0 - cos_theta);
         int k = 0;
-        S.diagonal().maxCoeff(&k);
-        Eigen::Vector3d axis = S.col(k) / std::sqrt(std::max(S(k, k), 1e-300));
+        A.diagonal().maxCoeff(&k);
+        Eigen::Vector3d axis = A.col(k) / std::sqrt(std::max(A(k, k), 1e-300));
         axis.normalize();
         if (axis.dot(vee) < 0.0) axis = -axis;
         return theta * axis;

@@ -27,13 +27,18 @@ struct StampedPose {
 };
 using Trajectory = std::vector<StampedPose>;
 
-/// Reads a TUM trajectory. Errors name the file and line (malformed line, non-finite value,
-/// quaternion far from unit norm). Quaternions are normalised.
+/// Reads a TUM trajectory, poses in file order. Columns may be separated by spaces, tabs or
+/// commas. Errors name the file and line (wrong column count, non-number, non-finite value,
+/// quaternion norm off 1 by more than 1e-3); a missing file is kNotFound, a file without poses
+/// kCorrupt. Quaternions are normalised.
 Result<Trajectory> readTumTrajectory(const std::filesystem::path& path);
 /// Writes a TUM trajectory with full double precision (round trip exact to 1e-9).
 Status writeTumTrajectory(const std::filesystem::path& path, const Trajectory& trajectory);
 
 /// Reads a Redwood `.log` camera trajectory; timestamps are the frame indices of line 1.
+/// Blank lines are ignored. Errors name the file and line: metadata that is not 3 integers, a
+/// row that is not 4 finite numbers, a truncated final entry, a matrix that is not rigid
+/// (rotation off orthonormal by more than 1e-3). Rotations are re-orthonormalised.
 Result<Trajectory> readLogTrajectory(const std::filesystem::path& path);
 /// Writes a `.log` camera trajectory; entry k gets metadata `k k k+1`.
 Status writeLogTrajectory(const std::filesystem::path& path, const Trajectory& trajectory);
@@ -45,6 +50,8 @@ struct RegistrationEntry {
     int num_fragments = 0;
     Eigen::Isometry3d T_i_j = Eigen::Isometry3d::Identity();
 };
+/// Reads a registration `.log` (same checks as readLogTrajectory; an empty file is valid: no
+/// accepted pairs). The writers use the shortest exact decimal form of every double.
 Result<std::vector<RegistrationEntry>> readRegistrationLog(const std::filesystem::path& path);
 Status writeRegistrationLog(const std::filesystem::path& path,
                             const std::vector<RegistrationEntry>& entries);
@@ -56,17 +63,19 @@ struct InformationEntry {
     int num_fragments = 0;
     Matrix6d information = Matrix6d::Identity();
 };
+/// Reads a `.info` file: groups of 1 metadata line + 6 rows of 6 finite numbers.
 Result<std::vector<InformationEntry>> readInformationFile(const std::filesystem::path& path);
 Status writeInformationFile(const std::filesystem::path& path,
                             const std::vector<InformationEntry>& entries);
 
-/// TUM `associate.py`: pairs (index into a, index into b) whose stamps differ by at most
-/// `max_difference_s` after adding `offset_s` to b; closest pairs first, each index used once;
-/// result sorted by a's index.
+/// TUM `associate.py`: pairs (index into a, index into b) with |a - (b + offset_s)| strictly
+/// less than `max_difference_s` (as associate.py); greedy, closest pairs first (ties by smaller
+/// stamp of a, then of b), each index used at most once; result sorted by a's index.
+/// Neither input needs to be sorted. For ATE/RPE pass ground truth as a and the estimate as b.
 std::vector<std::pair<size_t, size_t>> associate(const std::vector<double>& stamps_a,
-                                                  const std::vector<double>& stamps_b,
-                                                  double max_difference_s = 0.02,
-                                                  double offset_s = 0.0);
+                                                 const std::vector<double>& stamps_b,
+                                                 double max_difference_s = 0.02,
+                                                 double offset_s = 0.0);
 
 /// Pose at time t by geodesic interpolation between the two neighbouring samples of a
 /// time-sorted trajectory; nullopt if t is outside it or the neighbours are more than
