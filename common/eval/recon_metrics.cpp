@@ -1,0 +1,136 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "common/eval/recon_metrics.hpp"
+
+#include <fmt/format.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <cmath>
+#include <nanoflann.hpp>
+
+namespace plumb::eval {
+namespace {
+
+/// nanoflann dataset adaptor over a vector of points (no copy).
+struct PointsAdaptor {
+    const std::vector<Eigen::Vector3f>& points;
+
+    size_t kdtree_get_point_count() const { return points.size(); }  // NOLINT
+    float kdtree_get_pt(size_t i, size_t dim) const {                // NOLINT
+        return points[i][static_cast<Eigen::Index>(dim)];
+    }
+    template <class BoundingBox>
+    bool kdtree_get_bbox(BoundingBox& /*bb*/) const {  // NOLINT
+        return false;
+    }
+};
+
+using KdTree =
+    nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, PointsAdaptor>,
+                                        PointsAdaptor, 3, uint32_t>;
+
+Status checkFinite(const std::vector<Eigen::Vector3f>& points, const char* what) {
+    for (size_t i = 0; i < points.size(); ++i) {
+        if (!points[i].allFinite()) {
+            return invalidArgument(fmt::format("{} point {} is not finite", what, i));
+        }
+    }
+    return Status::ok();
+}
+
+/// Linear interpolation between order statistics of a sorted list, q in [0, 1].
+double percentileOfSorted(const std::vector<double>& sorted, double q) {
+    if (sorted.empty()) return 0.0;
+    const double pos = q * static_cast<double>(sorted.size() - 1);
+    const auto lo = static_cast<size_t>(std::floor(pos));
+    const size_t hi = std::min(lo + 1, sorted.size() - 1);
+    const double frac = pos - static_cast<double>(lo);
+    return sorted[lo] + frac * (sorted[hi] - sorted[lo]);
+}
+
+double fractionWithin(const std::vector<double>& distances, double threshold) {
+    if (distances.empty()) return 0.0;
+    const auto n = std::count_if(distances.begin(), distances.end(),
+                                 [threshold](double d) { return d <= threshold; });
+    return static_cast<double>(n) / static_cast<double>(distances.size());
+}
+
+}  // namespace
+
+Result<std::vector<double>> closestPointDistances(const std::vector<Eigen::Vector3f>& queries,
+                                                  const std::vector<Eigen::Vector3f>& reference,
+                                                  int num_threads) {
+    if (reference.empty()) return invalidArgument("the reference point set is empty");
+    PLUMB_RETURN_IF_ERROR(checkFinite(queries, "query"));
+    PLUMB_RETURN_IF_ERROR(checkFinite(reference, "reference"));
+    const PointsAdaptor adaptor{reference};
+    const KdTree tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
+    std::vector<double> distances(queries.size(), 0.0);
+    auto work = [&] {
+        tbb::parallel_for(tbb::blocked_range<size_t>(0, queries.size(), 1024),
+                          [&](const tbb::blocked_range<size_t>& range) {
+                              for (size_t i = range.begin(); i != range.end(); ++i) {
+                                  uint32_t index = 0;
+                                  float dist_sq = 0.0f;
+                                  tree.knnSearch(queries[i].data(), 1, &index, &dist_sq);
+                                  distances[i] = std::sqrt(static_cast<double>(dist_sq));
+                              }
+                          });
+    };
+    if (num_threads > 0) {
+        tbb::task_arena arena(num_threads);
+        arena.execute(work);
+    } else {
+        work();
+    }
+    return distances;
+}
+
+DistanceStats summarize(const std::vector<double>& distances_m) {
+    DistanceStats s;
+    s.count = distances_m.size();
+    if (distances_m.empty()) return s;
+    double sum = 0.0, sum_sq = 0.0;
+    for (double d : distances_m) {  // serial, in order: bit-identical for any thread count
+        sum += d;
+        sum_sq += d * d;
+    }
+    const auto n = static_cast<double>(distances_m.size());
+    s.mean_m = sum / n;
+    s.rms_m = std::sqrt(sum_sq / n);
+    std::vector<double> sorted = distances_m;
+    std::sort(sorted.begin(), sorted.end());
+    s.median_m = percentileOfSorted(sorted, 0.5);
+    s.p90_m = percentileOfSorted(sorted, 0.9);
+    s.max_m = sorted.back();
+    return s;
+}
+
+Result<ReconMetrics> evaluateReconstruction(const std::vector<Eigen::Vector3f>& reconstructed,
+                                            const std::vector<Eigen::Vector3f>& ground_truth,
+                                            const ReconMetricsConfig& config) {
+    if (reconstructed.empty()) return invalidArgument("the reconstruction has no points");
+    if (ground_truth.empty()) return invalidArgument("the ground truth has no points");
+    if (!(config.completeness_threshold_m > 0.0) ||
+        !std::isfinite(config.completeness_threshold_m)) {
+        return invalidArgument(fmt::format("threshold must be a positive distance, got {} m",
+                                           config.completeness_threshold_m));
+    }
+    auto to_gt = closestPointDistances(reconstructed, ground_truth, config.num_threads);
+    if (!to_gt.isOk()) return to_gt.status();
+    auto to_recon = closestPointDistances(ground_truth, reconstructed, config.num_threads);
+    if (!to_recon.isOk()) return to_recon.status();
+    ReconMetrics m;
+    m.num_reconstructed = reconstructed.size();
+    m.num_ground_truth = ground_truth.size();
+    m.threshold_m = config.completeness_threshold_m;
+    m.accuracy = summarize(*to_gt);
+    m.completeness_distances = summarize(*to_recon);
+    m.accuracy_fraction = fractionWithin(*to_gt, config.completeness_threshold_m);
+    m.completeness = fractionWithin(*to_recon, config.completeness_threshold_m);
+    return m;
+}
+
+}  // namespace plumb::eval
