@@ -1,0 +1,53 @@
+// SPDX-License-Identifier: Apache-2.0
+#pragma once
+
+// Ray casting of a TsdfVolume into vertex and normal maps (reference §2.4), the model prediction
+// that frame-to-model ICP aligns against. Unbiased on planes: the zero crossing is found between
+// two trilinear samples and refined by one secant step; trilinear interpolation reproduces a
+// linear field exactly, so a planar TSDF gives the plane to float precision.
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <limits>
+
+#include "common/camera/pinhole.hpp"
+#include "common/image/image.hpp"
+#include "common/tsdf/tsdf_volume.hpp"
+
+namespace plumb::tsdf {
+
+/// Per-pixel 3-D vectors (points or unit normals); invalid pixels hold NaN in every component.
+using PointImage = Image<Eigen::Vector3f>;
+
+/// True when a PointImage pixel holds a value.
+inline bool isValid(const Eigen::Vector3f& p) { return !std::isnan(p.x()); }
+/// The value of an invalid PointImage pixel.
+inline Eigen::Vector3f invalidPoint() {
+    return Eigen::Vector3f::Constant(std::numeric_limits<float>::quiet_NaN());
+}
+
+struct RaycastConfig {
+    /// Marching starts at this z-depth in the camera frame, metres.
+    float min_depth_m = 0.1f;
+    /// Marching stops at this z-depth, metres.
+    float max_depth_m = 4.0f;
+    /// Step in free space = step_fraction * truncation * F (at least one voxel), §2.4.
+    float step_fraction = 0.8f;
+    /// Voxels with a smaller weight count as unobserved.
+    float min_weight = 1.0f;
+    /// Worker threads (0 = TBB default). Results do not depend on it.
+    int num_threads = 0;
+};
+
+struct RaycastResult {
+    PointImage points_V;   ///< surface points in the volume frame (NaN = no hit)
+    PointImage normals_V;  ///< unit normals in the volume frame, facing the camera
+    DepthImage depth;      ///< z-depth of the hit in the camera frame, metres (0 = no hit)
+};
+
+/// Casts one ray per pixel of `camera` placed at T_V_C (camera -> volume). Only + to - crossings
+/// (front faces) are reported; - to + crossings are ignored.
+RaycastResult raycast(const TsdfVolume& volume, const PinholeCamera& camera,
+                      const Eigen::Isometry3d& T_V_C, const RaycastConfig& config = {});
+
+}  // namespace plumb::tsdf

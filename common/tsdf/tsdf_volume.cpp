@@ -1,0 +1,300 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "common/tsdf/tsdf_volume.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include "common/geometry/lie.hpp"
+#include "common/tsdf/parallel.hpp"
+
+namespace plumb::tsdf {
+namespace {
+
+bool keyLess(const BlockKey& a, const BlockKey& b) {
+    if (a.z() != b.z()) return a.z() < b.z();
+    if (a.y() != b.y()) return a.y() < b.y();
+    return a.x() < b.x();
+}
+
+void sortUnique(std::vector<BlockKey>* keys) {
+    std::sort(keys->begin(), keys->end(), keyLess);
+    keys->erase(std::unique(keys->begin(), keys->end()), keys->end());
+}
+
+Eigen::Vector3i floorVec(const Eigen::Vector3f& p) {
+    return {static_cast<int>(std::floor(p.x())), static_cast<int>(std::floor(p.y())),
+            static_cast<int>(std::floor(p.z()))};
+}
+
+/// Appends the keys of every block cell the segment a -> b (in block units) passes through
+/// (Amanatides & Woo 3-D DDA), skipping a key equal to the last one appended.
+void traverseSegment(const Eigen::Vector3f& a, const Eigen::Vector3f& b,
+                     std::vector<BlockKey>* keys) {
+    const Eigen::Vector3f dir = b - a;
+    Eigen::Vector3i cell = floorVec(a);
+    const Eigen::Vector3i last = floorVec(b);
+    int step[3];
+    float t_max[3];
+    float t_delta[3];
+    constexpr float kInf = std::numeric_limits<float>::infinity();
+    for (int i = 0; i < 3; ++i) {
+        if (dir[i] > 0.0f) {
+            step[i] = 1;
+            t_max[i] = (static_cast<float>(cell[i] + 1) - a[i]) / dir[i];
+            t_delta[i] = 1.0f / dir[i];
+        } else if (dir[i] < 0.0f) {
+            step[i] = -1;
+            t_max[i] = (a[i] - static_cast<float>(cell[i])) / -dir[i];
+            t_delta[i] = -1.0f / dir[i];
+        } else {
+            step[i] = 0;
+            t_max[i] = kInf;
+            t_delta[i] = kInf;
+        }
+    }
+    const int max_steps = (last - cell).cwiseAbs().sum() + 1;
+    for (int s = 0; s <= max_steps; ++s) {
+        if (keys->empty() || keys->back() != cell) keys->push_back(cell);
+        if (cell == last) break;
+        int axis = 0;
+        if (t_max[1] < t_max[axis]) axis = 1;
+        if (t_max[2] < t_max[axis]) axis = 2;
+        if (t_max[axis] > 1.0f) break;
+        cell[axis] += step[axis];
+        t_max[axis] += t_delta[axis];
+    }
+}
+
+}  // namespace
+
+Status TsdfConfig::validate() const {
+    if (!(voxel_size_m > 0.0f) || !std::isfinite(voxel_size_m)) {
+        return invalidArgument("tsdf: voxel_size_m must be positive, got " +
+                               std::to_string(voxel_size_m));
+    }
+    if (!(truncation_m >= voxel_size_m)) {
+        return invalidArgument("tsdf: truncation_m must be at least one voxel, got " +
+                               std::to_string(truncation_m));
+    }
+    if (!(max_depth_m > min_depth_m) || !(min_depth_m >= 0.0f)) {
+        return invalidArgument("tsdf: need 0 <= min_depth_m < max_depth_m");
+    }
+    if (!(max_weight >= 1.0f)) return invalidArgument("tsdf: max_weight must be >= 1");
+    if (allocation_stride_px < 1 || allocation_stride_px > 8) {
+        return invalidArgument("tsdf: allocation_stride_px must be in [1, 8]");
+    }
+    if (num_threads < 0) return invalidArgument("tsdf: num_threads must be >= 0");
+    return Status::ok();
+}
+
+TsdfVolume::TsdfVolume(const TsdfConfig& config) : config_(config) {
+    const Status s = config_.validate();
+    PLUMB_CHECK(s.isOk()) << s.toString();
+}
+
+void TsdfVolume::clear() {
+    hash_.clear();
+    block_keys_.clear();
+    voxels_.clear();
+}
+
+std::vector<BlockKey> TsdfVolume::visibleBlocks(const DepthImage& depth,
+                                                const PinholeCamera& camera,
+                                                const Eigen::Isometry3d& T_V_C) const {
+    const int height = depth.height();
+    const int width = depth.width();
+    const int stride = config_.allocation_stride_px;
+    const float mu = config_.truncation_m;
+    const float inv_block = 1.0f / blockSize();
+    const Eigen::Matrix3f R = T_V_C.linear().cast<float>();
+    const Eigen::Vector3f t = T_V_C.translation().cast<float>();
+    // Fixed chunks of rows, independent of the thread count; merged in chunk order.
+    constexpr int kRowsPerChunk = 16;
+    const int num_chunks = (height + kRowsPerChunk - 1) / kRowsPerChunk;
+    std::vector<std::vector<BlockKey>> chunk_keys(static_cast<size_t>(num_chunks));
+    parallelFor(config_.num_threads, num_chunks, [&](int c) {
+        std::vector<BlockKey>& keys = chunk_keys[static_cast<size_t>(c)];
+        const int v_end = std::min(height, (c + 1) * kRowsPerChunk);
+        for (int v = c * kRowsPerChunk; v < v_end; ++v) {
+            if (v % stride != 0) continue;
+            for (int u = 0; u < width; u += stride) {
+                const float d = depth(u, v);
+                if (!(d >= config_.min_depth_m && d <= config_.max_depth_m)) continue;
+                const Eigen::Vector3f ray = camera.ray(u, v).cast<float>();
+                const float z0 = std::max(d - mu, 0.5f * config_.min_depth_m);
+                const Eigen::Vector3f a = (R * (ray * z0) + t) * inv_block;
+                const Eigen::Vector3f b = (R * (ray * (d + mu)) + t) * inv_block;
+                traverseSegment(a, b, &keys);
+            }
+        }
+        sortUnique(&keys);
+    });
+    std::vector<BlockKey> all;
+    size_t total = 0;
+    for (const auto& k : chunk_keys) total += k.size();
+    all.reserve(total);
+    for (const auto& k : chunk_keys) all.insert(all.end(), k.begin(), k.end());
+    sortUnique(&all);
+    return all;
+}
+
+size_t TsdfVolume::countNewBlocks(const DepthImage& depth, const PinholeCamera& camera,
+                                  const Eigen::Isometry3d& T_V_C) const {
+    size_t n = 0;
+    for (const BlockKey& k : visibleBlocks(depth, camera, T_V_C)) {
+        if (hash_.find(k) == BlockHashMap::kNotFound) ++n;
+    }
+    return n;
+}
+
+Result<IntegrationStats> TsdfVolume::integrate(const DepthImage& depth, const PinholeCamera& camera,
+                                               const Eigen::Isometry3d& T_V_C) {
+    if (depth.width() != camera.width || depth.height() != camera.height) {
+        return invalidArgument("tsdf integrate: depth is " + std::to_string(depth.width()) + "x" +
+                               std::to_string(depth.height()) + " but the camera is " +
+                               camera.toString());
+    }
+    if (!lie::isValidPose(T_V_C, 1e-4)) {
+        return invalidArgument("tsdf integrate: camera pose is not a finite rigid transform");
+    }
+    const std::vector<BlockKey> keys = visibleBlocks(depth, camera, T_V_C);
+    std::vector<int32_t> indices(keys.size());
+    size_t num_new = 0;
+    for (size_t i = 0; i < keys.size(); ++i) {
+        indices[i] = hash_.find(keys[i]);
+        if (indices[i] == BlockHashMap::kNotFound) ++num_new;
+    }
+    if (config_.max_blocks > 0 && block_keys_.size() + num_new > config_.max_blocks) {
+        return failedPrecondition("tsdf integrate: block budget of " +
+                                  std::to_string(config_.max_blocks) + " blocks reached (" +
+                                  std::to_string(block_keys_.size()) + " allocated, frame needs " +
+                                  std::to_string(num_new) + " more)");
+    }
+    IntegrationStats stats;
+    stats.blocks_visible = keys.size();
+    stats.blocks_allocated = num_new;
+    const size_t needed = voxels_.size() + num_new * kBlockVoxels;
+    if (needed > voxels_.capacity()) voxels_.reserve(std::max(needed, 2 * voxels_.capacity()));
+    for (size_t i = 0; i < keys.size(); ++i) {
+        if (indices[i] != BlockHashMap::kNotFound) continue;
+        indices[i] = static_cast<int32_t>(block_keys_.size());
+        hash_.insert(keys[i], indices[i]);
+        block_keys_.push_back(keys[i]);
+        voxels_.resize(voxels_.size() + kBlockVoxels);
+    }
+    stats.blocks_total = block_keys_.size();
+
+    // Camera <- volume transform in float; voxel centres are g * voxel_size.
+    const Eigen::Isometry3d T_C_V = T_V_C.inverse();
+    const Eigen::Matrix3f R = T_C_V.linear().cast<float>();
+    const Eigen::Vector3f t = T_C_V.translation().cast<float>();
+    const float vs = config_.voxel_size_m;
+    const Eigen::Vector3f dx = R.col(0) * vs;
+    const Eigen::Vector3f dy = R.col(1) * vs;
+    const Eigen::Vector3f dz = R.col(2) * vs;
+    const float fx = static_cast<float>(camera.fx), fy = static_cast<float>(camera.fy);
+    const float cx = static_cast<float>(camera.cx), cy = static_cast<float>(camera.cy);
+    const float mu = config_.truncation_m;
+    const float inv_mu = 1.0f / mu;
+    const int width = depth.width(), height = depth.height();
+    const float min_d = config_.min_depth_m, max_d = config_.max_depth_m;
+    const float max_w = config_.max_weight;
+
+    parallelFor(config_.num_threads, static_cast<int>(keys.size()), [&](int i) {
+        const BlockKey& key = keys[static_cast<size_t>(i)];
+        Voxel* voxels = blockVoxels(indices[static_cast<size_t>(i)]);
+        const Eigen::Vector3f origin_V = (key * kBlockSide).cast<float>() * vs;
+        const Eigen::Vector3f base = R * origin_V + t;
+        for (int z = 0; z < kBlockSide; ++z) {
+            for (int y = 0; y < kBlockSide; ++y) {
+                Eigen::Vector3f p = base + static_cast<float>(z) * dz + static_cast<float>(y) * dy;
+                Voxel* row = voxels + z * 64 + y * 8;
+                for (int x = 0; x < kBlockSide; ++x, p += dx) {
+                    if (p.z() <= 0.0f) continue;
+                    const float inv_z = 1.0f / p.z();
+                    const int u = static_cast<int>(std::floor(fx * p.x() * inv_z + cx + 0.5f));
+                    const int v = static_cast<int>(std::floor(fy * p.y() * inv_z + cy + 0.5f));
+                    if (u < 0 || v < 0 || u >= width || v >= height) continue;
+                    const float d = depth(u, v);
+                    if (!(d >= min_d && d <= max_d)) continue;
+                    const float sdf = d - p.z();  // §2.3 projective distance, + in front
+                    if (sdf < -mu) continue;
+                    const float f = std::min(1.0f, sdf * inv_mu);
+                    Voxel& vox = row[x];
+                    const float w = vox.weight;
+                    vox.tsdf = (w * vox.tsdf + f) / (w + 1.0f);
+                    vox.weight = std::min(w + 1.0f, max_w);
+                }
+            }
+        }
+    });
+    return stats;
+}
+
+int32_t TsdfVolume::allocateBlock(const BlockKey& key) {
+    const int32_t found = hash_.find(key);
+    if (found != BlockHashMap::kNotFound) return found;
+    if (config_.max_blocks > 0 && block_keys_.size() >= config_.max_blocks) return -1;
+    const auto index = static_cast<int32_t>(block_keys_.size());
+    hash_.insert(key, index);
+    block_keys_.push_back(key);
+    voxels_.resize(voxels_.size() + kBlockVoxels);
+    return index;
+}
+
+const Voxel* TsdfVolume::voxel(const Eigen::Vector3i& g) const {
+    const int32_t b = hash_.find(blockOf(g));
+    if (b == BlockHashMap::kNotFound) return nullptr;
+    return blockVoxels(b) + voxelIndexInBlock(g);
+}
+
+bool TsdfVolume::interpolate(const Eigen::Vector3f& p, float min_weight, float* tsdf) const {
+    const Eigen::Vector3f q = p / config_.voxel_size_m;
+    const Eigen::Vector3f f = q.array().floor();
+    const Eigen::Vector3i g = f.cast<int>();
+    const Eigen::Vector3f a = q - f;
+    float c[8];
+    if ((g.x() & 7) < 7 && (g.y() & 7) < 7 && (g.z() & 7) < 7) {
+        // Fast path: all 8 voxels in one block.
+        const int32_t b = hash_.find(blockOf(g));
+        if (b == BlockHashMap::kNotFound) return false;
+        const Voxel* base = blockVoxels(b) + voxelIndexInBlock(g);
+        for (int i = 0; i < 8; ++i) {
+            const Voxel& v = base[(i & 1) + ((i >> 1) & 1) * 8 + ((i >> 2) & 1) * 64];
+            if (!(v.weight >= min_weight)) return false;
+            c[i] = v.tsdf;
+        }
+    } else {
+        for (int i = 0; i < 8; ++i) {
+            const Voxel* v = voxel(g + Eigen::Vector3i(i & 1, (i >> 1) & 1, (i >> 2) & 1));
+            if (v == nullptr || !(v->weight >= min_weight)) return false;
+            c[i] = v->tsdf;
+        }
+    }
+    const float c00 = c[0] + a.x() * (c[1] - c[0]);
+    const float c10 = c[2] + a.x() * (c[3] - c[2]);
+    const float c01 = c[4] + a.x() * (c[5] - c[4]);
+    const float c11 = c[6] + a.x() * (c[7] - c[6]);
+    const float c0 = c00 + a.y() * (c10 - c00);
+    const float c1 = c01 + a.y() * (c11 - c01);
+    *tsdf = c0 + a.z() * (c1 - c0);
+    return true;
+}
+
+bool TsdfVolume::gradient(const Eigen::Vector3f& p, float min_weight, Eigen::Vector3f* grad) const {
+    const float h = config_.voxel_size_m;
+    for (int i = 0; i < 3; ++i) {
+        Eigen::Vector3f e = Eigen::Vector3f::Zero();
+        e[i] = h;
+        float fp = 0.0f, fm = 0.0f;
+        if (!interpolate(p + e, min_weight, &fp) || !interpolate(p - e, min_weight, &fm)) {
+            return false;
+        }
+        (*grad)[i] = (fp - fm) / (2.0f * h);
+    }
+    return true;
+}
+
+}  // namespace plumb::tsdf

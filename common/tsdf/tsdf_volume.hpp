@@ -1,0 +1,139 @@
+// SPDX-License-Identifier: Apache-2.0
+#pragma once
+
+// Voxel-hashed truncated signed distance volume (reference §2.3, §2.5). Space is cut into blocks of
+// 8^3 voxels; only blocks near observed surfaces exist. A voxel holds a float TSDF value in [-1, 1]
+// (signed distance / truncation, positive in free space) and a float weight: 8 bytes.
+//
+// Grid convention: voxel g = (i, j, k) (global integer index) has its centre at g * voxel_size_m in
+// the volume's frame V (the world frame of the poses passed to integrate()). Block key b holds the
+// voxels g with floor(g / 8) == b. Trilinear samples at a point p use the 8 voxels around p /
+// voxel_size_m.
+//
+// Thread-safety: const member functions may run concurrently; integrate() and clear() need
+// exclusive access. Results never depend on the thread count.
+
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <vector>
+
+#include "common/camera/pinhole.hpp"
+#include "common/core/status.hpp"
+#include "common/image/image.hpp"
+#include "common/tsdf/block_hash.hpp"
+
+namespace plumb::tsdf {
+
+constexpr int kBlockSide = 8;                                       ///< voxels per block edge
+constexpr int kBlockVoxels = kBlockSide * kBlockSide * kBlockSide;  ///< voxels per block
+
+struct Voxel {
+    float tsdf = 1.0f;    ///< signed distance / truncation, in [-1, 1]; positive = free space
+    float weight = 0.0f;  ///< accumulated observation weight; 0 = never observed
+};
+static_assert(sizeof(Voxel) == 8, "a voxel must stay 8 bytes");
+
+struct TsdfConfig {
+    /// Edge length of a voxel, metres (KinFu: 3 m / 512 = 5.86 mm).
+    float voxel_size_m = 3.0f / 512.0f;
+    /// Truncation distance mu, metres: the band [-mu, +mu] around surfaces that is fused.
+    float truncation_m = 0.04f;
+    /// Depth readings beyond this are ignored during integration, metres.
+    float max_depth_m = 4.0f;
+    /// Depth readings below this are ignored during integration, metres.
+    float min_depth_m = 0.1f;
+    /// Weights saturate here (KinFu W_max = 128), so old observations can be overruled.
+    float max_weight = 128.0f;
+    /// Maximum number of allocated blocks (4 KiB each); 0 = unlimited. integrate() refuses a frame
+    /// whose new blocks would exceed it (the caller closes the fragment).
+    size_t max_blocks = 0;
+    /// Pixel stride of block allocation (1 = every pixel). Blocks are 8 voxels wide, so a stride
+    /// of 2 still touches every block a surface passes through at normal range.
+    int allocation_stride_px = 2;
+    /// Worker threads (0 = TBB default). Results do not depend on it.
+    int num_threads = 0;
+
+    Status validate() const;
+};
+
+/// What one integrate() call did.
+struct IntegrationStats {
+    size_t blocks_visible = 0;    ///< blocks touched by the frame's truncation band (integrated)
+    size_t blocks_allocated = 0;  ///< of these, newly created
+    size_t blocks_total = 0;      ///< allocated blocks after the call
+};
+
+class TsdfVolume {
+  public:
+    explicit TsdfVolume(const TsdfConfig& config = {});
+
+    const TsdfConfig& config() const { return config_; }
+    float voxelSize() const { return config_.voxel_size_m; }
+    float blockSize() const { return config_.voxel_size_m * kBlockSide; }
+
+    /// Fuses a depth image (metres, 0 = invalid) seen by `camera` at pose T_V_C (camera -> volume).
+    /// Allocates the blocks crossed by each pixel's segment [d - mu, d + mu] (exact 3-D DDA), then
+    /// updates every voxel of those blocks with the projective distance of §2.3:
+    /// sdf = D(u) - z_C, skipped when sdf < -mu; F <- (W F + min(1, sdf/mu)) / (W + 1).
+    /// Fails with kFailedPrecondition (volume unchanged) when the block budget would be exceeded,
+    /// and with kInvalidArgument when the image size does not match the camera.
+    Result<IntegrationStats> integrate(const DepthImage& depth, const PinholeCamera& camera,
+                                       const Eigen::Isometry3d& T_V_C);
+
+    /// Number of blocks the frame would add to the volume (for budget checks), without changing it.
+    size_t countNewBlocks(const DepthImage& depth, const PinholeCamera& camera,
+                          const Eigen::Isometry3d& T_V_C) const;
+
+    /// Index of block `key`, creating it (all voxels unobserved) when missing. Returns -1 when the
+    /// block budget is reached. For tests and for writers of analytic fields.
+    int32_t allocateBlock(const BlockKey& key);
+
+    /// Removes every block.
+    void clear();
+
+    size_t numBlocks() const { return block_keys_.size(); }
+    size_t memoryBytes() const { return voxels_.size() * sizeof(Voxel); }
+    const std::vector<BlockKey>& blockKeys() const { return block_keys_; }
+
+    /// Index of block `key` or -1.
+    int32_t findBlock(const BlockKey& key) const { return hash_.find(key); }
+    /// The 512 voxels of block `index` (x fastest, then y, then z).
+    const Voxel* blockVoxels(int32_t index) const {
+        return voxels_.data() + static_cast<size_t>(index) * kBlockVoxels;
+    }
+    Voxel* blockVoxels(int32_t index) {
+        return voxels_.data() + static_cast<size_t>(index) * kBlockVoxels;
+    }
+
+    /// The voxel at global index g, or nullptr when its block does not exist.
+    const Voxel* voxel(const Eigen::Vector3i& g) const;
+
+    /// Trilinear TSDF at point p (volume frame, metres). False when a block is missing or one of
+    /// the 8 voxels has weight < min_weight (pass min_weight > 0: weight 0 = never observed).
+    bool interpolate(const Eigen::Vector3f& p, float min_weight, float* tsdf) const;
+
+    /// Gradient of the trilinear TSDF at p by central differences one voxel apart (units 1/m).
+    /// False when a sample is unavailable.
+    bool gradient(const Eigen::Vector3f& p, float min_weight, Eigen::Vector3f* grad) const;
+
+  private:
+    /// Sorted, unique keys of the blocks crossed by the frame's truncation band.
+    std::vector<BlockKey> visibleBlocks(const DepthImage& depth, const PinholeCamera& camera,
+                                        const Eigen::Isometry3d& T_V_C) const;
+
+    TsdfConfig config_;
+    BlockHashMap hash_;
+    std::vector<BlockKey> block_keys_;  ///< key of block i
+    std::vector<Voxel> voxels_;         ///< block i occupies [i * 512, (i + 1) * 512)
+};
+
+/// Block key holding global voxel g.
+inline BlockKey blockOf(const Eigen::Vector3i& g) {
+    return {g.x() >> 3, g.y() >> 3, g.z() >> 3};  // arithmetic shift = floor division by 8
+}
+/// Index of voxel g inside its block.
+inline int voxelIndexInBlock(const Eigen::Vector3i& g) {
+    return (g.x() & 7) + 8 * (g.y() & 7) + 64 * (g.z() & 7);
+}
+
+}  // namespace plumb::tsdf
