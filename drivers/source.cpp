@@ -3,6 +3,8 @@
 
 #include <filesystem>
 
+#include "drivers/dataset/dataset.hpp"
+
 namespace plumb {
 
 Result<std::unique_ptr<FrameSource>> openFrameSource(const std::string& uri,
@@ -13,6 +15,15 @@ Result<std::unique_ptr<FrameSource>> openFrameSource(const std::string& uri,
     const std::string rest = colon == std::string::npos ? uri : uri.substr(colon + 1);
     if (scheme.empty() && std::filesystem::is_directory(uri)) {
         return openFrameSource("dataset:" + uri, options);
+    }
+    if (scheme == "dataset") {
+        dataset::DatasetConfig config;
+        config.intrinsics = options.intrinsics;
+        config.depth_scale = options.depth_scale;
+        config.max_frames = options.max_frames;
+        auto source = dataset::DatasetSource::open(rest, config);
+        if (!source.isOk()) return source.status();
+        return std::unique_ptr<FrameSource>(std::move(source).value());
     }
     return unsupported("unknown frame source '" + uri + "' (scheme '" + scheme + "', target '" +
                        rest + "'); use dataset:<dir> or sim:<scene>");

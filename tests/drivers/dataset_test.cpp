@@ -1,0 +1,525 @@
+// SPDX-License-Identifier: Apache-2.0
+// drivers/dataset: layout detection, frame listing, ground truth, intrinsics priorities and the
+// specific errors for damaged folders. Real folders from ../shared/data, tiny synthetic folders
+// written here with OpenCV.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <string>
+#include <vector>
+
+#include "common/camera/pinhole.hpp"
+#include "common/image/image.hpp"
+#include "drivers/dataset/dataset.hpp"
+#include "drivers/dataset/depth_png.hpp"
+#include "drivers/dataset/intrinsics_file.hpp"
+#include "drivers/source.hpp"
+#include "tests/testing/shared_data.hpp"
+
+namespace plumb::dataset {
+namespace {
+
+namespace fs = std::filesystem;
+
+void writeText(const fs::path& path, const std::string& text) {
+    fs::create_directories(path.parent_path());
+    std::ofstream out(path, std::ios::binary | std::ios::trunc);
+    out << text;
+    ASSERT_TRUE(out.good()) << path;
+}
+
+/// A 16-bit depth image whose raw value at (u, v) is base + u + 7 v, with column 0 invalid.
+cv::Mat rampDepth(int width, int height, int base) {
+    cv::Mat m(height, width, CV_16UC1);
+    for (int v = 0; v < height; ++v) {
+        for (int u = 0; u < width; ++u) {
+            m.at<uint16_t>(v, u) = u == 0 ? 0 : static_cast<uint16_t>(base + u + 7 * v);
+        }
+    }
+    return m;
+}
+
+void writePng(const fs::path& path, const cv::Mat& image) {
+    fs::create_directories(path.parent_path());
+    ASSERT_TRUE(cv::imwrite(path.string(), image)) << path;
+}
+
+/// A tiny plumb-layout folder (depth.txt + intrinsics.json, 160x120, scale 1000).
+fs::path writePlumbFolder(const std::string& name, const std::vector<std::string>& files) {
+    const fs::path dir = plumb::testing::freshTempDir(name);
+    writeText(dir / "intrinsics.json",
+              R"({"width": 160, "height": 120, "fx": 131.25, "fy": 131.25, "cx": 79.5,)"
+              R"( "cy": 59.5, "depth_scale": 1000})");
+    std::string list = "# timestamp filename\n";
+    for (size_t k = 0; k < files.size(); ++k) {
+        list += std::to_string(10.0 + 0.1 * static_cast<double>(k)) + " " + files[k] + "\n";
+    }
+    writeText(dir / "depth.txt", list);
+    return dir;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Real data.
+
+TEST(DatasetReal, TumLoadsAllFramesWithInterpolatedGroundTruth) {
+    PLUMB_REQUIRE_SHARED_DATA(path, "tum-fr3-structure-notexture-far");
+    const std::filesystem::path dir = path;
+    auto source = DatasetSource::open(dir);
+    ASSERT_TRUE(source.isOk()) << source.status().toString();
+    const DatasetInfo& info = (*source)->info();
+    EXPECT_EQ(info.layout, Layout::kTumRgbd);
+    EXPECT_EQ(info.frames.size(), 252u);
+    EXPECT_EQ((*source)->size(), std::optional<size_t>(252));
+    // "freiburg3" in depth.txt's comments selects the fr3 intrinsics.
+    EXPECT_DOUBLE_EQ(info.camera.fx, 535.4);
+    EXPECT_DOUBLE_EQ(info.camera.fy, 539.2);
+    EXPECT_DOUBLE_EQ(info.depth_scale, 5000.0);
+
+    // The motion capture starts at 1341836537.8070: the first four depth frames precede it by
+    // more than the 0.02 s association tolerance and have no GT; every later frame has one.
+    const double first_gt_s = 1341836537.8070;
+    size_t expected_with_gt = 0;
+    for (const auto& f : info.frames) {
+        const bool covered = f.timestamp_s > first_gt_s - 0.02;
+        expected_with_gt += covered ? 1 : 0;
+        EXPECT_EQ(f.T_W_C_gt.has_value(), covered) << f.name;
+    }
+    EXPECT_EQ(expected_with_gt, 248u);
+    EXPECT_EQ(info.framesWithGroundTruth(), 248u);
+    std::printf("[ summary  ] %s\n", info.summary().c_str());
+
+    // Frame 5 (537.823406) lies between GT samples 537.8183 and 537.8269: its position is their
+    // linear blend to well under a millimetre (the two samples are 8.6 ms apart).
+    const Eigen::Vector3d p_a(-1.2424, 1.9218, 1.0546), p_b(-1.2416, 1.9215, 1.0546);
+    const double alpha =
+        (1341836537.823406 - 1341836537.8183) / (1341836537.8269 - 1341836537.8183);
+    ASSERT_TRUE(info.frames[5].T_W_C_gt.has_value());
+    EXPECT_LT((info.frames[5].T_W_C_gt->translation() - (p_a + alpha * (p_b - p_a))).norm(), 1e-5);
+
+    size_t min_valid = 640 * 480, max_valid = 0;
+    for (size_t k = 0; k < 252; ++k) {
+        auto frame = (*source)->next();
+        ASSERT_TRUE(frame.isOk()) << k << ": " << frame.status().toString();
+        EXPECT_EQ(frame->index, static_cast<int64_t>(k));
+        EXPECT_EQ(frame->depth.width(), 640);
+        EXPECT_EQ(frame->depth.height(), 480);
+        EXPECT_EQ(frame->name, info.frames[k].name);
+        EXPECT_DOUBLE_EQ(frame->timestamp_s, info.frames[k].timestamp_s);
+        const size_t valid = countValid(frame->depth);
+        min_valid = std::min(min_valid, valid);
+        max_valid = std::max(max_valid, valid);
+        // Kinect v1 range: every valid depth in (0.4, 10) m.
+        for (float d : frame->depth.pixels()) {
+            if (d > 0.0f) {
+                ASSERT_TRUE(d > 0.4f && d < 10.0f) << frame->name << " " << d;
+            }
+        }
+    }
+    std::printf("[ valid px ] TUM min %zu max %zu of 307200\n", min_valid, max_valid);
+    EXPECT_GT(min_valid, 640u * 480u / 2);  // textureless planes: the sensor sees most of them
+    auto end = (*source)->next();
+    ASSERT_FALSE(end.isOk());
+    EXPECT_EQ(end.status().code(), StatusCode::kOutOfRange);
+}
+
+TEST(DatasetReal, IclNuimLoadsListedFramesWithIndexGroundTruth) {
+    PLUMB_REQUIRE_SHARED_DATA(path, "icl-nuim-office-kt0");
+    const std::filesystem::path dir = path;
+    auto source = openFrameSource("dataset:" + dir.string());
+    ASSERT_TRUE(source.isOk()) << source.status().toString();
+    auto scanned = scanDataset(dir);
+    ASSERT_TRUE(scanned.isOk()) << scanned.status().toString();
+    const DatasetInfo& info = *scanned;
+    EXPECT_EQ(info.layout, Layout::kIclNuim);
+    EXPECT_DOUBLE_EQ(info.camera.fx, 481.20);
+    EXPECT_DOUBLE_EQ(info.camera.fy, -480.00);
+    EXPECT_DOUBLE_EQ(info.depth_scale, 5000.0);
+    // depth.txt lists frames 2..101 (depth/1.png is present but unlisted and has no GT line).
+    ASSERT_EQ(info.frames.size(), 100u);
+    EXPECT_EQ((*source)->size(), std::optional<size_t>(100));
+    EXPECT_EQ(info.framesWithGroundTruth(), 100u);
+    std::printf("[ summary  ] %s\n", info.summary().c_str());
+    for (size_t k = 0; k < info.frames.size(); ++k) {
+        EXPECT_DOUBLE_EQ(info.frames[k].timestamp_s, static_cast<double>(k + 2));
+    }
+    // groundtruth.txt line "2 0.000472546 0.00897074 -2.5 ..." belongs to the first frame.
+    EXPECT_LT(
+        (info.frames[0].T_W_C_gt->translation() - Eigen::Vector3d(0.000472546, 0.00897074, -2.5))
+            .norm(),
+        1e-9);
+
+    size_t min_valid = 640 * 480, max_valid = 0, min_in_room = 640 * 480;
+    for (size_t k = 0; k < 100; ++k) {
+        auto frame = (*source)->next();
+        ASSERT_TRUE(frame.isOk()) << k << ": " << frame.status().toString();
+        EXPECT_EQ(frame->depth.width(), 640);
+        EXPECT_EQ(frame->depth.height(), 480);
+        ASSERT_TRUE(frame->T_W_C_gt.has_value()) << frame->name;
+        const size_t valid = countValid(frame->depth);
+        min_valid = std::min(min_valid, valid);
+        max_valid = std::max(max_valid, valid);
+        // The noisy release has a few speckles near the camera; the room itself is 0.3-10 m away.
+        size_t in_room = 0;
+        for (float d : frame->depth.pixels()) in_room += (d > 0.3f && d < 10.0f) ? 1 : 0;
+        EXPECT_GT(in_room, valid * 99 / 100) << frame->name;
+        min_in_room = std::min(min_in_room, in_room);
+    }
+    std::printf("[ valid px ] ICL min %zu max %zu of 307200; min in 0.3-10 m %zu\n", min_valid,
+                max_valid, min_in_room);
+    EXPECT_GT(min_valid, 640u * 480u * 8 / 10);  // a closed synthetic room: nearly all valid
+    EXPECT_EQ((*source)->next().status().code(), StatusCode::kOutOfRange);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Synthetic layouts.
+
+TEST(DatasetSynthetic, RedwoodOrdersNumericallyAndReadsLogTrajectory) {
+    const fs::path dir = plumb::testing::freshTempDir("dataset-redwood");
+    const std::vector<int> ids = {0, 1, 2, 10};  // numeric order, not "0 1 10 2"
+    for (int id : ids)
+        writePng(dir / "depth" / (std::to_string(id) + ".png"),
+                 rampDepth(640, 480, 1000 * (id + 1)));
+    // Camera->world poses for frames 0, 1, 2; frame 10 has no entry.
+    std::string log;
+    for (int id = 0; id < 3; ++id) {
+        log += std::to_string(id) + " " + std::to_string(id) + " " + std::to_string(id + 1) + "\n";
+        log += "1 0 0 " + std::to_string(0.5 * id) + "\n0 0 -1 0.25\n0 1 0 -1\n0 0 0 1\n";
+    }
+    writeText(dir / "trajectory.log", log);
+
+    auto source = DatasetSource::open(dir);
+    ASSERT_TRUE(source.isOk()) << source.status().toString();
+    const DatasetInfo& info = (*source)->info();
+    EXPECT_EQ(info.layout, Layout::kRedwood);
+    EXPECT_DOUBLE_EQ(info.camera.fx, 525.0);  // primesense default
+    EXPECT_DOUBLE_EQ(info.depth_scale, 1000.0);
+    ASSERT_EQ(info.frames.size(), 4u);
+    EXPECT_EQ(info.framesWithGroundTruth(), 3u);
+    for (size_t k = 0; k < ids.size(); ++k) {
+        auto frame = (*source)->next();
+        ASSERT_TRUE(frame.isOk()) << frame.status().toString();
+        EXPECT_EQ(frame->name, "depth/" + std::to_string(ids[k]) + ".png");
+        EXPECT_DOUBLE_EQ(frame->timestamp_s, ids[k]);
+        // raw = 1000 (id + 1) + u + 7 v millimetres; column 0 invalid.
+        EXPECT_FLOAT_EQ(frame->depth(3, 2), (1000.0f * (ids[k] + 1) + 3 + 14) / 1000.0f);
+        EXPECT_EQ(frame->depth(0, 5), 0.0f);
+        if (ids[k] < 3) {
+            ASSERT_TRUE(frame->T_W_C_gt.has_value());
+            Eigen::Matrix4d m;
+            m << 1, 0, 0, 0.5 * ids[k], 0, 0, -1, 0.25, 0, 1, 0, -1, 0, 0, 0, 1;
+            EXPECT_LT((frame->T_W_C_gt->matrix() - m).cwiseAbs().maxCoeff(), 1e-12);
+        } else {
+            EXPECT_FALSE(frame->T_W_C_gt.has_value());
+        }
+    }
+}
+
+TEST(DatasetSynthetic, SevenScenesMapsInvalidAndReadsPoseFiles) {
+    const fs::path dir = plumb::testing::freshTempDir("dataset-7scenes");
+    for (int id = 0; id < 3; ++id) {
+        cv::Mat depth = rampDepth(640, 480, 2000);
+        depth.at<uint16_t>(10, 20) = 65535;  // 7-Scenes' invalid marker
+        char stem[32];
+        std::snprintf(stem, sizeof(stem), "frame-%06d", id);
+        writePng(dir / (std::string(stem) + ".depth.png"), depth);
+        writePng(dir / (std::string(stem) + ".color.png"),
+                 cv::Mat(480, 640, CV_8UC3, cv::Scalar(1, 2, 3)));
+        if (id == 1) {
+            writeText(dir / (std::string(stem) + ".pose.txt"), "1 0 0\n0 nan 0\n");
+        } else {
+            writeText(dir / (std::string(stem) + ".pose.txt"),
+                      "0 -1 0 " + std::to_string(id) + "\n1 0 0 2\n0 0 1 3\n0 0 0 1\n");
+        }
+    }
+    auto source = DatasetSource::open(dir);
+    ASSERT_TRUE(source.isOk()) << source.status().toString();
+    const DatasetInfo& info = (*source)->info();
+    EXPECT_EQ(info.layout, Layout::kSevenScenes);
+    EXPECT_DOUBLE_EQ(info.camera.fx, 585.0);
+    EXPECT_DOUBLE_EQ(info.camera.cx, 320.0);
+    EXPECT_DOUBLE_EQ(info.depth_scale, 1000.0);
+    ASSERT_EQ(info.frames.size(), 3u);
+
+    auto f0 = (*source)->next();
+    ASSERT_TRUE(f0.isOk()) << f0.status().toString();
+    EXPECT_EQ(f0->name, "frame-000000.depth.png");
+    EXPECT_EQ(f0->depth(20, 10), 0.0f);  // 65535 -> invalid
+    EXPECT_FLOAT_EQ(f0->depth(21, 10), (2000.0f + 21 + 70) / 1000.0f);
+    ASSERT_TRUE(f0->T_W_C_gt.has_value());
+    EXPECT_TRUE(f0->T_W_C_gt->translation().isApprox(Eigen::Vector3d(0, 2, 3)));
+    EXPECT_TRUE(f0->T_W_C_gt->linear().isApprox(
+        Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()).toRotationMatrix()));
+
+    auto f1 = (*source)->next();  // malformed pose file: an error for that frame only
+    ASSERT_FALSE(f1.isOk());
+    EXPECT_EQ(f1.status().code(), StatusCode::kCorrupt);
+    EXPECT_NE(f1.status().message().find("frame-000001.pose.txt"), std::string::npos)
+        << f1.status().message();
+    EXPECT_TRUE((*source)->canSkipErrors());
+
+    auto f2 = (*source)->next();
+    ASSERT_TRUE(f2.isOk()) << f2.status().toString();
+    EXPECT_EQ(f2->index, 2);
+    EXPECT_DOUBLE_EQ(f2->T_W_C_gt->translation().x(), 2.0);
+}
+
+TEST(DatasetSynthetic, PlumbLayoutTakesIntrinsicsFromFileAndOptionsOverride) {
+    const fs::path dir = writePlumbFolder("dataset-plumb", {"depth/0.png"});
+    writePng(dir / "depth/0.png", rampDepth(160, 120, 1500));
+    writeText(dir / "groundtruth.txt", "10.0 1 2 3 0 0 0 1\n10.05 1 2 3 0 0 0 1\n");
+
+    auto info = scanDataset(dir);
+    ASSERT_TRUE(info.isOk()) << info.status().toString();
+    EXPECT_EQ(info->layout, Layout::kPlumb);
+    EXPECT_EQ(info->camera.width, 160);
+    EXPECT_DOUBLE_EQ(info->camera.fx, 131.25);
+    EXPECT_DOUBLE_EQ(info->depth_scale, 1000.0);
+    EXPECT_EQ(info->framesWithGroundTruth(), 1u);
+    auto frame = loadFrame(*info, 0);
+    ASSERT_TRUE(frame.isOk()) << frame.status().toString();
+    EXPECT_FLOAT_EQ(frame->depth(1, 1), 1.508f);
+
+    // SourceOptions-style overrides: the depth scale option beats the file.
+    DatasetConfig scale2000;
+    scale2000.depth_scale = 2000.0;
+    auto halved = scanDataset(dir, scale2000);
+    ASSERT_TRUE(halved.isOk());
+    EXPECT_DOUBLE_EQ(halved->depth_scale, 2000.0);
+    EXPECT_FLOAT_EQ(loadFrame(*halved, 0)->depth(1, 1), 0.754f);
+
+    // An intrinsics text file named by the option beats intrinsics.json.
+    const fs::path text = dir / "cam.txt";
+    writeText(text, "# width height fx fy cx cy\n160 120 100 -101 80 60\n");
+    DatasetConfig from_text;
+    from_text.intrinsics = text.string();
+    auto overridden = scanDataset(dir, from_text);
+    ASSERT_TRUE(overridden.isOk()) << overridden.status().toString();
+    EXPECT_DOUBLE_EQ(overridden->camera.fy, -101.0);
+    EXPECT_DOUBLE_EQ(overridden->depth_scale, 1000.0);  // still from intrinsics.json
+
+    // A preset name works the same way; the wrong size then fails on the image.
+    DatasetConfig preset;
+    preset.intrinsics = "primesense";
+    auto primesense = scanDataset(dir, preset);
+    ASSERT_TRUE(primesense.isOk());
+    EXPECT_EQ(primesense->camera.width, 640);
+    auto wrong = loadFrame(*primesense, 0);
+    ASSERT_FALSE(wrong.isOk());
+    EXPECT_EQ(wrong.status().code(), StatusCode::kCorrupt);
+    EXPECT_NE(wrong.status().message().find("expected 640x480, got 160x120"), std::string::npos);
+
+    DatasetConfig bogus;
+    bogus.intrinsics = "no-such-camera";
+    auto bad = scanDataset(dir, bogus);
+    ASSERT_FALSE(bad.isOk());
+    EXPECT_EQ(bad.status().code(), StatusCode::kNotFound);
+    EXPECT_NE(bad.status().message().find("no-such-camera"), std::string::npos);
+
+    // openFrameSource maps SourceOptions onto the same priorities (and bare folders work).
+    SourceOptions options;
+    options.intrinsics = "ci";
+    options.depth_scale = 4000.0;
+    auto src = openFrameSource(dir.string(), options);
+    ASSERT_TRUE(src.isOk()) << src.status().toString();
+    EXPECT_DOUBLE_EQ((*src)->camera().fx, 131.25);
+    auto f = (*src)->next();
+    ASSERT_TRUE(f.isOk()) << f.status().toString();
+    EXPECT_FLOAT_EQ(f->depth(1, 1), 1508.0f / 4000.0f);
+}
+
+TEST(DatasetSynthetic, DetectionRuleSeparatesIclFromTum) {
+    // Integer first columns in depth.txt and groundtruth.txt: ICL-NUIM.
+    const fs::path icl = plumb::testing::freshTempDir("dataset-detect-icl");
+    writeText(icl / "depth.txt", "0 depth/0.png\n1 depth/1.png\n");
+    writeText(icl / "groundtruth.txt", "0 0 0 0 0 0 0 1\n1 0 0 0.1 0 0 0 1\n");
+    auto a = scanDataset(icl);
+    ASSERT_TRUE(a.isOk()) << a.status().toString();
+    EXPECT_EQ(a->layout, Layout::kIclNuim);
+    EXPECT_DOUBLE_EQ(a->camera.fy, -480.0);
+    ASSERT_EQ(a->framesWithGroundTruth(), 2u);
+    EXPECT_DOUBLE_EQ(a->frames[1].T_W_C_gt->translation().z(), 0.1);
+
+    // Fractional stamps: TUM; "freiburg2" in a comment picks the fr2 intrinsics.
+    const fs::path tum = plumb::testing::freshTempDir("dataset-detect-tum");
+    writeText(tum / "depth.txt",
+              "# file: 'rgbd_dataset_freiburg2_desk.bag'\n100.000 depth/a.png\n100.033 "
+              "depth/b.png\n");
+    writeText(tum / "groundtruth.txt", "99.99 0 0 0 0 0 0 1\n100.01 0 0 0.2 0 0 0 1\n");
+    auto b = scanDataset(tum);
+    ASSERT_TRUE(b.isOk()) << b.status().toString();
+    EXPECT_EQ(b->layout, Layout::kTumRgbd);
+    EXPECT_DOUBLE_EQ(b->camera.fx, 520.9);
+    // Frame 100.000 is interpolated half way; 100.033 is 0.023 s past the last sample: no GT.
+    ASSERT_TRUE(b->frames[0].T_W_C_gt.has_value());
+    EXPECT_NEAR(b->frames[0].T_W_C_gt->translation().z(), 0.1, 1e-9);
+    EXPECT_FALSE(b->frames[1].T_W_C_gt.has_value());
+
+    // Integer depth indices but fractional GT stamps: not ICL (TUM rule), default primesense.
+    const fs::path mixed = plumb::testing::freshTempDir("dataset-detect-mixed");
+    writeText(mixed / "depth.txt", "1 depth/1.png\n");
+    writeText(mixed / "groundtruth.txt", "1.0 0 0 0 0 0 0 1\n");
+    auto c = scanDataset(mixed);
+    ASSERT_TRUE(c.isOk()) << c.status().toString();
+    EXPECT_EQ(c->layout, Layout::kTumRgbd);
+    EXPECT_DOUBLE_EQ(c->camera.fx, 525.0);
+    EXPECT_EQ(c->framesWithGroundTruth(), 1u);  // exact stamp via the association fallback
+}
+
+// ---------------------------------------------------------------------------------------------
+// Damaged folders.
+
+TEST(DatasetErrors, EachBadFrameGetsItsSpecificErrorAndTheStreamGoesOn) {
+    const fs::path dir = writePlumbFolder(
+        "dataset-errors",
+        {"depth/good.png", "depth/truncated.png", "depth/eight.png", "depth/small.png",
+         "depth/missing.png", "depth/rgb16.png", "depth/text.png", "depth/good2.png"});
+    writePng(dir / "depth/good.png", rampDepth(160, 120, 800));
+    writePng(dir / "depth/truncated.png", rampDepth(160, 120, 800));
+    fs::resize_file(dir / "depth/truncated.png", fs::file_size(dir / "depth/truncated.png") / 2);
+    writePng(dir / "depth/eight.png", cv::Mat(120, 160, CV_8UC1, cv::Scalar(7)));
+    writePng(dir / "depth/small.png", rampDepth(80, 60, 800));
+    writePng(dir / "depth/rgb16.png", cv::Mat(120, 160, CV_16UC3, cv::Scalar(1, 2, 3)));
+    writeText(dir / "depth/text.png", "this is not an image\n");
+    writePng(dir / "depth/good2.png", rampDepth(160, 120, 900));
+
+    auto source = openFrameSource("dataset:" + dir.string());
+    ASSERT_TRUE(source.isOk()) << source.status().toString();
+    EXPECT_TRUE((*source)->canSkipErrors());
+    struct Expected {
+        StatusCode code;
+        std::vector<std::string> fragments;  // all must appear in the message
+    };
+    const std::vector<Expected> expected = {
+        {StatusCode::kOk, {}},
+        {StatusCode::kCorrupt, {"truncated.png", "cannot decode"}},
+        {StatusCode::kCorrupt, {"eight.png", "expected 16-bit depth, got 8-bit"}},
+        {StatusCode::kCorrupt, {"small.png", "expected 160x120, got 80x60"}},
+        {StatusCode::kNotFound, {"missing.png", "does not exist"}},
+        {StatusCode::kCorrupt, {"rgb16.png", "expected 1 channel, got 3"}},
+        {StatusCode::kCorrupt, {"text.png", "not a PNG"}},
+        {StatusCode::kOk, {}},
+    };
+    for (size_t k = 0; k < expected.size(); ++k) {
+        auto frame = (*source)->next();
+        EXPECT_EQ(frame.status().code(), expected[k].code)
+            << "frame " << k << ": " << frame.status().toString();
+        for (const auto& fragment : expected[k].fragments) {
+            EXPECT_NE(frame.status().message().find(fragment), std::string::npos)
+                << "frame " << k << ": '" << frame.status().message() << "' lacks '" << fragment
+                << "'";
+        }
+        if (frame.isOk()) {
+            EXPECT_EQ(frame->index, static_cast<int64_t>(k));
+        }
+    }
+    auto good2 = loadFrame(dynamic_cast<DatasetSource&>(**source).info(), 7);
+    ASSERT_TRUE(good2.isOk());
+    EXPECT_FLOAT_EQ(good2->depth(1, 0), 0.901f);
+    EXPECT_EQ((*source)->next().status().code(), StatusCode::kOutOfRange);
+}
+
+TEST(DatasetErrors, EmptyDepthList) {
+    const fs::path dir = plumb::testing::freshTempDir("dataset-empty-list");
+    writeText(dir / "depth.txt", "# depth maps\n# timestamp filename\n\n");
+    auto info = scanDataset(dir);
+    ASSERT_FALSE(info.isOk());
+    EXPECT_EQ(info.status().code(), StatusCode::kCorrupt);
+    EXPECT_NE(info.status().message().find("depth.txt: lists no depth frames"), std::string::npos)
+        << info.status().message();
+}
+
+TEST(DatasetErrors, GarbageLineInDepthList) {
+    const fs::path dir = plumb::testing::freshTempDir("dataset-garbage");
+    writeText(dir / "depth.txt", "# header\n1.0 depth/1.png\nhello world again\n2.0 depth/2.png\n");
+    auto info = scanDataset(dir);
+    ASSERT_FALSE(info.isOk());
+    EXPECT_EQ(info.status().code(), StatusCode::kCorrupt);
+    EXPECT_NE(info.status().message().find(
+                  "depth.txt:3: expected 'timestamp path', got 'hello world again'"),
+              std::string::npos)
+        << info.status().message();
+
+    writeText(dir / "depth.txt", "1.0 depth/1.png\nnot-a-number depth/2.png\n");
+    auto stamp = scanDataset(dir);
+    EXPECT_EQ(stamp.status().code(), StatusCode::kCorrupt);
+    EXPECT_NE(stamp.status().message().find("depth.txt:2:"), std::string::npos);
+}
+
+TEST(DatasetErrors, UnsupportedAndMissingFolders) {
+    const fs::path dir = plumb::testing::freshTempDir("dataset-unsupported");
+    writeText(dir / "README.txt", "nothing here\n");
+    fs::create_directories(dir / "seq-01");
+    auto info = scanDataset(dir);
+    ASSERT_FALSE(info.isOk());
+    EXPECT_EQ(info.status().code(), StatusCode::kUnsupported);
+    for (const char* looked_for :
+         {"depth.txt", "frame-XXXXXX.depth.png", "depth/*.png", ".log", "open one of them"}) {
+        EXPECT_NE(info.status().message().find(looked_for), std::string::npos)
+            << info.status().message();
+    }
+    auto missing = openFrameSource("dataset:" + (dir / "nope").string());
+    ASSERT_FALSE(missing.isOk());
+    EXPECT_EQ(missing.status().code(), StatusCode::kNotFound);
+}
+
+TEST(DatasetErrors, MalformedIntrinsicsAndGroundTruth) {
+    const fs::path dir = writePlumbFolder("dataset-bad-intrinsics", {"depth/0.png"});
+    writeText(dir / "intrinsics.json", R"({"width": 160, "height": 120, "fx": 131.25})");
+    auto info = scanDataset(dir);
+    ASSERT_FALSE(info.isOk());
+    EXPECT_EQ(info.status().code(), StatusCode::kCorrupt);
+    EXPECT_NE(info.status().message().find("intrinsics.json: missing field 'fy'"),
+              std::string::npos)
+        << info.status().message();
+
+    writeText(dir / "intrinsics.json", "{ not json");
+    EXPECT_EQ(scanDataset(dir).status().code(), StatusCode::kCorrupt);
+
+    writeText(dir / "intrinsics.json",
+              R"({"width": 160, "height": 120, "fx": 1, "fy": 1, "cx": 1, "cy": 1,)"
+              R"( "depth_scale": -5})");
+    EXPECT_EQ(scanDataset(dir).status().code(), StatusCode::kInvalidArgument);
+
+    DatasetConfig negative_scale;
+    negative_scale.depth_scale = -1.0;
+    negative_scale.intrinsics = "ci";
+    EXPECT_EQ(scanDataset(dir, negative_scale).status().code(), StatusCode::kInvalidArgument);
+
+    // A NaN in the ground truth fails the scan with the reader's error (file named).
+    writeText(dir / "intrinsics.json",
+              R"({"width": 160, "height": 120, "fx": 1, "fy": 1, "cx": 1, "cy": 1})");
+    writeText(dir / "groundtruth.txt", "10.0 nan 0 0 0 0 0 1\n");
+    auto gt = scanDataset(dir);
+    ASSERT_FALSE(gt.isOk());
+    EXPECT_NE(gt.status().message().find("groundtruth.txt"), std::string::npos)
+        << gt.status().message();
+}
+
+TEST(DepthPng, WriteReadRoundTripIsExact) {
+    const fs::path dir = plumb::testing::freshTempDir("dataset-png");
+    Depth16Image raw(33, 17);
+    for (int v = 0; v < 17; ++v) {
+        for (int u = 0; u < 33; ++u) raw(u, v) = static_cast<uint16_t>(u * 1931 + v * 7);
+    }
+    ASSERT_TRUE(writeDepthPng(dir / "x.png", raw).isOk());
+    auto back = readDepthPng(dir / "x.png", 33, 17);
+    ASSERT_TRUE(back.isOk()) << back.status().toString();
+    EXPECT_EQ(*back, raw);
+
+    ASSERT_TRUE(
+        writeIntrinsicsJson(dir / "k.json", PinholeCamera{33, 17, 20.5, -21.25, 16, 8}, 5000.0)
+            .isOk());
+    auto k = readIntrinsicsFile(dir / "k.json", PinholeCamera{});
+    ASSERT_TRUE(k.isOk()) << k.status().toString();
+    EXPECT_EQ(k->camera.width, 33);
+    EXPECT_DOUBLE_EQ(k->camera.fy, -21.25);
+    EXPECT_EQ(k->depth_scale, std::optional<double>(5000.0));
+}
+
+}  // namespace
+}  // namespace plumb::dataset
