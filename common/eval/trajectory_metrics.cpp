@@ -13,6 +13,10 @@
 namespace plumb::eval {
 namespace {
 
+/// Slack when comparing a time-delta target with the last stamp (stamps are often ~1e9 s,
+/// where one ulp is ~2e-7 s).
+constexpr double kStampSlackS = 1e-6;
+
 struct Stats {
     double rmse = 0.0;
     double mean = 0.0;
@@ -150,7 +154,8 @@ Result<RpeResult> computeRpe(const std::vector<Eigen::Isometry3d>& poses_est,
         size_t j = 0;
         if (by_time) {
             const double target = stamps_s[i] + options.delta;
-            if (target > stamps_s.back()) break;  // stamps are sorted: every later i too
+            // Past the end (1 us slack for rounding of large stamps): every later i too.
+            if (target > stamps_s.back() + kStampSlackS) break;
             const auto it = std::lower_bound(stamps_s.begin(), stamps_s.end(), target);
             j = static_cast<size_t>(it - stamps_s.begin());
             // The closest stamp to the target (evaluate_rpe.py find_closest_index).

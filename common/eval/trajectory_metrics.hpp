@@ -77,7 +77,8 @@ struct RpeResult {
 
 /// Relative pose error of paired, time-ordered poses (poses_est[k] <-> poses_gt[k], taken at
 /// stamps_s[k]). For each i the partner j is i + delta (frames) or the stamp closest to
-/// stamps_s[i] + delta (seconds; pairs whose target lies beyond the last stamp are skipped).
+/// stamps_s[i] + delta (seconds; pairs whose target lies more than 1 us beyond the last stamp
+/// are skipped).
 /// As evaluate_rpe.py: E = (E_j^-1 E_i)^-1 (G_j^-1 G_i); the translational error is |t(E)|,
 /// the rotational error the angle of R(E). Invariant to a rigid change of either world frame.
 /// Stamps may be empty for kFrames; for kSeconds they must be non-decreasing.
