@@ -7,6 +7,7 @@
 #include <functional>
 #include <nlohmann/json.hpp>
 
+#include "common/eval/layout_metrics.hpp"
 #include "common/geometry/lie.hpp"
 #include "common/layout/layout.hpp"
 #include "common/layout/layout_json.hpp"
@@ -208,6 +209,157 @@ TEST(LayoutJson, FileErrorsAreSpecific) {
 
     EXPECT_EQ(io::writeLayoutJson(dir / "no_such_dir" / "x.json", Layout{}).code(),
               StatusCode::kIoError);
+}
+
+// ---- layout metrics ----
+
+LayoutPlane* planeWithId(Layout* layout, int id) {
+    for (LayoutPlane& p : layout->planes) {
+        if (p.id == id) return &p;
+    }
+    return nullptr;
+}
+
+/// A 5 x 4 x 2.7 m ground truth placed in the world by G, and an estimate with known errors
+/// expressed in its own layout frame X.
+struct PerturbedRoom {
+    Layout gt;
+    Layout est;
+    double wall_rotation_deg = 2.0;
+    double wall_shift_m = 0.03;
+    double floor_tilt_deg = 1.0;
+    double ceiling_raise_m = 0.05;
+};
+
+PerturbedRoom perturbedRoom() {
+    PerturbedRoom r;
+    r.gt = makeRoomLayout({{0, 0}, {5, 0}, {5, 4}, {0, 4}}, 2.7).value();
+    Vector6d g, x;
+    g << 0.0, 0.0, 0.4, 1.0, -2.0, 0.1;
+    x << 0.2, -0.1, 2.0, -3.0, 0.5, 1.2;
+    r.gt.T_W_L = lie::expSE3(g);
+    // Perturb a copy in L_gt, then re-express it in L_est.
+    Layout e = r.gt;
+    const double rot = r.wall_rotation_deg * M_PI / 180.0;
+    LayoutPlane* w2 = planeWithId(&e, 2);  // y = 0 wall, normal +y, centre (2.5, 0, 1.35)
+    w2->normal_L = Eigen::AngleAxisd(rot, Eigen::Vector3d::UnitZ()) * w2->normal_L;
+    w2->d_L = -w2->normal_L.dot(Eigen::Vector3d(2.5, 0.0, 1.35));
+    planeWithId(&e, 3)->d_L += r.wall_shift_m;  // x = 5 wall moved outwards
+    LayoutPlane* w4 = planeWithId(&e, 4);       // y = 4 wall with its normal flipped
+    w4->normal_L = -w4->normal_L;
+    w4->d_L = -w4->d_L;
+    e.planes.erase(std::find_if(e.planes.begin(), e.planes.end(),
+                                [](const LayoutPlane& p) { return p.id == 5; }));
+    LayoutPlane extra;  // a spurious wall far outside the room
+    extra.id = 99;
+    extra.normal_L = Eigen::Vector3d(1, 1, 0).normalized();
+    extra.d_L = -10.0;
+    e.planes.push_back(extra);
+    LayoutPlane* floor = planeWithId(&e, 0);  // tilted about the x axis through (2.5, 2, 0)
+    floor->normal_L = Eigen::AngleAxisd(r.floor_tilt_deg * M_PI / 180.0, Eigen::Vector3d::UnitX()) *
+                      floor->normal_L;
+    floor->d_L = -floor->normal_L.dot(Eigen::Vector3d(2.5, 2.0, 0.0));
+    planeWithId(&e, 1)->d_L += r.ceiling_raise_m;
+    e.ceiling_height_m += r.ceiling_raise_m;
+    std::reverse(e.planes.begin(), e.planes.end());
+    const Eigen::Isometry3d X = lie::expSE3(x);
+    const Eigen::Isometry3d T_Lest_Lgt = X.inverse() * r.gt.T_W_L;
+    for (LayoutPlane& p : e.planes) {
+        const HessianPlane moved = transformPlane({p.normal_L, p.d_L}, T_Lest_Lgt);
+        p.normal_L = moved.normal;
+        p.d_L = moved.d;
+    }
+    e.T_W_L = X;
+    r.est = e;
+    return r;
+}
+
+TEST(LayoutMetrics, RecoversKnownPerturbations) {
+    const PerturbedRoom r = perturbedRoom();
+    auto m = eval::evaluateLayout(r.est, r.gt);
+    ASSERT_TRUE(m.isOk()) << m.status().toString();
+    EXPECT_EQ(m->num_gt_walls, 4u);
+    EXPECT_EQ(m->num_est_walls, 4u);
+    ASSERT_EQ(m->walls.size(), 3u);
+    EXPECT_EQ(m->unmatched_gt_walls, std::vector<int>{5});
+    EXPECT_EQ(m->unmatched_est_walls, std::vector<int>{99});
+    const eval::PlaneError& w2 = m->walls[0];
+    const eval::PlaneError& w3 = m->walls[1];
+    const eval::PlaneError& w4 = m->walls[2];
+    EXPECT_EQ(w2.gt_id, 2);
+    EXPECT_EQ(w2.est_id, 2);
+    EXPECT_NEAR(w2.angle_error_deg, r.wall_rotation_deg, 1e-9);
+    EXPECT_NEAR(w2.centre_distance_m, 0.0, 1e-9);
+    // Rotating about the centre (2.5, 0, 1.35) changes d in L_gt by 2.5 sin(2 deg).
+    EXPECT_NEAR(w2.offset_error_m, 2.5 * std::sin(r.wall_rotation_deg * M_PI / 180.0), 1e-9);
+    EXPECT_EQ(w3.est_id, 3);
+    EXPECT_NEAR(w3.angle_error_deg, 0.0, 1e-6);
+    EXPECT_NEAR(w3.offset_error_m, r.wall_shift_m, 1e-9);
+    EXPECT_NEAR(w3.centre_distance_m, r.wall_shift_m, 1e-9);
+    EXPECT_FALSE(w3.flipped);
+    EXPECT_EQ(w4.est_id, 4);
+    EXPECT_TRUE(w4.flipped);
+    EXPECT_NEAR(w4.angle_error_deg, 0.0, 1e-6);
+    EXPECT_NEAR(w4.offset_error_m, 0.0, 1e-9);
+    EXPECT_NEAR(m->max_wall_angle_error_deg, r.wall_rotation_deg, 1e-9);
+    EXPECT_NEAR(m->mean_wall_angle_error_deg, r.wall_rotation_deg / 3.0, 1e-6);
+    EXPECT_NEAR(m->max_abs_wall_offset_error_m, w2.offset_error_m, 1e-12);
+
+    ASSERT_TRUE(m->floor.has_value());
+    EXPECT_NEAR(m->floor->angle_error_deg, r.floor_tilt_deg, 1e-9);
+    EXPECT_NEAR(m->floor->centre_distance_m, 0.0, 1e-9);  // tilted about the polygon centre
+    ASSERT_TRUE(m->ceiling.has_value());
+    EXPECT_NEAR(m->ceiling->angle_error_deg, 0.0, 1e-6);
+    EXPECT_NEAR(m->ceiling->offset_error_m, r.ceiling_raise_m, 1e-9);
+    ASSERT_TRUE(m->ceiling_height_error_m.has_value());
+    EXPECT_NEAR(*m->ceiling_height_error_m, r.ceiling_raise_m, 1e-12);
+
+    // Pairs among walls 2, 3, 4: GT angles 90, 180, 90; only pairs with wall 2 are off, by 2 deg.
+    ASSERT_EQ(m->wall_pairs.size(), 3u);
+    EXPECT_NEAR(m->wall_pairs[0].gt_angle_deg, 90.0, 1e-9);
+    EXPECT_NEAR(m->wall_pairs[1].gt_angle_deg, 180.0, 1e-9);
+    EXPECT_NEAR(m->wall_pairs[0].error_deg, r.wall_rotation_deg, 1e-6);
+    EXPECT_NEAR(m->wall_pairs[1].error_deg, r.wall_rotation_deg, 1e-6);
+    EXPECT_NEAR(m->wall_pairs[2].error_deg, 0.0, 1e-6);
+    EXPECT_NEAR(m->max_wall_pair_angle_error_deg, r.wall_rotation_deg, 1e-6);
+}
+
+TEST(LayoutMetrics, WorldFrameKeepsAnglesAndCentreDistances) {
+    const PerturbedRoom r = perturbedRoom();
+    eval::LayoutMetricsConfig world;
+    world.frame = eval::LayoutFrame::kWorld;
+    const auto in_gt = eval::evaluateLayout(r.est, r.gt).value();
+    const auto in_w = eval::evaluateLayout(r.est, r.gt, world).value();
+    ASSERT_EQ(in_w.walls.size(), in_gt.walls.size());
+    for (size_t i = 0; i < in_w.walls.size(); ++i) {
+        EXPECT_EQ(in_w.walls[i].est_id, in_gt.walls[i].est_id);
+        EXPECT_NEAR(in_w.walls[i].angle_error_deg, in_gt.walls[i].angle_error_deg, 1e-6);
+        EXPECT_NEAR(in_w.walls[i].centre_distance_m, in_gt.walls[i].centre_distance_m, 1e-9);
+    }
+    // A pure shift changes d by the same amount in any frame.
+    EXPECT_NEAR(in_w.walls[1].offset_error_m, r.wall_shift_m, 1e-9);
+    // Reported planes are in the requested frame: the matched estimate of wall 3 in W equals
+    // the GT wall 3 moved by T_W_L_gt, shifted by 3 cm.
+    const LayoutPlane& gt3 = r.gt.planes[3];
+    ASSERT_EQ(gt3.id, 3);
+    const HessianPlane gt3_W = planeInWorld(r.gt, gt3);
+    EXPECT_NEAR((in_w.walls[1].estimate.normal - gt3_W.normal).norm(), 0.0, 1e-9);
+    EXPECT_NEAR(in_w.walls[1].estimate.d - gt3_W.d, r.wall_shift_m, 1e-9);
+}
+
+TEST(LayoutMetrics, IdenticalLayoutsHaveZeroError) {
+    const Layout gt = makeRoomLayout(lShapedRoom(), 2.4).value();
+    const auto m = eval::evaluateLayout(gt, gt).value();
+    EXPECT_EQ(m.walls.size(), 6u);
+    EXPECT_TRUE(m.unmatched_gt_walls.empty());
+    EXPECT_TRUE(m.unmatched_est_walls.empty());
+    for (const auto& w : m.walls) EXPECT_EQ(w.gt_id, w.est_id);
+    EXPECT_EQ(m.max_wall_angle_error_deg, 0.0);
+    EXPECT_EQ(m.max_abs_wall_offset_error_m, 0.0);
+    EXPECT_EQ(m.wall_pairs.size(), 15u);
+    Layout bad = gt;
+    bad.planes[2].normal_L *= 2.0;
+    EXPECT_EQ(eval::evaluateLayout(bad, gt).status().code(), StatusCode::kInvalidArgument);
 }
 
 }  // namespace
