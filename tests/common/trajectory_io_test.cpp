@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <fstream>
 #include <random>
 #include <string>
@@ -331,6 +332,85 @@ TEST(SharedData, ReadsIclNuimGroundTruth) {
     ASSERT_TRUE(icl_gt.isOk()) << icl_gt.status().toString();
     EXPECT_EQ(icl_gt->front().timestamp_s, 2.0);  // frame index N of depth/N.png
     EXPECT_NEAR(icl_gt->front().T_W_C.translation().z(), -2.5, 1e-12);
+}
+
+// ---- Open3D interoperability (python3-open3d as the oracle) ----
+
+const char* kPython = "/usr/bin/python3";
+
+bool open3dAvailable() {
+    const std::string cmd = std::string(kPython) + " -c 'import open3d' > /dev/null 2>&1";
+    return std::system(cmd.c_str()) == 0;
+}
+
+/// Reads `rows` x 4 whitespace-separated numbers as a stack of 4x4 matrices.
+std::vector<Eigen::Matrix4d> readMatrices(const fs::path& path) {
+    std::ifstream in(path);
+    std::vector<Eigen::Matrix4d> out;
+    Eigen::Matrix4d M;
+    int n = 0;
+    double v = 0.0;
+    while (in >> v) {
+        M(n / 4, n % 4) = v;
+        if (++n == 16) {
+            out.push_back(M);
+            n = 0;
+        }
+    }
+    return out;
+}
+
+TEST(LogTrajectoryOpen3d, Open3dReadsOursAndWeReadOpen3ds) {
+    if (!open3dAvailable()) {
+        if (testing::runningInCi()) FAIL() << "python3-open3d missing";
+        GTEST_SKIP() << "python3-open3d not importable";
+    }
+    const fs::path dir = testing::freshTempDir("log_open3d");
+    const Trajectory ours = randomTrajectory(30, 0.0, 1.0, 8);
+    ASSERT_TRUE(writeLogTrajectory(dir / "plumb.log", ours).isOk());
+    const std::string script = R"(import numpy as np, open3d as o3d, sys
+d = sys.argv[1]
+# Read plumb's .log with Open3D: extrinsic is world->camera, the inverse of the .log matrix.
+traj = o3d.io.read_pinhole_camera_trajectory(d + "/plumb.log")
+np.savetxt(d + "/o3d_read.txt",
+           np.vstack([np.linalg.inv(p.extrinsic) for p in traj.parameters]), fmt="%.17g")
+# Write a .log with Open3D from random rigid extrinsics.
+rng = np.random.default_rng(3)
+out = o3d.camera.PinholeCameraTrajectory()
+params, poses = [], []
+for k in range(20):
+    q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    if np.linalg.det(q) < 0: q[:, 0] = -q[:, 0]
+    T = np.eye(4); T[:3, :3] = q; T[:3, 3] = rng.uniform(-5, 5, 3)
+    p = o3d.camera.PinholeCameraParameters()
+    p.intrinsic = o3d.camera.PinholeCameraIntrinsic(640, 480, 525.0, 525.0, 319.5, 239.5)
+    p.extrinsic = np.linalg.inv(T)
+    params.append(p); poses.append(T)
+out.parameters = params
+o3d.io.write_pinhole_camera_trajectory(d + "/o3d.log", out)
+np.savetxt(d + "/o3d_expected.txt", np.vstack(poses), fmt="%.17g")
+)";
+    writeFile(dir / "o3d.py", script);
+    const std::string cmd = std::string(kPython) + " " + (dir / "o3d.py").string() + " " +
+                            dir.string() + " > /dev/null 2>&1";
+    ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+
+    // Open3D's view of our file (its extrinsic is world->camera; the script inverts it).
+    const std::vector<Eigen::Matrix4d> read_by_open3d = readMatrices(dir / "o3d_read.txt");
+    ASSERT_EQ(read_by_open3d.size(), ours.size());
+    for (size_t k = 0; k < ours.size(); ++k) {
+        EXPECT_LT((read_by_open3d[k] - ours[k].T_W_C.matrix()).cwiseAbs().maxCoeff(), 1e-9) << k;
+    }
+    // Our view of Open3D's file (it prints 8 decimals).
+    const Result<Trajectory> theirs = readLogTrajectory(dir / "o3d.log");
+    ASSERT_TRUE(theirs.isOk()) << theirs.status().toString();
+    const std::vector<Eigen::Matrix4d> expected = readMatrices(dir / "o3d_expected.txt");
+    ASSERT_EQ(theirs->size(), expected.size());
+    ASSERT_EQ(expected.size(), 20u);
+    for (size_t k = 0; k < expected.size(); ++k) {
+        EXPECT_EQ((*theirs)[k].timestamp_s, static_cast<double>(k));
+        EXPECT_LT(((*theirs)[k].T_W_C.matrix() - expected[k]).cwiseAbs().maxCoeff(), 1e-7) << k;
+    }
 }
 
 }  // namespace
