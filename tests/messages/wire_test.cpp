@@ -36,7 +36,7 @@ TEST(Crc32, MatchesKnownVectors) {
 }
 
 plumb::fragment_chunk_t sampleChunk() {
-    plumb::fragment_chunk_t c;
+    plumb::fragment_chunk_t c{};
     c.utime = 1'700'000'000'000'000;
     c.seq = 42;
     c.session_id = -7;
@@ -64,7 +64,7 @@ TEST(Wire, GeneratedTypesRoundTrip) {
     EXPECT_EQ(back->data, c.data);
     EXPECT_EQ(encodeMessage(*back), bytes);
 
-    plumb::camera_info_t cam;
+    plumb::camera_info_t cam{};
     cam.width = 160;
     cam.height = 120;
     cam.fx = 131.25;
@@ -78,7 +78,7 @@ TEST(Wire, GeneratedTypesRoundTrip) {
     EXPECT_EQ(cam_back->fy, -120.0);
     EXPECT_EQ(cam_back->source, "sim:room");
 
-    plumb::device_status_t st;
+    plumb::device_status_t st{};
     st.tracking_state = plumb::device_status_t::TRACKING_LOST;
     st.spool_bytes = int64_t{5} << 33;
     auto st_back = decodeMessage<plumb::device_status_t>(encodeMessage(st));
@@ -103,29 +103,29 @@ void expectSchemaMatches(const T& msg) {
 }
 
 TEST(Wire, SchemasMatchGeneratedTypes) {
-    plumb::device_status_t status;
+    plumb::device_status_t status{};
     status.fps = 29.5;
     expectSchemaMatches(status);
     expectSchemaMatches(plumb::fragment_header_t{});
     expectSchemaMatches(sampleChunk());
     expectSchemaMatches(plumb::fragment_ack_t{});
-    plumb::retransmit_request_t req;
+    plumb::retransmit_request_t req{};
     req.missing_chunks = {1, 5, 9};
     req.num_missing = 3;
     expectSchemaMatches(req);
-    plumb::camera_info_t cam;
+    plumb::camera_info_t cam{};
     cam.source = "x";
     expectSchemaMatches(cam);
-    plumb::depth_frame_t depth;
+    plumb::depth_frame_t depth{};
     depth.data = {0, 1, 2, 3};
     depth.size = 4;
     expectSchemaMatches(depth);
-    plumb::config_snapshot_t config;
+    plumb::config_snapshot_t config{};
     config.program = "plumb-device";
     config.version = "0.1.0";
     config.toml = "[fusion]\nvoxel_size_m = 0.01\n";
     expectSchemaMatches(config);
-    plumb::envelope_t env;
+    plumb::envelope_t env{};
     env.payload = {9, 9};
     env.payload_size = 2;
     env.mac.assign(32, 0xAB);
@@ -158,7 +158,7 @@ TEST(Wire, RejectsMalformedMessages) {
     ASSERT_FALSE(wrong.isOk());
     EXPECT_NE(wrong.status().message().find("wrong type"), std::string::npos);
     // Strings with a zero, negative, huge or unterminated length.
-    plumb::config_snapshot_t config;
+    plumb::config_snapshot_t config{};
     config.program = "p";
     const Bytes cfg = encodeMessage(config);
     for (const int32_t len : {0, -5, 1 << 30}) {
