@@ -655,7 +655,7 @@ Status Schema::applyAssignment(std::string_view assignment) {
         const std::string doc = "v = " + std::string(value);
         parsed = toml::parse(std::string_view(doc), std::string_view("--set"));
         parsed_ok = parsed.contains("v");
-    } catch (const toml::parse_error&) {
+    } catch (const std::exception&) {  // toml::parse_error or allocation failure
         parsed_ok = false;
     }
     std::string why;
