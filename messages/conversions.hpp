@@ -1,0 +1,78 @@
+// SPDX-License-Identifier: Apache-2.0
+#pragma once
+
+// Conversions between the LCM types (package plumb) and plumb's own types. Every fromMessage()
+// validates what came off the wire and returns a Status naming the bad field.
+
+#include <cstdint>
+#include <string>
+
+#include "common/camera/pinhole.hpp"
+#include "common/core/status.hpp"
+#include "common/image/image.hpp"
+#include "messages/wire.hpp"
+
+namespace plumb::messages {
+
+enum class TrackingState : int8_t {
+    kInitializing = plumb::device_status_t::TRACKING_INITIALIZING,
+    kOk = plumb::device_status_t::TRACKING_OK,
+    kLost = plumb::device_status_t::TRACKING_LOST,
+    kStopped = plumb::device_status_t::TRACKING_STOPPED,
+};
+
+/// The device's heartbeat in plumb terms (see device_status_t.lcm for the field meanings).
+struct DeviceStatus {
+    int64_t session_id = 0;
+    double fps = 0.0;  ///< frames per second over the last interval
+    TrackingState tracking = TrackingState::kInitializing;
+    int64_t frames_processed = 0;
+    int64_t frames_dropped = 0;
+    int32_t fragments_cut = 0;
+    int32_t fragments_acked = 0;
+    int32_t spool_fragments = 0;
+    int64_t spool_bytes = 0;
+    int64_t memory_bytes = 0;
+};
+
+plumb::device_status_t toMessage(const DeviceStatus& status, int64_t utime, int64_t seq);
+/// Corrupt for negative counters, non-finite or negative fps, unknown tracking state.
+Result<DeviceStatus> fromMessage(const plumb::device_status_t& msg);
+
+struct CameraInfo {
+    PinholeCamera camera;
+    double depth_scale = 1000.0;  ///< raw depth units per metre
+    std::string source;           ///< description of the frame source
+};
+
+plumb::camera_info_t toMessage(const CameraInfo& info, int64_t utime, int64_t seq);
+/// Corrupt when the intrinsics do not validate or the depth scale is not positive and finite.
+Result<CameraInfo> fromMessage(const plumb::camera_info_t& msg);
+
+enum class DepthEncoding : int8_t {
+    kRaw16 = plumb::depth_frame_t::ENCODING_RAW16_LE,  ///< 2 bytes per pixel
+    /// Row-wise differences, zig-zag mapped, LEB128 varints: 1 byte per pixel on smooth surfaces
+    /// and on runs of invalid (0) pixels, lossless.
+    kDeltaVarint = plumb::depth_frame_t::ENCODING_DELTA_VARINT,
+};
+
+struct RawDepthFrame {
+    int64_t utime = 0;        ///< capture time, microseconds
+    int64_t frame_index = 0;  ///< index in the capture stream
+    double depth_scale = 1000.0;
+    Depth16Image depth;
+};
+
+/// Largest depth image accepted from the wire, pixels per side.
+inline constexpr int kMaxDepthSide = 8192;
+
+/// InvalidArgument for an empty or oversized image or a bad depth scale.
+Result<plumb::depth_frame_t> toMessage(const RawDepthFrame& frame, DepthEncoding encoding,
+                                       int64_t seq);
+/// Corrupt for bad sizes, unknown encodings, truncated or overlong data, out-of-range values.
+Result<RawDepthFrame> fromMessage(const plumb::depth_frame_t& msg);
+
+plumb::config_snapshot_t toMessage(const std::string& program, const std::string& version,
+                                   const std::string& toml, int64_t utime, int64_t seq);
+
+}  // namespace plumb::messages
