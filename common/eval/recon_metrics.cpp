@@ -108,6 +108,58 @@ DistanceStats summarize(const std::vector<double>& distances_m) {
     return s;
 }
 
+Result<std::vector<Eigen::Vector3f>> sampleMeshSurface(
+    const std::vector<Eigen::Vector3f>& vertices, const std::vector<Eigen::Vector3i>& triangles,
+    double spacing_m, size_t max_points) {
+    if (!(spacing_m > 0.0) || !std::isfinite(spacing_m)) {
+        return invalidArgument(fmt::format("sample spacing must be positive, got {} m", spacing_m));
+    }
+    const auto num_vertices = static_cast<int>(vertices.size());
+    // First pass: validate and count, so the budget is checked before allocating.
+    std::vector<int> steps(triangles.size(), 0);
+    size_t total = 0;
+    for (size_t t = 0; t < triangles.size(); ++t) {
+        const Eigen::Vector3i& tri = triangles[t];
+        if ((tri.array() < 0).any() || (tri.array() >= num_vertices).any()) {
+            return invalidArgument(
+                fmt::format("triangle {} refers to a vertex outside 0..{}", t, num_vertices - 1));
+        }
+        const Eigen::Vector3d a = vertices[tri[0]].cast<double>();
+        const Eigen::Vector3d b = vertices[tri[1]].cast<double>();
+        const Eigen::Vector3d c = vertices[tri[2]].cast<double>();
+        if (!a.allFinite() || !b.allFinite() || !c.allFinite()) {
+            return invalidArgument(fmt::format("triangle {} has a non-finite vertex", t));
+        }
+        const double longest = std::max({(b - a).norm(), (c - a).norm(), (c - b).norm()});
+        const double n = std::max(1.0, std::ceil(longest / spacing_m));
+        const double count = (n + 1.0) * (n + 2.0) / 2.0;
+        if (n > 1e6 || static_cast<double>(total) + count > static_cast<double>(max_points)) {
+            return invalidArgument(fmt::format(
+                "sampling the mesh at {} m needs more than {} points; use a larger spacing",
+                spacing_m, max_points));
+        }
+        steps[t] = static_cast<int>(n);
+        total += static_cast<size_t>(count);
+    }
+    std::vector<Eigen::Vector3f> samples;
+    samples.reserve(total);
+    for (size_t t = 0; t < triangles.size(); ++t) {
+        const Eigen::Vector3i& tri = triangles[t];
+        const Eigen::Vector3d a = vertices[tri[0]].cast<double>();
+        const Eigen::Vector3d ab = vertices[tri[1]].cast<double>() - a;
+        const Eigen::Vector3d ac = vertices[tri[2]].cast<double>() - a;
+        const int n = steps[t];
+        for (int i = 0; i <= n; ++i) {
+            for (int j = 0; i + j <= n; ++j) {
+                samples.push_back(
+                    (a + (static_cast<double>(i) / n) * ab + (static_cast<double>(j) / n) * ac)
+                        .cast<float>());
+            }
+        }
+    }
+    return samples;
+}
+
 Result<ReconMetrics> evaluateReconstruction(const std::vector<Eigen::Vector3f>& reconstructed,
                                             const std::vector<Eigen::Vector3f>& ground_truth,
                                             const ReconMetricsConfig& config) {

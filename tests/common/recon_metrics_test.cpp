@@ -126,6 +126,33 @@ TEST(ReconMetrics, SummaryStatisticsAreExact) {
     EXPECT_EQ(eval::summarize({}).count, 0u);
 }
 
+TEST(ReconMetrics, MeshSamplingIsDenseAndOnTheSurface) {
+    // A 1 x 2 m rectangle in z = 0.5 as two triangles, sampled at 5 mm.
+    const std::vector<Eigen::Vector3f> v = {{0, 0, 0.5f}, {1, 0, 0.5f}, {1, 2, 0.5f}, {0, 2, 0.5f}};
+    const std::vector<Eigen::Vector3i> t = {{0, 1, 2}, {0, 2, 3}};
+    auto s = eval::sampleMeshSurface(v, t, 0.005);
+    ASSERT_TRUE(s.isOk()) << s.status().toString();
+    // Longest edge (diagonal) sqrt(5) m -> n = 448 steps per triangle.
+    const size_t n = 448;
+    EXPECT_EQ(s->size(), 2 * (n + 1) * (n + 2) / 2);
+    for (const auto& p : *s) {
+        ASSERT_EQ(p.z(), 0.5f);
+        ASSERT_TRUE(p.x() >= 0.0f && p.x() <= 1.0f && p.y() >= 0.0f && p.y() <= 2.0f);
+    }
+    // Every point of the rectangle is within half the sample spacing diagonal of a sample: probe
+    // a fine grid of query points.
+    std::vector<Eigen::Vector3f> probes;
+    for (int i = 0; i <= 50; ++i) {
+        for (int j = 0; j <= 100; ++j) probes.emplace_back(i * 0.02f, j * 0.02f, 0.5f);
+    }
+    auto d = eval::closestPointDistances(probes, *s);
+    ASSERT_TRUE(d.isOk());
+    EXPECT_LT(eval::summarize(*d).max_m, 0.005);
+    EXPECT_FALSE(eval::sampleMeshSurface(v, {{0, 1, 4}}, 0.005).isOk());
+    EXPECT_FALSE(eval::sampleMeshSurface(v, t, 0.0).isOk());
+    EXPECT_FALSE(eval::sampleMeshSurface(v, t, 1e-5, 1000).isOk());
+}
+
 TEST(ReconMetrics, RejectsUnusableInput) {
     const std::vector<Eigen::Vector3f> some = {{0, 0, 0}, {1, 0, 0}};
     const std::vector<Eigen::Vector3f> none;

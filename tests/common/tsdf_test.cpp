@@ -184,7 +184,7 @@ TEST(TsdfVolume, TiltedPlaneSurfaceAndRaycastAreUnbiased) {
     const Stats s =
         distanceStats(surface, [&](const Eigen::Vector3d& p) { return plane.n.dot(p) + plane.d; });
     EXPECT_LT(s.mean, 0.25 * volume.voxelSize());
-    RecordProperty("tilted_plane_mean_mm", std::to_string(s.mean * 1e3));
+    ::testing::Test::RecordProperty("tilted_plane_mean_mm", std::to_string(s.mean * 1e3));
 
     const Eigen::Isometry3d T_W_C = jitter(5);
     const RaycastResult ray = raycast(volume, cam, T_W_C);
