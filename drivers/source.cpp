@@ -4,6 +4,7 @@
 #include <filesystem>
 
 #include "drivers/dataset/dataset.hpp"
+#include "drivers/sim/sim_source.hpp"
 
 namespace plumb {
 
@@ -22,6 +23,21 @@ Result<std::unique_ptr<FrameSource>> openFrameSource(const std::string& uri,
         config.depth_scale = options.depth_scale;
         config.max_frames = options.max_frames;
         auto source = dataset::DatasetSource::open(rest, config);
+        if (!source.isOk()) return source.status();
+        return std::unique_ptr<FrameSource>(std::move(source).value());
+    }
+    if (scheme == "sim") {
+        sim::SimConfig config;
+        config.scene = rest;
+        config.seed = options.seed;
+        config.trajectory.seed = options.seed;
+        config.trajectory.num_frames = options.max_frames > 0 ? options.max_frames : 600;
+        if (!options.intrinsics.empty()) {
+            auto camera = cameraPreset(options.intrinsics);
+            if (!camera.isOk()) return camera.status();
+            config.camera = *camera;
+        }
+        auto source = sim::SimSource::create(config);
         if (!source.isOk()) return source.status();
         return std::unique_ptr<FrameSource>(std::move(source).value());
     }

@@ -1,0 +1,93 @@
+// SPDX-License-Identifier: Apache-2.0
+#pragma once
+
+// The simulated handheld scanner: a FrameSource (`sim:<scene>`) that renders each frame of a
+// generated (or loaded) trajectory through a Scene and applies the depth-noise model. Frame k is
+// a pure function of (config, k): random access, any order, any thread count.
+
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "common/io/trajectory.hpp"
+#include "drivers/frame_source.hpp"
+#include "drivers/sim/noise.hpp"
+#include "drivers/sim/render.hpp"
+#include "drivers/sim/scene.hpp"
+#include "drivers/sim/trajectory.hpp"
+
+namespace plumb::sim {
+
+struct SimConfig {
+    /// A built-in scene name (builtinSceneNames) or a path to a `.toml` scene file.
+    std::string scene = "living_room";
+    /// Intrinsics and image size (default: PrimeSense 640x480, fx = fy = 525).
+    PinholeCamera camera;
+    /// Generated handheld trajectory (frame count, loop/no-loop, speeds, shake).
+    TrajectoryConfig trajectory;
+    /// A TUM trajectory file (camera->world) to use instead of the generated one; empty = none.
+    std::string trajectory_file;
+    /// Depth-noise model.
+    NoiseConfig noise;
+    /// The Redwood distortion table; empty = $PLUMB_NOISE_MODEL, then the shared-data default.
+    std::string noise_model_path;
+    /// Seed of the noise (the trajectory has its own seed in `trajectory`).
+    uint64_t seed = 1;
+};
+
+/// A frame with the clean render it was made from.
+struct SimFrame {
+    Frame frame;        ///< noisy depth, shaded grey image, GT pose, timestamp k / rate
+    RenderedView view;  ///< clean depth, view-angle cosines, primitive labels
+};
+
+class SimSource final : public FrameSource {
+  public:
+    /// Resolves the scene, builds or reads the trajectory, loads the distortion table when the
+    /// noise needs it. Errors name what is wrong (unknown scene, bad file, missing table).
+    static Result<std::unique_ptr<SimSource>> create(const SimConfig& config);
+
+    const PinholeCamera& camera() const override { return renderer_->camera(); }
+    Result<Frame> next() override;
+    std::optional<size_t> size() const override { return trajectory_.size(); }
+    std::string description() const override;
+
+    /// Frame k with its clean render; k < size(). Thread-safe.
+    Result<SimFrame> render(size_t k) const;
+
+    const Scene& scene() const { return renderer_->caster().scene(); }
+    const io::Trajectory& trajectory() const { return trajectory_; }
+    const SimConfig& config() const { return config_; }
+
+  private:
+    SimSource() = default;
+    SimConfig config_;
+    std::unique_ptr<Renderer> renderer_;
+    std::unique_ptr<DepthNoiseModel> noise_;
+    io::Trajectory trajectory_;
+    std::string noise_source_;
+    size_t next_ = 0;
+};
+
+/// Options of writeSimDataset.
+struct SimDatasetOptions {
+    /// Spacing of the dense ground-truth surface samples in gt_points.ply, metres.
+    double gt_spacing_m = 0.01;
+    /// Also write the clean depth (depth_clean/) and the grey images (gray/).
+    bool write_clean = true;
+    bool write_gray = true;
+};
+
+/// Writes every frame of `source` as a TUM-layout dataset that drivers/dataset reads back:
+/// depth/NNNNN.png (uint16, mm), depth.txt, groundtruth.txt (TUM), trajectory.log (Redwood),
+/// intrinsics.json (depth_scale 1000), gt_points.ply, layout.json, sim.json (scene, seeds, noise
+/// parameters), optional depth_clean/ and gray/. `dir` is created; existing files are replaced.
+Status writeSimDataset(const SimSource& source, const std::filesystem::path& dir,
+                       const SimDatasetOptions& options = {});
+
+/// Parses a noise setting: "off", "redwood" (table distortion), "parametric" (§1.4.D), "clean"
+/// (Redwood quantisation and noise without distortion). Updates `noise`.
+Status parseNoiseMode(const std::string& mode, NoiseConfig* noise);
+
+}  // namespace plumb::sim

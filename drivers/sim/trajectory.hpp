@@ -1,0 +1,70 @@
+// SPDX-License-Identifier: Apache-2.0
+#pragma once
+
+// Handheld camera trajectories through a Scene (reference §1.3). The path is a closed uniform
+// cubic B-spline through control points on the room outline inset by path_inset_m (or the
+// scene's own waypoints). The camera looks sideways-ahead to the outside of the path (at the
+// walls), with a slow pitch sway to see floor and ceiling; speed follows the path with a yaw-rate
+// and acceleration limit; hand shake adds smooth sums of sinusoids (seeded phases) to position
+// and orientation. The loop variant goes around a whole number of times and ends at its start
+// (loop closures possible) whenever num_frames allows a speed within [min, max] (with too few
+// frames it is a partial lap at max speed); the no-loop variant covers no_loop_fraction of the
+// loop without revisits (with more frames than that takes at min speed it stands at the end).
+
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <vector>
+
+#include "common/core/status.hpp"
+#include "common/io/trajectory.hpp"
+#include "drivers/sim/scene.hpp"
+
+namespace plumb::sim {
+
+struct TrajectoryConfig {
+    /// true: closed loop back to the start; false: an open path without revisits.
+    bool loop = true;
+    /// Number of poses to generate.
+    size_t num_frames = 600;
+    /// Frame rate, Hz.
+    double rate_hz = 30.0;
+    /// Nominal walking speed bounds, m/s; the speed is chosen in this range so that the path
+    /// takes num_frames (loop: truncated or repeated when it cannot).
+    double min_speed_mps = 0.2;
+    double max_speed_mps = 0.45;
+    /// Yaw-rate limit of the smooth path (before hand shake), degrees/s.
+    double max_yaw_rate_dps = 15.0;
+    /// Acceleration limit along the path, m/s^2.
+    double max_accel_mps2 = 0.5;
+    /// Camera height above the floor and its slow sway amplitude, metres.
+    double height_m = 1.4;
+    double height_sway_m = 0.08;
+    /// Look direction relative to the direction of travel, degrees (negative = to the right,
+    /// i.e. outward on a counter-clockwise loop).
+    double look_offset_deg = -65.0;
+    /// Mean pitch (negative = down) and the amplitude of its slow sway, degrees.
+    double pitch_deg = -8.0;
+    double pitch_sway_deg = 10.0;
+    /// Hand-shake amplitudes (per axis, sum of three sinusoids at 0.5-2 Hz): position, metres;
+    /// rotation, degrees.
+    double shake_position_m = 0.003;
+    double shake_rotation_deg = 0.4;
+    /// Fraction of the loop covered by the no-loop variant.
+    double no_loop_fraction = 0.75;
+    /// Seed of the hand-shake phases and frequencies.
+    uint64_t seed = 1;
+};
+
+/// Generates num_frames poses T_W_C (camera x right, y down, z forward; world z up) with
+/// timestamps k / rate_hz. Errors: a path that leaves the room or cannot be built.
+Result<io::Trajectory> generateTrajectory(const Scene& scene, const TrajectoryConfig& config);
+
+/// The closed control polygon of the path: the scene's waypoints, or its outline offset inward
+/// by path_inset_m (edges subdivided to at most 1 m).
+Result<std::vector<Eigen::Vector2d>> pathControlPoints(const Scene& scene);
+
+/// Camera orientation R_W_C for a yaw (heading of the optical axis about +z, radians), pitch
+/// (elevation of the optical axis, radians) and roll (about the optical axis, radians).
+Eigen::Matrix3d cameraRotation(double yaw_rad, double pitch_rad, double roll_rad);
+
+}  // namespace plumb::sim

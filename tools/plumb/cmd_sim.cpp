@@ -1,0 +1,182 @@
+// SPDX-License-Identifier: Apache-2.0
+// `plumb sim`: renders a simulated handheld scan of a room into a TUM-layout dataset.
+
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "drivers/dataset/intrinsics_file.hpp"
+#include "drivers/sim/sim_source.hpp"
+#include "tools/plumb/command.hpp"
+
+namespace plumb::tools {
+namespace {
+
+constexpr const char* kUsage =
+    "usage: plumb sim <scene> --out DIR [options]\n"
+    "\n"
+    "Renders a simulated handheld depth scan of <scene> (a built-in room: living_room,\n"
+    "weak_manhattan, l_shape, corridor; or a .toml scene file) and writes a TUM-layout dataset:\n"
+    "depth/ (uint16 mm), depth.txt, groundtruth.txt, trajectory.log, intrinsics.json,\n"
+    "gt_points.ply, layout.json, sim.json, depth_clean/ and gray/.\n"
+    "\n"
+    "options:\n"
+    "  --out DIR            output folder (required)\n"
+    "  --frames N           number of frames (default 600)\n"
+    "  --loop | --no-loop   closed loop back to the start (default) or no revisits\n"
+    "  --trajectory FILE    TUM trajectory (camera->world) instead of the generated one\n"
+    "  --noise MODE         off | redwood (default, measured distortion table) |\n"
+    "                       parametric (k1/k2 distortion) | undistorted\n"
+    "  --noise-model FILE   Redwood dist-model.txt (default: $PLUMB_NOISE_MODEL, then the\n"
+    "                       shared data folder)\n"
+    "  --k1 X, --k2 X       parametric distortion strength (default 0.02, 0)\n"
+    "  --max-depth M        sensor range limit in metres (default 4.0; 0 = none)\n"
+    "  --no-missing         no grazing-angle, depth-edge or random dropout\n"
+    "  --intrinsics X       camera preset (primesense, ci, ...) or intrinsics file\n"
+    "                       (default primesense 640x480)\n"
+    "  --seed S             seed of noise and hand shake (default 1)\n"
+    "  --gt-spacing M       spacing of gt_points.ply samples in metres (default 0.01)\n"
+    "  --no-clean           do not write depth_clean/\n"
+    "  --no-gray            do not write gray/\n";
+
+bool parseDouble(const std::string& text, double* out) {
+    char* end = nullptr;
+    const double v = std::strtod(text.c_str(), &end);
+    if (end == text.c_str() || *end != '\0') return false;
+    *out = v;
+    return true;
+}
+
+bool parseUnsigned(const std::string& text, uint64_t* out) {
+    if (text.empty() || text[0] == '-') return false;
+    char* end = nullptr;
+    const unsigned long long v = std::strtoull(text.c_str(), &end, 10);
+    if (end == text.c_str() || *end != '\0') return false;
+    *out = v;
+    return true;
+}
+
+int usageError(const std::string& message) {
+    std::fprintf(stderr, "plumb sim: %s\n\n%s", message.c_str(), kUsage);
+    return kExitUsage;
+}
+
+int runSim(const std::vector<std::string>& args) {
+    sim::SimConfig config;
+    sim::SimDatasetOptions options;
+    std::string out_dir;
+    std::string scene;
+    uint64_t frames = 600;
+    for (size_t i = 0; i < args.size(); ++i) {
+        const std::string& a = args[i];
+        auto value = [&](std::string* v) {
+            if (i + 1 >= args.size()) return false;
+            *v = args[++i];
+            return true;
+        };
+        std::string v;
+        if (a == "--help" || a == "-h") {
+            std::printf("%s", kUsage);
+            return kExitOk;
+        } else if (a == "--out") {
+            if (!value(&out_dir)) return usageError("--out needs a folder");
+        } else if (a == "--frames") {
+            if (!value(&v) || !parseUnsigned(v, &frames) || frames == 0) {
+                return usageError("--frames needs a positive integer");
+            }
+        } else if (a == "--loop") {
+            config.trajectory.loop = true;
+        } else if (a == "--no-loop") {
+            config.trajectory.loop = false;
+        } else if (a == "--trajectory") {
+            if (!value(&config.trajectory_file)) return usageError("--trajectory needs a file");
+        } else if (a == "--noise") {
+            if (!value(&v)) return usageError("--noise needs a mode");
+            const Status s = sim::parseNoiseMode(v, &config.noise);
+            if (!s.isOk()) return usageError(s.message());
+        } else if (a == "--noise-model") {
+            if (!value(&config.noise_model_path)) return usageError("--noise-model needs a file");
+        } else if (a == "--k1") {
+            if (!value(&v) || !parseDouble(v, &config.noise.k1)) {
+                return usageError("--k1 needs a number");
+            }
+        } else if (a == "--k2") {
+            if (!value(&v) || !parseDouble(v, &config.noise.k2)) {
+                return usageError("--k2 needs a number");
+            }
+        } else if (a == "--max-depth") {
+            if (!value(&v) || !parseDouble(v, &config.noise.max_depth_m) ||
+                config.noise.max_depth_m < 0.0) {
+                return usageError("--max-depth needs a non-negative number of metres");
+            }
+        } else if (a == "--no-missing") {
+            config.noise.missing_data = false;
+        } else if (a == "--intrinsics") {
+            if (!value(&v)) return usageError("--intrinsics needs a preset name or a file");
+            auto preset = cameraPreset(v);
+            if (preset.isOk()) {
+                config.camera = *preset;
+            } else if (std::filesystem::exists(v)) {
+                auto file = dataset::readIntrinsicsFile(v, config.camera);
+                if (!file.isOk()) {
+                    std::fprintf(stderr, "plumb sim: %s\n", file.status().toString().c_str());
+                    return kExitFailure;
+                }
+                config.camera = file->camera;
+            } else {
+                return usageError("--intrinsics: '" + v + "' is neither a preset nor a file");
+            }
+        } else if (a == "--seed") {
+            if (!value(&v) || !parseUnsigned(v, &config.seed)) {
+                return usageError("--seed needs a non-negative integer");
+            }
+        } else if (a == "--gt-spacing") {
+            if (!value(&v) || !parseDouble(v, &options.gt_spacing_m) ||
+                !(options.gt_spacing_m >= 0.001)) {
+                return usageError("--gt-spacing needs a number of metres >= 0.001");
+            }
+        } else if (a == "--no-clean") {
+            options.write_clean = false;
+        } else if (a == "--no-gray") {
+            options.write_gray = false;
+        } else if (!a.empty() && a[0] == '-') {
+            return usageError("unknown option '" + a + "'");
+        } else if (scene.empty()) {
+            scene = a;
+        } else {
+            return usageError("more than one scene given ('" + scene + "', '" + a + "')");
+        }
+    }
+    if (scene.empty()) return usageError("no scene given");
+    if (out_dir.empty()) return usageError("--out DIR is required");
+    config.scene = scene;
+    config.trajectory.num_frames = frames;
+    config.trajectory.seed = config.seed;
+
+    auto source = sim::SimSource::create(config);
+    if (!source.isOk()) {
+        std::fprintf(stderr, "plumb sim: %s\n", source.status().toString().c_str());
+        return kExitFailure;
+    }
+    std::printf("plumb sim: %s\n", (*source)->description().c_str());
+    const auto start = std::chrono::steady_clock::now();
+    const Status written = sim::writeSimDataset(**source, out_dir, options);
+    if (!written.isOk()) {
+        std::fprintf(stderr, "plumb sim: %s\n", written.toString().c_str());
+        return kExitFailure;
+    }
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    std::printf("plumb sim: wrote %zu frames to %s in %.1f s\n", *(*source)->size(),
+                out_dir.c_str(), seconds);
+    return kExitOk;
+}
+
+}  // namespace
+}  // namespace plumb::tools
+
+PLUMB_COMMAND(sim, "sim", "render a simulated handheld scan of a room into a dataset folder",
+              plumb::tools::runSim);
