@@ -1,0 +1,143 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "messages/spool.hpp"
+
+#include <fmt/format.h>
+
+#include <cstdio>
+#include <system_error>
+
+#include "messages/crc32.hpp"
+#include "messages/files.hpp"
+
+namespace plumb::messages {
+
+std::string fragmentFileName(int64_t session_id, uint32_t fragment_id) {
+    return fmt::format("s{:016x}_f{:010d}.plf", static_cast<uint64_t>(session_id), fragment_id);
+}
+
+bool parseFragmentFileName(const std::string& name, int64_t& session_id, uint32_t& fragment_id) {
+    if (name.size() != 1 + 16 + 2 + 10 + 4 || name[0] != 's' || name.compare(17, 2, "_f") != 0 ||
+        name.compare(29, 4, ".plf") != 0) {
+        return false;
+    }
+    uint64_t s = 0, f = 0;
+    for (size_t i = 1; i < 17; ++i) {
+        const char c = name[i];
+        const int d = c >= '0' && c <= '9' ? c - '0' : c >= 'a' && c <= 'f' ? c - 'a' + 10 : -1;
+        if (d < 0) return false;
+        s = s * 16 + static_cast<uint64_t>(d);
+    }
+    for (size_t i = 19; i < 29; ++i) {
+        if (name[i] < '0' || name[i] > '9') return false;
+        f = f * 10 + static_cast<uint64_t>(name[i] - '0');
+    }
+    if (f > UINT32_MAX) return false;
+    session_id = static_cast<int64_t>(s);
+    fragment_id = static_cast<uint32_t>(f);
+    return true;
+}
+
+Result<std::unique_ptr<Spool>> Spool::open(SpoolConfig config) {
+    if (config.memory_budget_bytes < 0 || config.disk_budget_bytes < 0) {
+        return invalidArgument("spool: negative budget");
+    }
+    std::unique_ptr<Spool> spool(new Spool(std::move(config)));
+    const std::filesystem::path& dir = spool->config_.disk_dir;
+    if (dir.empty()) return spool;
+    std::error_code ec;
+    std::filesystem::create_directories(dir, ec);
+    if (ec) return ioError(fmt::format("spool: cannot create {}: {}", dir.string(), ec.message()));
+    for (const auto& item : std::filesystem::directory_iterator(dir, ec)) {
+        const std::string name = item.path().filename().string();
+        if (name.ends_with(kTempSuffix)) {
+            PLUMB_RETURN_IF_ERROR(removeFile(item.path()));  // an interrupted write
+            continue;
+        }
+        SpoolKey key;
+        if (!parseFragmentFileName(name, key.session_id, key.fragment_id)) continue;
+        auto bytes = readFile(item.path(), int64_t{1} << 32);
+        if (!bytes.isOk()) return bytes.status();
+        Entry e;
+        e.on_disk = true;
+        e.size = static_cast<int64_t>(bytes->size());
+        e.crc = crc32(*bytes);
+        spool->disk_bytes_ += e.size;
+        spool->entries_.emplace(key, std::move(e));
+    }
+    if (ec) return ioError(fmt::format("spool: cannot list {}: {}", dir.string(), ec.message()));
+    return spool;
+}
+
+std::filesystem::path Spool::pathOf(const SpoolKey& key) const {
+    return config_.disk_dir / fragmentFileName(key.session_id, key.fragment_id);
+}
+
+Status Spool::put(const SpoolKey& key, std::vector<uint8_t> bytes) {
+    if (bytes.empty()) return invalidArgument("spool: empty fragment");
+    const uint32_t crc = crc32(bytes);
+    const auto size = static_cast<int64_t>(bytes.size());
+    if (auto it = entries_.find(key); it != entries_.end()) {
+        if (it->second.crc == crc && it->second.size == size) return Status::ok();
+        return invalidArgument(
+            fmt::format("spool: fragment {} of session {} already held with "
+                        "other content",
+                        key.fragment_id, key.session_id));
+    }
+    Entry e;
+    e.size = size;
+    e.crc = crc;
+    if (memory_bytes_ + size <= config_.memory_budget_bytes) {
+        e.bytes = std::move(bytes);
+        memory_bytes_ += size;
+    } else {
+        if (config_.disk_dir.empty() || disk_bytes_ + size > config_.disk_budget_bytes) {
+            return ioError(
+                fmt::format("spool full: fragment {} ({} bytes) fits neither memory "
+                            "({} of {} used) nor disk ({} of {} used)",
+                            key.fragment_id, size, memory_bytes_, config_.memory_budget_bytes,
+                            disk_bytes_, config_.disk_dir.empty() ? 0 : config_.disk_budget_bytes));
+        }
+        PLUMB_RETURN_IF_ERROR(writeFileAtomic(pathOf(key), bytes));
+        e.on_disk = true;
+        disk_bytes_ += size;
+    }
+    entries_.emplace(key, std::move(e));
+    return Status::ok();
+}
+
+Result<std::vector<uint8_t>> Spool::get(const SpoolKey& key) const {
+    auto it = entries_.find(key);
+    if (it == entries_.end()) {
+        return notFound(
+            fmt::format("spool: no fragment {} of session {}", key.fragment_id, key.session_id));
+    }
+    if (!it->second.on_disk) return it->second.bytes;
+    auto bytes = readFile(pathOf(key), it->second.size);
+    if (!bytes.isOk()) return bytes.status();
+    if (static_cast<int64_t>(bytes->size()) != it->second.size || crc32(*bytes) != it->second.crc) {
+        return corrupt(fmt::format("spool: {} changed on disk", pathOf(key).string()));
+    }
+    return bytes;
+}
+
+Status Spool::erase(const SpoolKey& key) {
+    auto it = entries_.find(key);
+    if (it == entries_.end()) return Status::ok();
+    if (it->second.on_disk) {
+        PLUMB_RETURN_IF_ERROR(removeFile(pathOf(key)));
+        disk_bytes_ -= it->second.size;
+    } else {
+        memory_bytes_ -= it->second.size;
+    }
+    entries_.erase(it);
+    return Status::ok();
+}
+
+std::vector<SpoolKey> Spool::keys() const {
+    std::vector<SpoolKey> out;
+    out.reserve(entries_.size());
+    for (const auto& [k, e] : entries_) out.push_back(k);
+    return out;
+}
+
+}  // namespace plumb::messages

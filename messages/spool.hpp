@@ -1,0 +1,80 @@
+// SPDX-License-Identifier: Apache-2.0
+#pragma once
+
+// Device-side spool of encoded fragments that the backend has not acknowledged yet: kept in
+// memory up to a budget, then written to disk atomically (messages/files.hpp), so a slow or
+// restarting backend costs disk space, not data. Disk entries survive a device restart and are
+// found again by open(). Entries are keyed by (session, fragment id). Not thread-safe.
+
+#include <cstdint>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <utility>
+#include <vector>
+
+#include "common/core/status.hpp"
+#include "messages/wire.hpp"
+
+namespace plumb::messages {
+
+struct SpoolConfig {
+    /// Bytes of fragments held in memory; further fragments go to disk.
+    int64_t memory_budget_bytes = int64_t{64} << 20;
+    /// Directory for fragments beyond the memory budget; empty = memory only.
+    std::filesystem::path disk_dir;
+    /// Bytes allowed on disk; put() fails with IoError beyond it (the caller must stop cutting
+    /// fragments or make room), never silently dropping one.
+    int64_t disk_budget_bytes = int64_t{4} << 30;
+};
+
+struct SpoolKey {
+    int64_t session_id = 0;
+    uint32_t fragment_id = 0;
+    auto operator<=>(const SpoolKey&) const = default;
+};
+
+class Spool {
+  public:
+    /// Creates `disk_dir` if needed, removes temporary files of interrupted writes and indexes the
+    /// fragments already spooled there.
+    static Result<std::unique_ptr<Spool>> open(SpoolConfig config);
+
+    /// Adds a fragment (memory if it fits, else disk). InvalidArgument for an empty fragment or a
+    /// key already present with other bytes (same bytes: no-op); IoError when full or on disk
+    /// errors (nothing is lost: the fragment simply is not in the spool).
+    Status put(const SpoolKey& key, std::vector<uint8_t> bytes);
+    /// NotFound when absent; IoError/Corrupt when the disk copy cannot be read back intact.
+    Result<std::vector<uint8_t>> get(const SpoolKey& key) const;
+    /// Removes an acknowledged fragment (absent: no-op).
+    Status erase(const SpoolKey& key);
+
+    bool contains(const SpoolKey& key) const { return entries_.count(key) > 0; }
+    /// Keys in ascending order (oldest session and fragment first).
+    std::vector<SpoolKey> keys() const;
+    size_t size() const { return entries_.size(); }
+    int64_t memoryBytes() const { return memory_bytes_; }
+    int64_t diskBytes() const { return disk_bytes_; }
+
+  private:
+    struct Entry {
+        std::vector<uint8_t> bytes;  ///< empty when on disk
+        bool on_disk = false;
+        int64_t size = 0;
+        uint32_t crc = 0;
+    };
+    explicit Spool(SpoolConfig config) : config_(std::move(config)) {}
+    std::filesystem::path pathOf(const SpoolKey& key) const;
+
+    SpoolConfig config_;
+    std::map<SpoolKey, Entry> entries_;
+    int64_t memory_bytes_ = 0;
+    int64_t disk_bytes_ = 0;
+};
+
+/// File name used by the spool and the fragment store: "s<session, 16 hex>_f<id, 10 digits>.plf".
+std::string fragmentFileName(int64_t session_id, uint32_t fragment_id);
+/// Inverse of fragmentFileName; false for any other name.
+bool parseFragmentFileName(const std::string& name, int64_t& session_id, uint32_t& fragment_id);
+
+}  // namespace plumb::messages
