@@ -1,0 +1,165 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "device/fusion/fragment_builder.hpp"
+
+#include <string>
+#include <utility>
+
+namespace plumb::device {
+
+Status FusionConfig::validate() const {
+    if (frames_per_fragment < 1) {
+        return invalidArgument("fusion: frames_per_fragment must be >= 1, got " +
+                               std::to_string(frames_per_fragment));
+    }
+    PLUMB_RETURN_IF_ERROR(tsdf.validate());
+    PLUMB_RETURN_IF_ERROR(preprocess.validate());
+    PLUMB_RETURN_IF_ERROR(icp.validate());
+    return Status::ok();
+}
+
+FragmentBuilder::FragmentBuilder(const PinholeCamera& camera, const FusionConfig& config)
+    : camera_(camera), config_(config), volume_(config.tsdf) {
+    const Status s = config_.validate();
+    PLUMB_CHECK(s.isOk()) << s.toString();
+}
+
+void FragmentBuilder::openFragment(const Eigen::Isometry3d& T_W_F) {
+    current_.emplace();
+    current_->id = next_id_++;
+    current_->segment = segment_;
+    current_->T_W_F = T_W_F;
+    current_->voxel_size_m = config_.tsdf.voxel_size_m;
+    volume_.clear();
+    T_W_M_ = T_W_F;
+    T_M_last_ = Eigen::Isometry3d::Identity();
+    have_model_ = false;
+    quality_sum_ = 0.0;
+    quality_count_ = 0;
+}
+
+void FragmentBuilder::addFrame(const Frame& frame, const Eigen::Isometry3d& T_F_C, bool tracking_ok,
+                               double quality) {
+    FragmentFrame f;
+    f.frame_index = frame.index;
+    f.timestamp_s = frame.timestamp_s;
+    f.T_F_C = T_F_C;
+    f.tracking_ok = tracking_ok;
+    current_->frames.push_back(f);
+    if (tracking_ok) {
+        quality_sum_ += quality;
+        ++quality_count_;
+    }
+}
+
+Fragment FragmentBuilder::closeFragment(FragmentEnd end) {
+    Fragment fragment = std::move(*current_);
+    current_.reset();
+    fragment.end = end;
+    fragment.points_F = tsdf::extractSurfacePoints(volume_, config_.surface);
+    fragment.tracking_quality = quality_count_ > 0 ? quality_sum_ / quality_count_ : 0.0;
+    return fragment;
+}
+
+bool FragmentBuilder::integrate(const FramePyramid& pyramid, const Eigen::Isometry3d& T_F_C,
+                                FrameReport* report) {
+    Result<tsdf::IntegrationStats> r = volume_.integrate(pyramid.depth, camera_, T_F_C);
+    if (!r.isOk()) {
+        report->message += (report->message.empty() ? "" : "; ") + r.status().message();
+        return false;
+    }
+    have_model_ = true;
+    return true;
+}
+
+Result<FrameReport> FragmentBuilder::process(const Frame& frame) {
+    Result<FramePyramid> pyr = preprocess(frame.depth, camera_, config_.preprocess);
+    if (!pyr.isOk()) {
+        return Status(pyr.status().code(),
+                      "frame " + std::to_string(frame.index) + ": " + pyr.status().message());
+    }
+    const FramePyramid& pyramid = pyr.value();
+    FrameReport report;
+    report.frame_index = frame.index;
+
+    if (first_frame_ || !have_model_) {
+        // Start of the stream, or nothing to track against: begin here at the best known pose.
+        const bool restart = !first_frame_;
+        first_frame_ = false;
+        if (current_ && !current_->frames.empty()) {
+            report.closed.push_back(closeFragment(FragmentEnd::kTrackingLost));
+        }
+        if (!current_) openFragment(T_W_C_);
+        report.tracked = !restart;
+        report.integrated = integrate(pyramid, Eigen::Isometry3d::Identity(), &report);
+        if (report.integrated) addFrame(frame, Eigen::Isometry3d::Identity(), true, 1.0);
+        report.T_W_C = T_W_C_;
+        return report;
+    }
+
+    const std::vector<ModelLevel> model =
+        predictModel(volume_, pyramid, T_M_last_, config_.raycast);
+    report.icp = alignFrameToModel(pyramid, model, T_M_last_, T_M_last_, config_.icp);
+
+    if (report.icp.ok) {
+        const Eigen::Isometry3d T_M_C = report.icp.T_M_C;
+        T_W_C_ = T_W_M_ * T_M_C;
+        report.tracked = true;
+        report.relocalised = lost_;
+        lost_ = false;
+        if (current_) {
+            // Normal tracking inside the open fragment (M = F).
+            if (integrate(pyramid, T_M_C, &report)) {
+                addFrame(frame, T_M_C, true, report.icp.inlier_fraction);
+                T_M_last_ = T_M_C;
+                report.integrated = true;
+            } else {
+                // Block budget: close early and start the next fragment with this frame.
+                report.budget_reached = true;
+                report.closed.push_back(closeFragment(FragmentEnd::kBlockBudget));
+                openFragment(T_W_C_);
+                report.integrated = integrate(pyramid, Eigen::Isometry3d::Identity(), &report);
+                if (report.integrated) addFrame(frame, Eigen::Isometry3d::Identity(), true, 1.0);
+            }
+        } else {
+            // First frame after a cut (or a re-localisation): it begins the next fragment.
+            openFragment(T_W_C_);
+            report.integrated = integrate(pyramid, Eigen::Isometry3d::Identity(), &report);
+            if (report.integrated) {
+                addFrame(frame, Eigen::Isometry3d::Identity(), true, report.icp.inlier_fraction);
+            }
+            if (report.relocalised) report.message = "re-localised against the last fragment";
+        }
+    } else {
+        report.message = "tracking failed: " + report.icp.failure;
+        report.T_W_C = T_W_C_;
+        if (current_) {
+            addFrame(frame, T_M_last_, false, 0.0);
+            report.closed.push_back(closeFragment(FragmentEnd::kTrackingLost));
+            lost_ = true;  // keep volume_ and T_M_last_ for re-localisation
+        } else if (lost_) {
+            // Re-localisation failed as well: restart tracking in a new segment.
+            ++segment_;
+            lost_ = false;
+            report.new_segment = true;
+            report.message += "; re-localisation failed, new segment " + std::to_string(segment_);
+            openFragment(T_W_C_);
+            report.integrated = integrate(pyramid, Eigen::Isometry3d::Identity(), &report);
+            if (report.integrated) addFrame(frame, Eigen::Isometry3d::Identity(), true, 1.0);
+        } else {
+            lost_ = true;  // failed right after a cut: try the next frame against the same model
+        }
+    }
+    report.T_W_C = T_W_C_;
+    if (current_ && static_cast<int>(current_->frames.size()) >= config_.frames_per_fragment) {
+        // Cut; volume_ stays alive to track the next frame.
+        report.closed.push_back(closeFragment(FragmentEnd::kFrameCount));
+    }
+    return report;
+}
+
+std::optional<Fragment> FragmentBuilder::finish() {
+    if (!current_ || current_->frames.empty()) return std::nullopt;
+    return closeFragment(FragmentEnd::kEndOfStream);
+}
+
+}  // namespace plumb::device

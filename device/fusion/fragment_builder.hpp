@@ -1,0 +1,106 @@
+// SPDX-License-Identifier: Apache-2.0
+#pragma once
+
+// Continuous tracking and fusion into fragments (reference §2.7). Every frame is tracked against a
+// raycast of the current fragment's TSDF; a fragment is cut every `frames_per_fragment` frames and
+// its volume is kept just long enough to track the next frame, so odometry never restarts across
+// cuts. Fragment F's frame is the camera frame of its first frame; T_W_F comes from odometry.
+//
+// Tracking loss: the fragment is closed early (FragmentEnd::kTrackingLost, the failed frame listed
+// with tracking_ok = false). The next frame tries to re-localise against the closed fragment's
+// volume from the last good pose; if that fails too, a new segment starts (Fragment::segment + 1)
+// whose pose is only a guess (the last good pose) for the backend to correct.
+//
+// Block budget: when a frame would exceed TsdfConfig::max_blocks the fragment is closed early
+// (FragmentEnd::kBlockBudget) and the frame starts the next fragment; the frame report says so.
+//
+// Not thread-safe; one caller feeds frames in order. No I/O: callers log the reports.
+
+#include <Eigen/Geometry>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "common/fragment/fragment.hpp"
+#include "common/tsdf/raycast.hpp"
+#include "common/tsdf/surface.hpp"
+#include "common/tsdf/tsdf_volume.hpp"
+#include "device/preprocess/preprocess.hpp"
+#include "device/tracking/icp.hpp"
+#include "drivers/frame_source.hpp"
+
+namespace plumb::device {
+
+struct FusionConfig {
+    /// Frames per fragment (paper: 50).
+    int frames_per_fragment = 50;
+    /// TSDF volume of each fragment (voxel size, truncation, block budget).
+    tsdf::TsdfConfig tsdf;
+    /// Model prediction for tracking.
+    tsdf::RaycastConfig raycast;
+    /// Surface points of a closed fragment.
+    tsdf::SurfaceConfig surface;
+    /// Frame preprocessing (filter, pyramid).
+    PreprocessConfig preprocess;
+    /// Frame-to-model ICP and its failure tests.
+    IcpConfig icp;
+
+    Status validate() const;
+};
+
+/// What happened to one frame.
+struct FrameReport {
+    int64_t frame_index = 0;
+    bool tracked = false;         ///< pose from ICP (or the first frame of a segment)
+    bool integrated = false;      ///< fused into a fragment volume
+    bool relocalised = false;     ///< tracking recovered against the last closed fragment
+    bool new_segment = false;     ///< tracking restarted: a new segment began at this frame
+    bool budget_reached = false;  ///< the block budget closed a fragment on this frame
+    IcpResult icp;                ///< the ICP result (default when no ICP ran)
+    Eigen::Isometry3d T_W_C = Eigen::Isometry3d::Identity();  ///< pose estimate after the frame
+    std::string message;           ///< explanation when something was not nominal
+    std::vector<Fragment> closed;  ///< fragments completed while processing this frame
+};
+
+class FragmentBuilder {
+  public:
+    /// `config` must validate (checked).
+    FragmentBuilder(const PinholeCamera& camera, const FusionConfig& config);
+
+    /// Tracks and fuses one frame. Fails only for unusable input (image size mismatch, bad
+    /// configuration); tracking problems are reported in the FrameReport.
+    Result<FrameReport> process(const Frame& frame);
+
+    /// Closes the open fragment (FragmentEnd::kEndOfStream); nullopt when none holds frames.
+    std::optional<Fragment> finish();
+
+    /// Current camera pose estimate in the world (odometry) frame.
+    const Eigen::Isometry3d& T_W_C() const { return T_W_C_; }
+    /// The volume of the open (or last closed) fragment, in that fragment's frame.
+    const tsdf::TsdfVolume& volume() const { return volume_; }
+
+  private:
+    void openFragment(const Eigen::Isometry3d& T_W_F);
+    void addFrame(const Frame& frame, const Eigen::Isometry3d& T_F_C, bool tracking_ok,
+                  double quality);
+    Fragment closeFragment(FragmentEnd end);
+    bool integrate(const FramePyramid& pyramid, const Eigen::Isometry3d& T_F_C,
+                   FrameReport* report);
+
+    PinholeCamera camera_;
+    FusionConfig config_;
+    tsdf::TsdfVolume volume_;
+    std::optional<Fragment> current_;  ///< the open fragment
+    bool have_model_ = false;          ///< volume_ holds a model to track the next frame against
+    bool lost_ = false;                ///< the last tracking attempt failed
+    Eigen::Isometry3d T_W_M_ = Eigen::Isometry3d::Identity();     ///< frame of volume_
+    Eigen::Isometry3d T_M_last_ = Eigen::Isometry3d::Identity();  ///< last good camera in M
+    Eigen::Isometry3d T_W_C_ = Eigen::Isometry3d::Identity();
+    uint32_t next_id_ = 0;
+    uint32_t segment_ = 0;
+    double quality_sum_ = 0.0;
+    int quality_count_ = 0;
+    bool first_frame_ = true;
+};
+
+}  // namespace plumb::device

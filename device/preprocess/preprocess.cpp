@@ -1,0 +1,177 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "device/preprocess/preprocess.hpp"
+
+#include <cmath>
+#include <string>
+
+#include "common/tsdf/parallel.hpp"
+
+namespace plumb::device {
+
+Status PreprocessConfig::validate() const {
+    if (!(min_depth_m >= 0.0f && max_depth_m > min_depth_m)) {
+        return invalidArgument("preprocess: need 0 <= min_depth_m < max_depth_m");
+    }
+    if (bilateral_radius_px < 0 || bilateral_radius_px > 10) {
+        return invalidArgument("preprocess: bilateral_radius_px must be in [0, 10]");
+    }
+    if (!(bilateral_sigma_space_px > 0.0f) || !(bilateral_sigma_depth_m > 0.0f)) {
+        return invalidArgument("preprocess: bilateral sigmas must be positive");
+    }
+    if (num_levels < 1 || num_levels > 5) {
+        return invalidArgument("preprocess: num_levels must be in [1, 5], got " +
+                               std::to_string(num_levels));
+    }
+    if (!(max_normal_depth_jump_m > 0.0f)) {
+        return invalidArgument("preprocess: max_normal_depth_jump_m must be positive");
+    }
+    return Status::ok();
+}
+
+DepthImage gateDepth(const DepthImage& depth, const PreprocessConfig& config) {
+    DepthImage out(depth.width(), depth.height(), 0.0f);
+    for (size_t i = 0; i < depth.size(); ++i) {
+        const float d = depth.data()[i];
+        if (std::isfinite(d) && d >= config.min_depth_m && d <= config.max_depth_m) {
+            out.data()[i] = d;
+        }
+    }
+    return out;
+}
+
+DepthImage bilateralFilter(const DepthImage& depth, const PreprocessConfig& config) {
+    const int w = depth.width(), h = depth.height();
+    const int r = config.bilateral_radius_px;
+    const float sigma_s = config.bilateral_sigma_space_px * static_cast<float>(w) / 640.0f;
+    const float inv_2ss = 1.0f / (2.0f * sigma_s * sigma_s);
+    const float sigma_r = config.bilateral_sigma_depth_m;
+    const float inv_2sr = 1.0f / (2.0f * sigma_r * sigma_r);
+    const float max_diff = 3.0f * sigma_r;
+    std::vector<float> spatial(static_cast<size_t>((2 * r + 1) * (2 * r + 1)));
+    for (int dy = -r; dy <= r; ++dy) {
+        for (int dx = -r; dx <= r; ++dx) {
+            spatial[static_cast<size_t>((dy + r) * (2 * r + 1) + dx + r)] =
+                std::exp(-static_cast<float>(dx * dx + dy * dy) * inv_2ss);
+        }
+    }
+    DepthImage out(w, h, 0.0f);
+    tsdf::parallelFor(config.num_threads, h, [&](int v) {
+        for (int u = 0; u < w; ++u) {
+            const float dc = depth(u, v);
+            if (dc <= 0.0f) continue;
+            float sum = 0.0f, wsum = 0.0f;
+            for (int dy = -r; dy <= r; ++dy) {
+                const int y = v + dy;
+                if (y < 0 || y >= h) continue;
+                for (int dx = -r; dx <= r; ++dx) {
+                    const int x = u + dx;
+                    if (x < 0 || x >= w) continue;
+                    const float d = depth(x, y);
+                    const float diff = d - dc;
+                    if (d <= 0.0f || std::abs(diff) > max_diff) continue;
+                    const float wt = spatial[static_cast<size_t>((dy + r) * (2 * r + 1) + dx + r)] *
+                                     std::exp(-diff * diff * inv_2sr);
+                    sum += wt * d;
+                    wsum += wt;
+                }
+            }
+            out(u, v) = sum / wsum;  // wsum >= 1 (the centre pixel)
+        }
+    });
+    return out;
+}
+
+DepthImage downsampleDepth(const DepthImage& depth, float sigma_depth_m) {
+    const int w = depth.width() / 2, h = depth.height() / 2;
+    DepthImage out(w, h, 0.0f);
+    const float max_diff = 3.0f * sigma_depth_m;
+    for (int v = 0; v < h; ++v) {
+        for (int u = 0; u < w; ++u) {
+            const float s[4] = {depth(2 * u, 2 * v), depth(2 * u + 1, 2 * v),
+                                depth(2 * u, 2 * v + 1), depth(2 * u + 1, 2 * v + 1)};
+            float ref = 0.0f;
+            for (float d : s) {
+                if (d > 0.0f) {
+                    ref = d;
+                    break;
+                }
+            }
+            if (ref <= 0.0f) continue;
+            float sum = 0.0f;
+            int n = 0;
+            for (float d : s) {
+                if (d > 0.0f && std::abs(d - ref) <= max_diff) {
+                    sum += d;
+                    ++n;
+                }
+            }
+            out(u, v) = sum / static_cast<float>(n);
+        }
+    }
+    return out;
+}
+
+void computeVertexNormalMaps(const DepthImage& depth, const PinholeCamera& camera,
+                             float max_depth_jump_m, PointImage* points_C, PointImage* normals_C) {
+    const int w = depth.width(), h = depth.height();
+    *points_C = PointImage(w, h, tsdf::invalidPoint());
+    *normals_C = PointImage(w, h, tsdf::invalidPoint());
+    for (int v = 0; v < h; ++v) {
+        for (int u = 0; u < w; ++u) {
+            const float d = depth(u, v);
+            if (d > 0.0f) (*points_C)(u, v) = camera.unproject(u, v, d).cast<float>();
+        }
+    }
+    for (int v = 1; v + 1 < h; ++v) {
+        for (int u = 1; u + 1 < w; ++u) {
+            const float d = depth(u, v);
+            if (d <= 0.0f) continue;
+            const float dl = depth(u - 1, v), dr = depth(u + 1, v);
+            const float du = depth(u, v - 1), dd = depth(u, v + 1);
+            if (dl <= 0.0f || dr <= 0.0f || du <= 0.0f || dd <= 0.0f) continue;
+            if (std::abs(dl - d) > max_depth_jump_m || std::abs(dr - d) > max_depth_jump_m ||
+                std::abs(du - d) > max_depth_jump_m || std::abs(dd - d) > max_depth_jump_m) {
+                continue;
+            }
+            const Eigen::Vector3f dx = (*points_C)(u + 1, v) - (*points_C)(u - 1, v);
+            const Eigen::Vector3f dy = (*points_C)(u, v + 1) - (*points_C)(u, v - 1);
+            Eigen::Vector3f n = dx.cross(dy);
+            const float len = n.norm();
+            if (!(len > 0.0f)) continue;
+            n /= len;
+            if (n.dot((*points_C)(u, v)) > 0.0f) n = -n;  // face the camera
+            (*normals_C)(u, v) = n;
+        }
+    }
+}
+
+Result<FramePyramid> preprocess(const DepthImage& depth, const PinholeCamera& camera,
+                                const PreprocessConfig& config) {
+    PLUMB_RETURN_IF_ERROR(config.validate());
+    if (depth.width() != camera.width || depth.height() != camera.height) {
+        return invalidArgument("preprocess: depth is " + std::to_string(depth.width()) + "x" +
+                               std::to_string(depth.height()) + " but the camera is " +
+                               camera.toString());
+    }
+    FramePyramid pyramid;
+    pyramid.depth = gateDepth(depth, config);
+    pyramid.levels.resize(static_cast<size_t>(config.num_levels));
+    for (int l = 0; l < config.num_levels; ++l) {
+        PyramidLevel& level = pyramid.levels[static_cast<size_t>(l)];
+        if (l == 0) {
+            level.camera = camera;
+            level.depth = config.bilateral ? bilateralFilter(pyramid.depth, config) : pyramid.depth;
+        } else {
+            const PyramidLevel& finer = pyramid.levels[static_cast<size_t>(l - 1)];
+            level.camera = finer.camera.scaled(0.5);
+            level.depth = downsampleDepth(finer.depth, config.bilateral_sigma_depth_m);
+            level.camera.width = level.depth.width();
+            level.camera.height = level.depth.height();
+        }
+        computeVertexNormalMaps(level.depth, level.camera, config.max_normal_depth_jump_m,
+                                &level.points_C, &level.normals_C);
+    }
+    return pyramid;
+}
+
+}  // namespace plumb::device

@@ -1,0 +1,73 @@
+// SPDX-License-Identifier: Apache-2.0
+#pragma once
+
+// Per-frame preprocessing for tracking (reference §2.1): range gating, a masked bilateral filter,
+// a depth pyramid and per-level vertex and normal maps in the camera frame.
+
+#include <vector>
+
+#include "common/camera/pinhole.hpp"
+#include "common/core/status.hpp"
+#include "common/image/image.hpp"
+#include "common/tsdf/raycast.hpp"
+
+namespace plumb::device {
+
+using tsdf::PointImage;
+
+struct PreprocessConfig {
+    /// Depth below this is invalid, metres.
+    float min_depth_m = 0.1f;
+    /// Depth beyond this is invalid, metres.
+    float max_depth_m = 4.0f;
+    /// Apply the masked bilateral filter to the tracking depth.
+    bool bilateral = true;
+    /// Half window of the bilateral filter in pixels (3 = 7x7).
+    int bilateral_radius_px = 3;
+    /// Spatial sigma of the bilateral filter at 640 px width, pixels; scaled with the width.
+    float bilateral_sigma_space_px = 4.5f;
+    /// Range sigma of the bilateral filter, metres. Neighbours further than 3 sigma are ignored.
+    float bilateral_sigma_depth_m = 0.03f;
+    /// Number of pyramid levels (level 0 = full resolution, each next level half the size).
+    int num_levels = 3;
+    /// A normal is invalid when a neighbour's depth differs by more than this, metres.
+    float max_normal_depth_jump_m = 0.05f;
+    /// Worker threads (0 = TBB default). Results do not depend on it.
+    int num_threads = 0;
+
+    Status validate() const;
+};
+
+struct PyramidLevel {
+    PinholeCamera camera;  ///< intrinsics of this level
+    DepthImage depth;      ///< filtered depth, metres, 0 = invalid
+    PointImage points_C;   ///< vertex map V(u) = D(u) K^-1 [u, 1], camera frame (NaN = invalid)
+    PointImage normals_C;  ///< unit normals facing the camera (NaN = invalid)
+};
+
+struct FramePyramid {
+    DepthImage depth;                  ///< range-gated, unfiltered depth (for integration)
+    std::vector<PyramidLevel> levels;  ///< level 0 = full resolution
+};
+
+/// Range gating: depth outside [min_depth_m, max_depth_m] or not finite becomes 0.
+DepthImage gateDepth(const DepthImage& depth, const PreprocessConfig& config);
+
+/// Masked bilateral filter: invalid neighbours and neighbours more than 3 sigma_depth away from
+/// the centre are ignored; invalid pixels stay invalid.
+DepthImage bilateralFilter(const DepthImage& depth, const PreprocessConfig& config);
+
+/// Half-size depth: mean of the valid pixels of each 2x2 block within 3 sigma_depth of the
+/// block's first valid pixel (KinFu style, never averaging across depth edges).
+DepthImage downsampleDepth(const DepthImage& depth, float sigma_depth_m);
+
+/// Vertex and normal maps of a depth image. Normals from central differences,
+/// n = normalize((V(u+1,v) - V(u-1,v)) x (V(u,v+1) - V(u,v-1))), flipped to face the camera.
+void computeVertexNormalMaps(const DepthImage& depth, const PinholeCamera& camera,
+                             float max_depth_jump_m, PointImage* points_C, PointImage* normals_C);
+
+/// The whole chain. Fails when the image size does not match the camera.
+Result<FramePyramid> preprocess(const DepthImage& depth, const PinholeCamera& camera,
+                                const PreprocessConfig& config);
+
+}  // namespace plumb::device

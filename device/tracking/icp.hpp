@@ -1,0 +1,81 @@
+// SPDX-License-Identifier: Apache-2.0
+#pragma once
+
+// Frame-to-model projective point-to-plane ICP (reference §2.2). The model is a raycast of the TSDF
+// (common/tsdf/raycast.hpp) from the previous pose, one raycast per pyramid level; the frame is its
+// preprocessed pyramid (device/preprocess). Frames: M = the model's frame (the fragment frame), C =
+// the current camera, P = the camera the model was raycast from.
+
+#include <Eigen/Geometry>
+#include <array>
+#include <string>
+#include <vector>
+
+#include "common/geometry/lie.hpp"
+#include "common/tsdf/raycast.hpp"
+#include "common/tsdf/tsdf_volume.hpp"
+#include "device/preprocess/preprocess.hpp"
+
+namespace plumb::device {
+
+struct IcpConfig {
+    /// Gauss-Newton iterations per pyramid level, finest first; levels run coarse to fine
+    /// (KinFu {10, 5, 4}).
+    std::array<int, 3> iterations = {10, 5, 4};
+    /// Correspondences further apart than this are rejected, metres.
+    float max_distance_m = 0.10f;
+    /// Correspondences whose normals differ by more than this are rejected, degrees.
+    float max_normal_angle_deg = 20.0f;
+    /// A level stops when the update twist |xi| falls below this.
+    double min_update_norm = 1e-6;
+    /// Failure: fewer inliers than this fraction of the valid frame pixels (finest level).
+    double min_inlier_fraction = 0.15;
+    /// Failure: the pose moved further than this from the model pose, metres.
+    double max_translation_m = 0.10;
+    /// Failure: the pose rotated more than this from the model pose, degrees.
+    double max_rotation_deg = 10.0;
+    /// Failure: the smallest eigenvalue of J^T J divided by the inlier count is below this. Along
+    /// a constrained translation direction t it is the mean of (n.t)^2 (about 1/3 for a room
+    /// corner); a single plane leaves directions with ~1e-5 (degenerate geometry).
+    double min_normalized_eigenvalue = 1e-3;
+    /// Worker threads (0 = TBB default). Results do not depend on it.
+    int num_threads = 0;
+
+    Status validate() const;
+};
+
+/// Raycast prediction of the model at one pyramid level, in the model frame M.
+struct ModelLevel {
+    PinholeCamera camera;
+    PointImage points_M;
+    PointImage normals_M;
+};
+
+/// Raycasts the model at every level of `frame` (same cameras) from pose T_M_P.
+std::vector<ModelLevel> predictModel(const tsdf::TsdfVolume& volume, const FramePyramid& frame,
+                                     const Eigen::Isometry3d& T_M_P,
+                                     const tsdf::RaycastConfig& config);
+
+struct IcpResult {
+    Eigen::Isometry3d T_M_C = Eigen::Isometry3d::Identity();  ///< estimated camera pose
+    bool ok = false;         ///< converged and passed every failure test
+    std::string failure;     ///< why not ok (empty when ok)
+    int iterations = 0;      ///< total Gauss-Newton iterations over all levels
+    size_t num_inliers = 0;  ///< correspondences at the finest level's last iteration
+    size_t num_valid = 0;    ///< valid frame pixels (with normals) at the finest level
+    double inlier_fraction = 0.0;
+    double rmse_m = 0.0;                     ///< point-to-plane RMS residual of the inliers, metres
+    double condition_number = 0.0;           ///< of the finest level's normal equations
+    double min_normalized_eigenvalue = 0.0;  ///< smallest eigenvalue of J^T J / inliers
+    Matrix6d information = Matrix6d::Zero();  ///< J^T J at the finest level (rotation first)
+};
+
+/// Aligns the frame to the model. T_M_P is the pose the model was raycast from (data association
+/// projects into that view); T_M_C_init is the starting estimate (usually T_M_P). Each iteration
+/// solves (sum J^T J) xi = -sum J^T r with r = n^T (x - v), J = [(x x n)^T, n^T] and applies
+/// T <- Exp(xi) T. Deterministic for every thread count.
+IcpResult alignFrameToModel(const FramePyramid& frame, const std::vector<ModelLevel>& model,
+                            const Eigen::Isometry3d& T_M_P, const Eigen::Isometry3d& T_M_C_init,
+                            const IcpConfig& config);
+
+}  // namespace plumb::device

@@ -1,0 +1,190 @@
+// SPDX-License-Identifier: Apache-2.0
+// Fragments from a simulated hand-held scan of an analytic room: drift over a 50-frame fragment,
+// fragment surface against the exact room, tracking loss, re-localisation and the block budget.
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <numbers>
+#include <vector>
+
+#include "device/fusion/fragment_builder.hpp"
+#include "tests/device/room_scene.hpp"
+
+namespace plumb::device {
+namespace {
+
+constexpr double kDeg = std::numbers::pi / 180.0;
+
+PinholeCamera camera() { return cameraPreset("ci").value(); }  // 160x120
+
+FusionConfig fusionConfig() {
+    FusionConfig c;
+    c.tsdf.voxel_size_m = 0.01f;
+    c.tsdf.truncation_m = 0.04f;
+    c.tsdf.allocation_stride_px = 1;
+    return c;
+}
+
+struct ScanRun {
+    std::vector<Fragment> fragments;
+    std::vector<FrameReport> reports;
+};
+
+/// Feeds frames 0..n-1; `depth_of(k)` gives frame k's depth (default: the room from the
+/// hand-held pose, noisy when `noise`).
+ScanRun run(const FusionConfig& config, int n, bool noise,
+            const std::function<DepthImage(int)>& depth_of = nullptr) {
+    const testing::Scene room = testing::boxRoom();
+    FragmentBuilder builder(camera(), config);
+    ScanRun out;
+    for (int k = 0; k < n; ++k) {
+        Frame frame;
+        frame.index = k;
+        frame.timestamp_s = k / 30.0;
+        frame.depth = depth_of ? depth_of(k)
+                               : room.render(camera(), testing::handheldPose(k),
+                                             noise ? static_cast<uint64_t>(k + 1) : 0);
+        Result<FrameReport> r = builder.process(frame);
+        EXPECT_TRUE(r.isOk()) << r.status().toString();
+        if (!r.isOk()) return out;
+        for (Fragment& f : r->closed) out.fragments.push_back(std::move(f));
+        r->closed.clear();
+        out.reports.push_back(std::move(r.value()));
+    }
+    if (auto last = builder.finish()) out.fragments.push_back(std::move(*last));
+    return out;
+}
+
+/// Median distance from the fragment's points (placed with the ground-truth pose of its first
+/// frame) to the room.
+double medianDistanceToRoom(const Fragment& f) {
+    const testing::Scene room = testing::boxRoom();
+    const Eigen::Isometry3d T_W_F =
+        testing::handheldPose(static_cast<int>(f.frames[0].frame_index));
+    std::vector<double> d;
+    for (const auto& p : f.points_F.points) d.push_back(room.distance(T_W_F * p.cast<double>()));
+    std::nth_element(d.begin(), d.begin() + d.size() / 2, d.end());
+    return d[d.size() / 2];
+}
+
+/// Pose error of frame `k` of fragment `f` against ground truth, relative to the fragment start.
+void driftOf(const Fragment& f, size_t k, double* t_err, double* r_err) {
+    const int first = static_cast<int>(f.frames[0].frame_index);
+    const int last = static_cast<int>(f.frames[k].frame_index);
+    const Eigen::Isometry3d gt =
+        testing::handheldPose(first).inverse() * testing::handheldPose(last);
+    const Eigen::Isometry3d err = gt.inverse() * f.frames[k].T_F_C;
+    *t_err = err.translation().norm();
+    *r_err = lie::rotationAngle(err);
+}
+
+void checkFiftyFrameFragment(bool noise, double max_median_m) {
+    const ScanRun r = run(fusionConfig(), 51, noise);
+    ASSERT_EQ(r.fragments.size(), 2u);
+    const Fragment& f0 = r.fragments[0];
+    EXPECT_EQ(f0.end, FragmentEnd::kFrameCount);
+    ASSERT_EQ(f0.frames.size(), 50u);
+    EXPECT_EQ(f0.frames.back().frame_index, 49);
+    for (const auto& fr : f0.frames) EXPECT_TRUE(fr.tracking_ok);
+    double t_err = 0.0, r_err = 0.0;
+    driftOf(f0, 49, &t_err, &r_err);
+    EXPECT_LT(t_err, 0.01);
+    EXPECT_LT(r_err, 0.5 * kDeg);
+    const double median = medianDistanceToRoom(f0);
+    EXPECT_LT(median, max_median_m);
+    EXPECT_GT(f0.points_F.size(), 20000u);
+    EXPECT_TRUE(f0.points_F.hasNormals());
+    EXPECT_GT(f0.tracking_quality, 0.5);
+    ::testing::Test::RecordProperty("drift_mm", std::to_string(t_err * 1e3));
+    ::testing::Test::RecordProperty("drift_deg", std::to_string(r_err / kDeg));
+    ::testing::Test::RecordProperty("median_mm", std::to_string(median * 1e3));
+    std::printf("noise %d: drift %.3f mm %.4f deg, fragment median %.3f mm, %zu points\n",
+                noise ? 1 : 0, t_err * 1e3, r_err / kDeg, median * 1e3, f0.points_F.size());
+    // The next fragment starts at frame 50 with its odometry pose.
+    const Fragment& f1 = r.fragments[1];
+    EXPECT_EQ(f1.id, 1u);
+    EXPECT_EQ(f1.end, FragmentEnd::kEndOfStream);
+    ASSERT_EQ(f1.frames.size(), 1u);
+    EXPECT_EQ(f1.frames[0].frame_index, 50);
+    const Eigen::Isometry3d err = testing::handheldPose(50).inverse() * f1.T_W_F;
+    EXPECT_LT(err.translation().norm(), 0.015);
+}
+
+TEST(FragmentBuilder, FiftyFramesNoiseFree) { checkFiftyFrameFragment(false, 0.005); }
+
+TEST(FragmentBuilder, FiftyFramesWithNoise) { checkFiftyFrameFragment(true, 0.01); }
+
+TEST(FragmentBuilder, TrackingLossClosesFragmentAndRelocalises) {
+    const testing::Scene room = testing::boxRoom();
+    FusionConfig config = fusionConfig();
+    config.frames_per_fragment = 50;
+    const ScanRun r = run(config, 20, false, [&](int k) {
+        if (k == 10) return DepthImage(camera().width, camera().height, 0.0f);  // sensor glitch
+        return room.render(camera(), testing::handheldPose(k));
+    });
+    ASSERT_EQ(r.fragments.size(), 2u);
+    EXPECT_EQ(r.fragments[0].end, FragmentEnd::kTrackingLost);
+    ASSERT_EQ(r.fragments[0].frames.size(), 11u);
+    EXPECT_FALSE(r.fragments[0].frames.back().tracking_ok);
+    EXPECT_FALSE(r.reports[10].tracked);
+    EXPECT_TRUE(r.reports[11].relocalised);
+    EXPECT_EQ(r.fragments[1].segment, 0u);
+    EXPECT_EQ(r.fragments[1].frames[0].frame_index, 11);
+    const Eigen::Isometry3d err = testing::handheldPose(11).inverse() * r.fragments[1].T_W_F;
+    EXPECT_LT(err.translation().norm(), 0.005);
+    EXPECT_LT(lie::rotationAngle(err), 0.2 * kDeg);
+}
+
+TEST(FragmentBuilder, FailedRelocalisationStartsNewSegment) {
+    const testing::Scene room = testing::boxRoom();
+    const Eigen::Isometry3d turned(Eigen::AngleAxisd(std::numbers::pi, Eigen::Vector3d::UnitY()));
+    const ScanRun r = run(fusionConfig(), 14, false, [&](int k) {
+        const Eigen::Isometry3d T =
+            k < 8 ? testing::handheldPose(k) : turned * testing::handheldPose(k);
+        return room.render(camera(), T);
+    });
+    ASSERT_GE(r.fragments.size(), 2u);
+    EXPECT_EQ(r.fragments[0].end, FragmentEnd::kTrackingLost);
+    EXPECT_EQ(r.fragments[0].segment, 0u);
+    EXPECT_TRUE(r.reports[9].new_segment) << r.reports[9].message;
+    EXPECT_EQ(r.fragments[1].segment, 1u);
+    EXPECT_EQ(r.fragments[1].frames[0].frame_index, 9);
+    // The new segment tracks on: its later frames are all good.
+    for (const auto& fr : r.fragments[1].frames) EXPECT_TRUE(fr.tracking_ok);
+    EXPECT_EQ(r.fragments[1].frames.size(), 5u);
+}
+
+TEST(FragmentBuilder, BlockBudgetClosesFragmentsWithoutDroppingFrames) {
+    FusionConfig config = fusionConfig();
+    // Budget for about one view of the room: later views need blocks the first did not.
+    {
+        tsdf::TsdfVolume probe(config.tsdf);
+        const auto T = testing::handheldPose(0);
+        config.tsdf.max_blocks =
+            probe.countNewBlocks(testing::boxRoom().render(camera(), T), camera(), T) * 5 / 4;
+    }
+    const ScanRun r = run(config, 50, false);
+    size_t budget_closures = 0;
+    for (const auto& f : r.fragments) budget_closures += f.end == FragmentEnd::kBlockBudget;
+    EXPECT_GE(budget_closures, 1u);
+    size_t frames = 0;
+    for (const auto& f : r.fragments) frames += f.frames.size();
+    EXPECT_EQ(frames, 50u);
+    for (const auto& rep : r.reports) {
+        EXPECT_TRUE(rep.integrated) << rep.frame_index << ": " << rep.message;
+        if (rep.budget_reached) {
+            EXPECT_NE(rep.message.find("block budget"), std::string::npos);
+        }
+    }
+    // Odometry continues across budget cuts: the last fragment's pose matches ground truth.
+    const Fragment& last = r.fragments.back();
+    const Eigen::Isometry3d err =
+        testing::handheldPose(static_cast<int>(last.frames[0].frame_index)).inverse() * last.T_W_F;
+    EXPECT_LT(err.translation().norm(), 0.01);
+}
+
+}  // namespace
+}  // namespace plumb::device

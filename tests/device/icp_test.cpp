@@ -1,0 +1,120 @@
+// SPDX-License-Identifier: Apache-2.0
+// Frame-to-model ICP on an analytic room corner: convergence from 2 cm / 2 deg offsets and failure
+// detection on degenerate or empty frames.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+
+#include "common/tsdf/tsdf_volume.hpp"
+#include "device/tracking/icp.hpp"
+#include "tests/device/room_scene.hpp"
+
+namespace plumb::device {
+namespace {
+
+constexpr double kDeg = std::numbers::pi / 180.0;
+
+struct Setup {
+    PinholeCamera cam;
+    tsdf::TsdfVolume volume;
+    Eigen::Isometry3d T_M_ref;
+};
+
+/// Three planes meeting in a corner in front of the camera, fused from the reference view.
+testing::Scene corner() {
+    testing::Scene s;
+    s.planes = {{{1, 0, 0}, 0.7}, {{0, -1, 0}, 0.6}, {{0, 0, -1}, 2.0}};
+    return s;
+}
+
+tsdf::TsdfConfig volumeConfig() {
+    tsdf::TsdfConfig c;
+    c.voxel_size_m = 0.01f;
+    c.truncation_m = 0.04f;
+    c.allocation_stride_px = 1;
+    return c;
+}
+
+/// Looking into the corner, so that each plane fills about a third of the image.
+Eigen::Isometry3d referencePose() {
+    return testing::lookAt(Eigen::Vector3d(0.1, -0.1, 0.0), Eigen::Vector3d(-0.7, 0.6, 2.0));
+}
+
+IcpResult alignWithOffset(const testing::Scene& scene, const Vector6d& offset,
+                          Eigen::Isometry3d* T_true) {
+    const PinholeCamera cam = cameraPreset("primesense").value().scaled(0.5);
+    const Eigen::Isometry3d T_M_ref = referencePose();
+    tsdf::TsdfVolume volume(volumeConfig());
+    EXPECT_TRUE(volume.integrate(scene.render(cam, T_M_ref), cam, T_M_ref).isOk());
+    *T_true = lie::expSE3(offset) * T_M_ref;
+    const FramePyramid frame =
+        preprocess(scene.render(cam, *T_true), cam, PreprocessConfig{}).value();
+    const std::vector<ModelLevel> model =
+        predictModel(volume, frame, T_M_ref, tsdf::RaycastConfig{});
+    return alignFrameToModel(frame, model, T_M_ref, T_M_ref, IcpConfig{});
+}
+
+TEST(Icp, ConvergesFromTwoCentimetresAndTwoDegrees) {
+    const double a = 2.0 * kDeg / std::sqrt(3.0), t = 0.02 / std::sqrt(3.0);
+    const Vector6d offsets[] = {
+        (Vector6d() << a, a, a, t, t, t).finished(),
+        (Vector6d() << -a, a, -a, t, -t, -t).finished(),
+        (Vector6d() << 2.0 * kDeg, 0, 0, 0, 0.02, 0).finished(),
+        (Vector6d() << 0, 0, -2.0 * kDeg, -0.02, 0, 0).finished(),
+    };
+    for (const Vector6d& offset : offsets) {
+        Eigen::Isometry3d T_true;
+        const IcpResult r = alignWithOffset(corner(), offset, &T_true);
+        EXPECT_TRUE(r.ok) << r.failure;
+        const Eigen::Isometry3d err = T_true.inverse() * r.T_M_C;
+        EXPECT_LT(err.translation().norm(), 0.001) << offset.transpose();
+        EXPECT_LT(lie::rotationAngle(err), 0.05 * kDeg) << offset.transpose();
+        EXPECT_GT(r.inlier_fraction, 0.8);
+        EXPECT_LT(r.rmse_m, 0.001);
+    }
+}
+
+TEST(Icp, DetectsDegenerateSinglePlane) {
+    testing::Scene plane;
+    plane.planes = {{{0, 0, -1}, 1.5}};
+    Eigen::Isometry3d T_true;
+    const IcpResult r =
+        alignWithOffset(plane, (Vector6d() << 0, 0, 0, 0.01, 0, 0).finished(), &T_true);
+    EXPECT_FALSE(r.ok) << r.condition_number;
+    EXPECT_NE(r.failure.find("degenerate"), std::string::npos) << r.failure;
+}
+
+TEST(Icp, DetectsEmptyFrame) {
+    const PinholeCamera cam = cameraPreset("ci").value();
+    tsdf::TsdfVolume volume(volumeConfig());
+    const Eigen::Isometry3d T = referencePose();
+    ASSERT_TRUE(volume.integrate(corner().render(cam, T), cam, T).isOk());
+    const FramePyramid frame =
+        preprocess(DepthImage(cam.width, cam.height, 0.0f), cam, PreprocessConfig{}).value();
+    const IcpResult r = alignFrameToModel(frame, predictModel(volume, frame, T, {}), T, T, {});
+    EXPECT_FALSE(r.ok);
+    EXPECT_NE(r.failure.find("too few inliers"), std::string::npos) << r.failure;
+}
+
+TEST(Icp, ResultDoesNotDependOnThreadCount) {
+    const PinholeCamera cam = cameraPreset("ci").value();
+    const Eigen::Isometry3d T_ref = referencePose();
+    tsdf::TsdfVolume volume(volumeConfig());
+    ASSERT_TRUE(volume.integrate(corner().render(cam, T_ref), cam, T_ref).isOk());
+    const Eigen::Isometry3d T_true =
+        lie::expSE3((Vector6d() << 0.01, 0.02, 0, 0.01, 0, 0.01).finished()) * T_ref;
+    const FramePyramid frame = preprocess(corner().render(cam, T_true), cam, {}).value();
+    const auto model = predictModel(volume, frame, T_ref, {});
+    IcpConfig one, two;
+    one.num_threads = 1;
+    two.num_threads = 2;
+    const IcpResult a = alignFrameToModel(frame, model, T_ref, T_ref, one);
+    const IcpResult b = alignFrameToModel(frame, model, T_ref, T_ref, two);
+    EXPECT_EQ(a.T_M_C.matrix(), b.T_M_C.matrix());
+    EXPECT_EQ(a.num_inliers, b.num_inliers);
+}
+
+}  // namespace
+}  // namespace plumb::device
