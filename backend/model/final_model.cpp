@@ -1,0 +1,185 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "backend/model/final_model.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <unordered_map>
+
+#include "common/tsdf/surface.hpp"
+#include "common/tsdf/tsdf_volume.hpp"
+
+namespace plumb::backend {
+
+Status FinalModelConfig::validate() const {
+    if (!(voxel_size_m > 0.0) || voxel_size_m > 0.5)
+        return invalidArgument(
+            fmt::format("final_model.voxel_size_m must be in (0, 0.5] m, got {}", voxel_size_m));
+    if (!(truncation_m >= 2.0 * voxel_size_m))
+        return invalidArgument(
+            fmt::format("final_model.truncation_m ({}) must be at least two voxels ({})",
+                        truncation_m, 2.0 * voxel_size_m));
+    if (!(max_depth_m > 0.0)) return invalidArgument("final_model.max_depth_m must be positive");
+    if (frame_stride < 1) return invalidArgument("final_model.frame_stride must be >= 1");
+    if (splat_radius_px < 0 || splat_radius_px > 8)
+        return invalidArgument("final_model.splat_radius_px must be in [0, 8]");
+    return Status::ok();
+}
+
+void describe(config::Schema& s, FinalModelConfig& c) {
+    s.field("voxel_size_m", c.voxel_size_m, "voxel edge of the final volume", "m")
+        .positive()
+        .max(0.5);
+    s.field("truncation_m", c.truncation_m, "TSDF truncation distance", "m").positive();
+    s.field("max_depth_m", c.max_depth_m, "depth beyond this is not integrated", "m").positive();
+    s.field("frame_stride", c.frame_stride, "integrate every k-th frame (1 = all)").min(1);
+    s.field("min_weight", c.min_weight, "voxels observed fewer times are not meshed").min(0.0);
+    s.field("splat_radius_px", c.splat_radius_px,
+            "splat radius when rendering fragment points into synthetic depth frames", "px")
+        .min(0)
+        .max(8);
+    s.field("num_threads", c.num_threads, "worker threads (0 = all); results do not depend on it")
+        .min(0);
+}
+
+io::Trajectory frameTrajectory(const std::vector<Fragment>& fragments,
+                               const std::vector<Eigen::Isometry3d>& T_W_F) {
+    PLUMB_CHECK(fragments.size() == T_W_F.size())
+        << fragments.size() << " fragments but " << T_W_F.size() << " poses";
+    io::Trajectory trajectory;
+    for (size_t i = 0; i < fragments.size(); ++i) {
+        for (const FragmentFrame& f : fragments[i].frames) {
+            if (!f.tracking_ok) continue;
+            io::StampedPose p;
+            p.timestamp_s = f.timestamp_s;
+            p.T_W_C = T_W_F[i] * f.T_F_C;
+            trajectory.push_back(p);
+        }
+    }
+    return trajectory;
+}
+
+DepthImage renderPointsToDepth(const PointCloud& points_F, const PinholeCamera& camera,
+                               const Eigen::Isometry3d& T_F_C, int splat_radius_px) {
+    DepthImage depth(camera.width, camera.height, 0.0f);
+    const Eigen::Isometry3f T_C_F = T_F_C.inverse().cast<float>();
+    const Eigen::Vector3f centre_F = T_F_C.translation().cast<float>();
+    const bool have_normals = points_F.normals.size() == points_F.points.size();
+    const int r = splat_radius_px;
+    for (size_t k = 0; k < points_F.points.size(); ++k) {
+        const Eigen::Vector3f& p_F = points_F.points[k];
+        if (have_normals && points_F.normals[k].dot(centre_F - p_F) <= 0.0f) continue;  // back face
+        const Eigen::Vector3f p_C = T_C_F * p_F;
+        if (p_C.z() <= 0.0f) continue;
+        const Eigen::Vector2d uv = camera.project(p_C.cast<double>());
+        const int u0 = static_cast<int>(std::lround(uv.x()));
+        const int v0 = static_cast<int>(std::lround(uv.y()));
+        for (int v = v0 - r; v <= v0 + r; ++v) {
+            if (v < 0 || v >= camera.height) continue;
+            for (int u = u0 - r; u <= u0 + r; ++u) {
+                if (u < 0 || u >= camera.width) continue;
+                float& d = depth(u, v);
+                if (d == 0.0f || p_C.z() < d) d = p_C.z();
+            }
+        }
+    }
+    return depth;
+}
+
+namespace {
+
+tsdf::TsdfConfig volumeConfig(const FinalModelConfig& config) {
+    tsdf::TsdfConfig c;
+    c.voxel_size_m = static_cast<float>(config.voxel_size_m);
+    c.truncation_m = static_cast<float>(config.truncation_m);
+    c.max_depth_m = static_cast<float>(config.max_depth_m);
+    c.num_threads = config.num_threads;
+    return c;
+}
+
+FinalModel finish(const tsdf::TsdfVolume& volume, const FinalModelConfig& config, size_t frames,
+                  bool raw) {
+    tsdf::SurfaceConfig surface;
+    surface.min_weight = static_cast<float>(config.min_weight);
+    surface.num_threads = config.num_threads;
+    FinalModel model;
+    model.mesh = tsdf::extractMesh(volume, surface);
+    model.frames_integrated = frames;
+    model.blocks = volume.numBlocks();
+    model.from_raw_frames = raw;
+    return model;
+}
+
+}  // namespace
+
+Result<FinalModel> integrateRawFrames(FrameSource& source, const std::vector<Fragment>& fragments,
+                                      const std::vector<Eigen::Isometry3d>& T_W_F,
+                                      const FinalModelConfig& config, Progress* progress) {
+    PLUMB_RETURN_IF_ERROR(config.validate());
+    if (fragments.size() != T_W_F.size())
+        return invalidArgument(
+            fmt::format("{} fragments but {} poses", fragments.size(), T_W_F.size()));
+    std::unordered_map<int64_t, Eigen::Isometry3d> pose_of;
+    for (size_t i = 0; i < fragments.size(); ++i)
+        for (const FragmentFrame& f : fragments[i].frames)
+            if (f.tracking_ok) pose_of.emplace(f.frame_index, T_W_F[i] * f.T_F_C);
+    if (pose_of.empty()) return invalidArgument("no tracked frame in any fragment");
+
+    tsdf::TsdfVolume volume(volumeConfig(config));
+    size_t integrated = 0;
+    size_t seen = 0;
+    for (;;) {
+        Result<Frame> frame = source.next();
+        if (!frame.isOk()) {
+            if (frame.status().code() == StatusCode::kOutOfRange) break;
+            return Status(frame.status().code(),
+                          "re-integrating raw frames: " + frame.status().message());
+        }
+        ++seen;
+        if (progress) progress->advance();
+        const auto it = pose_of.find(frame->index);
+        if (it == pose_of.end()) continue;
+        if (frame->index % config.frame_stride != 0) continue;
+        Result<tsdf::IntegrationStats> stats =
+            volume.integrate(frame->depth, source.camera(), it->second);
+        if (!stats.isOk()) return stats.status();
+        ++integrated;
+    }
+    if (integrated == 0)
+        return failedPrecondition(fmt::format(
+            "none of the {} frames of {} matches a fragment frame", seen, source.description()));
+    return finish(volume, config, integrated, true);
+}
+
+Result<FinalModel> fuseFragmentSurfaces(const std::vector<Fragment>& fragments,
+                                        const std::vector<Eigen::Isometry3d>& T_W_F,
+                                        const PinholeCamera& camera, const FinalModelConfig& config,
+                                        Progress* progress) {
+    PLUMB_RETURN_IF_ERROR(config.validate());
+    PLUMB_RETURN_IF_ERROR(camera.validate());
+    if (fragments.size() != T_W_F.size())
+        return invalidArgument(
+            fmt::format("{} fragments but {} poses", fragments.size(), T_W_F.size()));
+    tsdf::TsdfVolume volume(volumeConfig(config));
+    size_t integrated = 0;
+    for (size_t i = 0; i < fragments.size(); ++i) {
+        const Fragment& fragment = fragments[i];
+        for (size_t k = 0; k < fragment.frames.size(); ++k) {
+            const FragmentFrame& f = fragment.frames[k];
+            if (!f.tracking_ok || f.frame_index % config.frame_stride != 0) continue;
+            const DepthImage depth =
+                renderPointsToDepth(fragment.points_F, camera, f.T_F_C, config.splat_radius_px);
+            Result<tsdf::IntegrationStats> stats =
+                volume.integrate(depth, camera, T_W_F[i] * f.T_F_C);
+            if (!stats.isOk()) return stats.status();
+            ++integrated;
+        }
+        if (progress) progress->advance();
+    }
+    if (integrated == 0) return invalidArgument("no tracked frame in any fragment");
+    return finish(volume, config, integrated, false);
+}
+
+}  // namespace plumb::backend

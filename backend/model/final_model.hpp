@@ -1,0 +1,81 @@
+// SPDX-License-Identifier: Apache-2.0
+#pragma once
+
+// The final model (issue 8, item 3): once the fragment poses are optimised, every frame's pose is
+// T_W_C = T_W_F * T_F_C. When the raw frames are available (datasets, simulator, logs with raw
+// depth) they are all re-integrated with those poses into one TSDF and meshed. Otherwise (a live
+// scan where only fragments crossed the wire) each fragment's oriented surface points are rendered
+// back into the depth images of the frames that made them (z-buffered splats, back-faces culled)
+// and those synthetic frames are integrated instead: the same volumetric averaging, so overlapping
+// fragments merge into one surface rather than a stack of shifted copies.
+
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <vector>
+
+#include "common/camera/pinhole.hpp"
+#include "common/cloud/point_cloud.hpp"
+#include "common/config/schema.hpp"
+#include "common/core/progress.hpp"
+#include "common/core/status.hpp"
+#include "common/fragment/fragment.hpp"
+#include "common/image/image.hpp"
+#include "common/io/trajectory.hpp"
+#include "drivers/frame_source.hpp"
+
+namespace plumb::backend {
+
+struct FinalModelConfig {
+    /// Voxel edge of the final volume, metres. Coarser than the device's 5.86 mm: the final volume
+    /// spans the whole room and 1 cm keeps a 900-frame scan well inside a minute.
+    double voxel_size_m = 0.01;
+    /// Truncation distance, metres (4 voxels).
+    double truncation_m = 0.04;
+    /// Depth beyond this is not integrated, metres (noise grows with z^2).
+    double max_depth_m = 4.0;
+    /// Integrate every k-th frame (1 = all). Fragments of 50 frames overlap heavily, so 2 loses
+    /// little; the default keeps every frame.
+    int frame_stride = 1;
+    /// Voxels observed fewer times are not meshed.
+    double min_weight = 1.0;
+    /// Splat radius (pixels) when rendering fragment points into synthetic depth frames.
+    int splat_radius_px = 1;
+    /// Worker threads for integration and meshing (0 = all). Results do not depend on it.
+    int num_threads = 0;
+
+    Status validate() const;
+};
+void describe(config::Schema& s, FinalModelConfig& c);
+
+/// Camera->world pose of every frame of every fragment, T_W_C = T_W_F[i] * T_F_C, stamped with the
+/// frame's timestamp, in fragment then frame order. Frames whose tracking failed are left out.
+io::Trajectory frameTrajectory(const std::vector<Fragment>& fragments,
+                               const std::vector<Eigen::Isometry3d>& T_W_F);
+
+/// Renders `points_F` (oriented, in frame F) as seen by `camera` at T_F_C: nearest depth per pixel
+/// over a (2r+1)^2 splat, points facing away from the camera skipped. 0 = no data.
+DepthImage renderPointsToDepth(const PointCloud& points_F, const PinholeCamera& camera,
+                               const Eigen::Isometry3d& T_F_C, int splat_radius_px);
+
+struct FinalModel {
+    TriangleMesh mesh;             ///< marching cubes of the final volume, world frame
+    size_t frames_integrated = 0;  ///< depth images fused
+    size_t blocks = 0;             ///< TSDF blocks allocated
+    bool from_raw_frames = false;  ///< true: raw frames re-integrated; false: fragment surfaces
+};
+
+/// Re-integrates the raw frames of `source` (read from the start until it ends) at the poses of
+/// `poses` (keyed by Frame::index through `frameTrajectory`'s order: fragments' frame indices).
+/// Frames without an optimised pose are skipped. Fails when the source's frames do not match the
+/// fragments (no frame index in common).
+Result<FinalModel> integrateRawFrames(FrameSource& source, const std::vector<Fragment>& fragments,
+                                      const std::vector<Eigen::Isometry3d>& T_W_F,
+                                      const FinalModelConfig& config, Progress* progress = nullptr);
+
+/// Fuses the fragments' surfaces through synthetic depth frames (see the file comment).
+Result<FinalModel> fuseFragmentSurfaces(const std::vector<Fragment>& fragments,
+                                        const std::vector<Eigen::Isometry3d>& T_W_F,
+                                        const PinholeCamera& camera, const FinalModelConfig& config,
+                                        Progress* progress = nullptr);
+
+}  // namespace plumb::backend

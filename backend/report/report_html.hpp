@@ -1,0 +1,36 @@
+// SPDX-License-Identifier: Apache-2.0
+#pragma once
+
+// report.html: one self-contained page (inline SVG and CSS, nothing fetched) that puts the full
+// method and the --no-layout baseline side by side — ATE, reconstruction error, wall planarity and
+// wall-to-wall angles, layout errors — with the floor plan, top views of both meshes, the energy of
+// every alternation iteration and the time per stage. Everything it shows comes from metrics.json,
+// so the page and the file never disagree.
+
+#include <Eigen/Geometry>
+#include <map>
+#include <optional>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "common/cloud/point_cloud.hpp"
+#include "common/layout/layout.hpp"
+
+namespace plumb::backend {
+
+/// Top view (x-y of the layout frame when a layout is given, else of the world) of a mesh's
+/// vertices, subsampled to at most `max_points`, as an SVG with a 1 m scale bar. Walls of the
+/// layout, when given, are drawn over it.
+std::string topViewSvg(const TriangleMesh& mesh, const std::optional<Layout>& layout,
+                       int size_px = 420, size_t max_points = 40000);
+
+struct ReportFigures {
+    std::string floorplan_svg;                     ///< the layout stage's floor plan, if any
+    std::map<std::string, std::string> top_views;  ///< variant name -> SVG
+};
+
+/// The page. `metrics` is the metrics.json document (see backend/pipeline/pipeline.hpp).
+std::string renderReportHtml(const nlohmann::json& metrics, const ReportFigures& figures);
+
+}  // namespace plumb::backend
