@@ -23,6 +23,8 @@ const char* toString(StatusCode code) {
             return "failed precondition";
         case StatusCode::kInternal:
             return "internal error";
+        case StatusCode::kUnavailable:
+            return "unavailable";
     }
     return "unknown";
 }

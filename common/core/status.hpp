@@ -23,6 +23,7 @@ enum class StatusCode {
     kOutOfRange,       ///< end of a stream, index beyond the data
     kFailedPrecondition,  ///< the operation cannot run in the current state
     kInternal,            ///< a failure we could not classify
+    kUnavailable,         ///< a device is gone for now (unplugged, stalled); retrying may succeed
 };
 
 const char* toString(StatusCode code);
@@ -56,6 +57,7 @@ inline Status outOfRange(std::string m) { return {StatusCode::kOutOfRange, std::
 inline Status failedPrecondition(std::string m) {
     return {StatusCode::kFailedPrecondition, std::move(m)};
 }
+inline Status unavailable(std::string m) { return {StatusCode::kUnavailable, std::move(m)}; }
 
 /// A value or the Status that explains why there is none.
 template <typename T>
