@@ -1,0 +1,164 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "backend/global/alternation.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "common/config/config.hpp"
+
+namespace plumb::global {
+
+void describe(config::Schema& s, AlternationConfig& c) {
+    s.field("max_outer_iterations", c.max_outer_iterations,
+            "maximum outer iterations of Algorithm 1 (layout re-estimations)")
+        .min(1);
+    s.field("pose_tolerance_rad", c.pose_tolerance_rad,
+            "outer loop converged when no fragment rotated more than this in an iteration", "rad")
+        .positive();
+    s.field("pose_tolerance_m", c.pose_tolerance_m,
+            "outer loop converged when no fragment moved more than this in an iteration", "m")
+        .positive();
+    s.field("layout_angle_tolerance_deg", c.layout_angle_tolerance_deg,
+            "layout unchanged when every plane normal moved less than this", "deg")
+        .positive();
+    s.field("layout_offset_tolerance_m", c.layout_offset_tolerance_m,
+            "layout unchanged when every plane offset moved less than this", "m")
+        .positive();
+    s.field("shrink_factor", c.shrink_factor,
+            "per outer iteration the correspondence distances and support margins are "
+            "multiplied by this, down to the final values")
+        .range(0.0, 1.0);
+    s.field("final_frag_max_distance_m", c.final_frag_max_distance_m,
+            "smallest fragment-fragment correspondence distance reached by the annealing", "m")
+        .positive();
+    s.field("final_layout_max_distance_m", c.final_layout_max_distance_m,
+            "smallest point-to-layout distance reached by the annealing", "m")
+        .positive();
+    s.field("final_margin_m", c.final_margin_m,
+            "smallest wall / floor support margin reached by the annealing", "m")
+        .min(0.0);
+    s.section("registration", c.global, "layout-constrained global registration (one outer step)");
+}
+
+bool compareLayouts(const Layout& a, const Layout& b, double* max_angle_deg, double* max_offset_m) {
+    *max_angle_deg = 0.0;
+    *max_offset_m = 0.0;
+    bool same = true;
+    for (LayoutPlaneKind kind :
+         {LayoutPlaneKind::kFloor, LayoutPlaneKind::kCeiling, LayoutPlaneKind::kWall}) {
+        std::vector<HessianPlane> pa, pb;
+        for (const LayoutPlane& p : a.planes) {
+            if (p.kind == kind) pa.push_back(planeInWorld(a, p));
+        }
+        for (const LayoutPlane& p : b.planes) {
+            if (p.kind == kind) pb.push_back(planeInWorld(b, p));
+        }
+        if (pa.size() != pb.size()) same = false;
+        for (const HessianPlane& p : pa) {
+            double best_angle = 180.0;
+            double best_offset = 0.0;
+            for (const HessianPlane& q : pb) {
+                const double c = std::clamp(p.normal.dot(q.normal), -1.0, 1.0);
+                const double angle = std::acos(c) * 180.0 / M_PI;
+                if (angle < best_angle) {
+                    best_angle = angle;
+                    best_offset = std::abs(p.d - q.d);
+                }
+            }
+            if (pb.empty()) continue;
+            *max_angle_deg = std::max(*max_angle_deg, best_angle);
+            *max_offset_m = std::max(*max_offset_m, best_offset);
+        }
+    }
+    return same;
+}
+
+Result<AlternationResult> alternate(const std::vector<GlobalCloud>& clouds,
+                                    const std::vector<Eigen::Isometry3d>& initial_T_W_F,
+                                    const std::vector<PairPrior>& priors,
+                                    const LayoutEstimator& estimate_layout,
+                                    const AlternationConfig& config, Progress* progress) {
+    {
+        const Status s = config::validate(config);
+        if (!s.isOk()) return invalidArgument("alternation: " + s.message());
+    }
+    if (!estimate_layout) return invalidArgument("alternation: no layout estimator given");
+    AlternationResult result;
+    result.T_W_F = initial_T_W_F;
+    result.stop_reason = "max_outer_iterations";
+    Layout previous;
+    for (int outer = 0; outer < config.max_outer_iterations; ++outer) {
+        OuterIteration rec;
+        rec.iteration = outer;
+        // Layout step (Algorithm 1: layout from the current poses).
+        Result<Layout> layout = estimate_layout(result.T_W_F);
+        if (!layout.isOk()) {
+            return Status(layout.status().code(),
+                          fmt::format("alternation: layout estimation in outer iteration {}: {}",
+                                      outer, layout.status().message()));
+        }
+        rec.layout = std::move(layout).value();
+        if (outer > 0) {
+            rec.layout_same_structure =
+                compareLayouts(previous, rec.layout, &rec.layout_change_deg, &rec.layout_change_m);
+        }
+        // Registration step with annealed distances.
+        GlobalConfig gc = config.global;
+        const double shrink = std::pow(config.shrink_factor, outer);
+        gc.frag_max_distance_m =
+            std::max(config.final_frag_max_distance_m, config.global.frag_max_distance_m * shrink);
+        gc.layout_max_distance_m = std::max(config.final_layout_max_distance_m,
+                                            config.global.layout_max_distance_m * shrink);
+        gc.wall_margin_m = std::max(std::min(config.final_margin_m, config.global.wall_margin_m),
+                                    config.global.wall_margin_m * shrink);
+        gc.floor_margin_m = std::max(std::min(config.final_margin_m, config.global.floor_margin_m),
+                                     config.global.floor_margin_m * shrink);
+        Result<GlobalResult> step = refinePoses(clouds, result.T_W_F, priors, rec.layout, gc);
+        if (!step.isOk()) {
+            return Status(step.status().code(),
+                          fmt::format("alternation: registration in outer iteration {}: {}", outer,
+                                      step.status().message()));
+        }
+        rec.before = step->initial;
+        rec.after = step->final;
+        rec.inner = step->iterations;
+        rec.inner_iterations = static_cast<int>(step->iterations.size());
+        for (size_t i = 0; i < result.T_W_F.size(); ++i) {
+            const Eigen::Isometry3d d = result.T_W_F[i].inverse() * step->T_W_F[i];
+            rec.max_pose_change_rad = std::max(rec.max_pose_change_rad, lie::rotationAngle(d));
+            rec.max_pose_change_m =
+                std::max(rec.max_pose_change_m,
+                         (result.T_W_F[i].translation() - step->T_W_F[i].translation()).norm());
+        }
+        result.T_W_F = step->T_W_F;
+        const bool layout_settled = outer > 0 && rec.layout_same_structure &&
+                                    rec.layout_change_deg < config.layout_angle_tolerance_deg &&
+                                    rec.layout_change_m < config.layout_offset_tolerance_m;
+        const bool poses_settled = rec.max_pose_change_rad < config.pose_tolerance_rad &&
+                                   rec.max_pose_change_m < config.pose_tolerance_m;
+        previous = rec.layout;
+        result.layout = rec.layout;
+        result.iterations.push_back(std::move(rec));
+        if (progress != nullptr) progress->advance();
+        if (layout_settled && poses_settled) {
+            result.converged = true;
+            result.stop_reason = "converged";
+            break;
+        }
+    }
+    return result;
+}
+
+Result<AlternationResult> alternate(const std::vector<Fragment>& fragments,
+                                    const std::vector<Eigen::Isometry3d>& initial_T_W_F,
+                                    const std::vector<PairPrior>& priors,
+                                    const LayoutEstimator& estimate_layout,
+                                    const AlternationConfig& config, Progress* progress) {
+    Result<std::vector<GlobalCloud>> clouds = prepareClouds(fragments, config.global);
+    if (!clouds.isOk()) return clouds.status();
+    return alternate(clouds.value(), initial_T_W_F, priors, estimate_layout, config, progress);
+}
+
+}  // namespace plumb::global

@@ -1,0 +1,106 @@
+// SPDX-License-Identifier: Apache-2.0
+#pragma once
+
+// Algorithm 1 of Lee et al. (ICCV 2017): alternate layout estimation and layout-constrained
+// global registration until both settle (reference §5.7).
+//
+//   T <- T0 (the pose graph's poses)
+//   repeat (outer, at most max_outer_iterations; the paper converges within 20):
+//       layout <- estimate_layout(T)                                  (layout step, §3.2)
+//       T <- refinePoses(T, layout)  (correspondences C_i, C_ij at T;  (registration step, §3.3)
+//                                     LM inner loop, E non-increasing)
+//       shrink the correspondence distances and support margins (annealing)
+//       stop when the layout is unchanged (same planes, |Δn| < tol, |Δd| < tol) and the largest
+//       pose change of the outer iteration is below the pose tolerances.
+//
+// The layout step is a callback so that this module depends on common/ types only; the
+// pipeline passes backend/layout's estimator. The energies of every outer and inner iteration
+// are recorded, term by term, for the report.
+
+#include <Eigen/Geometry>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "backend/global/global_registration.hpp"
+#include "common/config/schema.hpp"
+#include "common/core/progress.hpp"
+#include "common/core/status.hpp"
+#include "common/fragment/fragment.hpp"
+#include "common/layout/layout.hpp"
+
+namespace plumb::global {
+
+struct AlternationConfig {
+    /// The registration step's configuration (its distances are the first outer iteration's).
+    GlobalConfig global;
+    /// Maximum outer iterations (layout re-estimations); the paper converges within 20.
+    int max_outer_iterations = 20;
+    /// Outer loop stops when no pose moved more than these in the last outer iteration (and the
+    /// layout is unchanged).
+    double pose_tolerance_rad = 1e-4;
+    double pose_tolerance_m = 1e-4;
+    /// Layout unchanged: same number of planes of each kind and every plane within these.
+    double layout_angle_tolerance_deg = 0.1;
+    double layout_offset_tolerance_m = 0.001;
+    /// Per outer iteration the correspondence distances and support margins are multiplied by
+    /// this, down to the final values below (annealing, reference §5.7).
+    double shrink_factor = 0.7;
+    /// Final (smallest) fragment-fragment correspondence distance, metres.
+    double final_frag_max_distance_m = 0.025;
+    /// Final (smallest) point-to-layout distance, metres.
+    double final_layout_max_distance_m = 0.05;
+    /// Final (smallest) wall / floor support margins, metres.
+    double final_margin_m = 0.05;
+};
+
+void describe(config::Schema& s, AlternationConfig& c);
+
+/// One outer iteration of Algorithm 1.
+struct OuterIteration {
+    int iteration = 0;
+    Layout layout;                   ///< the layout estimated at the start of the iteration
+    EnergyTerms before;              ///< E at the start of the registration step
+    EnergyTerms after;               ///< E at its end
+    int inner_iterations = 0;        ///< LM iterations run
+    double max_pose_change_rad = 0;  ///< largest rotation change of a fragment pose
+    double max_pose_change_m = 0;    ///< largest translation change of a fragment pose
+    /// Change of the layout relative to the previous outer iteration (0 for the first):
+    bool layout_same_structure = false;  ///< same number of planes of each kind
+    double layout_change_deg = 0.0;      ///< largest normal change of matched planes
+    double layout_change_m = 0.0;        ///< largest offset change of matched planes
+    std::vector<GlobalIteration> inner;  ///< the registration step's iterations
+};
+
+struct AlternationResult {
+    std::vector<Eigen::Isometry3d> T_W_F;  ///< final poses (T_W_F[0] unchanged)
+    Layout layout;                         ///< the layout of the last outer iteration
+    std::vector<OuterIteration> iterations;
+    bool converged = false;
+    std::string stop_reason;  ///< "converged", "max_outer_iterations"
+};
+
+/// Layout estimation at given fragment poses (the paper's §3.2 step).
+using LayoutEstimator = std::function<Result<Layout>(const std::vector<Eigen::Isometry3d>&)>;
+
+/// Runs Algorithm 1 from `initial_T_W_F`. `progress` (may be null) advances once per outer
+/// iteration. Errors: those of prepareClouds()/refinePoses() and of the layout callback (with
+/// the outer iteration named).
+Result<AlternationResult> alternate(const std::vector<Fragment>& fragments,
+                                    const std::vector<Eigen::Isometry3d>& initial_T_W_F,
+                                    const std::vector<PairPrior>& priors,
+                                    const LayoutEstimator& estimate_layout,
+                                    const AlternationConfig& config, Progress* progress = nullptr);
+
+/// The same on prepared clouds (prepareClouds() with config.global).
+Result<AlternationResult> alternate(const std::vector<GlobalCloud>& clouds,
+                                    const std::vector<Eigen::Isometry3d>& initial_T_W_F,
+                                    const std::vector<PairPrior>& priors,
+                                    const LayoutEstimator& estimate_layout,
+                                    const AlternationConfig& config, Progress* progress = nullptr);
+
+/// Change between two layouts: planes matched per kind by closest world normal; false when the
+/// number of planes of a kind differs. Largest normal angle (deg) and offset (m) change.
+bool compareLayouts(const Layout& a, const Layout& b, double* max_angle_deg, double* max_offset_m);
+
+}  // namespace plumb::global

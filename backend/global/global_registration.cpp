@@ -1,0 +1,860 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "backend/global/global_registration.hpp"
+
+#include <fmt/format.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <Eigen/Sparse>
+#include <Eigen/SparseCholesky>
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <nanoflann.hpp>
+#include <numeric>
+#include <optional>
+#include <utility>
+
+#include "backend/global/residuals.hpp"
+#include "common/config/config.hpp"
+
+namespace plumb::global {
+
+void describe(config::Schema& s, GlobalConfig& c) {
+    s.field("voxel_size_m", c.voxel_size_m,
+            "voxel size of the subsampled fragment clouds the energy is evaluated on", "m")
+        .positive()
+        .max(1.0);
+    s.field("max_points_per_fragment", c.max_points_per_fragment,
+            "at most this many subsampled points per fragment (evenly strided beyond)", "points")
+        .min(1);
+    s.field("frag_weight", c.frag_weight,
+            "w1: weight of the mean fragment-to-fragment term E_frag relative to the mean layout "
+            "term (lambda1 = w1 N_L / N_F)")
+        .min(0.0);
+    s.field("pair_weight", c.pair_weight,
+            "w2: weight of the mean pairwise-prior term E_pair relative to the mean layout term "
+            "(lambda2 = w2 N_L / N_P)")
+        .min(0.0);
+    s.field("use_layout", c.use_layout,
+            "use the layout term E_layout (false: the Choi-style baseline E_frag + E_pair)");
+    s.field("huber_delta_m", c.huber_delta_m,
+            "Huber threshold of the point-to-plane residuals (E_layout, E_frag)", "m")
+        .positive();
+    s.field("frag_max_distance_m", c.frag_max_distance_m,
+            "maximum distance of a fragment-fragment correspondence (eps_F)", "m")
+        .positive();
+    s.field("frag_max_normal_angle_deg", c.frag_max_normal_angle_deg,
+            "maximum angle between the normals of a fragment-fragment correspondence", "deg")
+        .range(0.0, 180.0);
+    s.field("frag_pairs_from_overlap", c.frag_pairs_from_overlap,
+            "besides the pair priors' pairs, use every fragment pair whose overlap is at least "
+            "min_overlap");
+    s.field("min_overlap", c.min_overlap,
+            "minimum overlap (share of the smaller fragment's points with a correspondence) of a "
+            "pair found by overlap")
+        .range(0.0, 1.0);
+    s.field("layout_max_distance_m", c.layout_max_distance_m,
+            "maximum distance of a fragment point from the layout plane it is pulled onto (eps_L)",
+            "m")
+        .positive();
+    s.field("layout_max_normal_angle_deg", c.layout_max_normal_angle_deg,
+            "maximum angle between a point's normal and the layout plane's normal", "deg")
+        .range(0.0, 180.0);
+    s.field("wall_margin_m", c.wall_margin_m,
+            "support region of a wall: how far beyond the wall segment's ends (and below the "
+            "floor / above the ceiling) a point may lie (tau2)",
+            "m")
+        .min(0.0);
+    s.field("floor_margin_m", c.floor_margin_m,
+            "support region of floor and ceiling: how far outside the room polygon a point may "
+            "lie",
+            "m")
+        .min(0.0);
+    s.field("rounds", c.rounds,
+            "correspondence rounds (re-established at the current poses before each inner loop)")
+        .min(1);
+    s.field("max_iterations", c.max_iterations,
+            "maximum Levenberg-Marquardt iterations per round (inner loop)")
+        .min(1);
+    s.field("step_tolerance", c.step_tolerance,
+            "an inner loop stops when the largest pose step falls below this (rad and m)")
+        .positive();
+    s.field("initial_damping", c.initial_damping,
+            "initial Levenberg-Marquardt damping relative to the diagonal of the normal equations")
+        .positive();
+    s.field("num_threads", c.num_threads,
+            "worker threads for correspondence search and accumulation (0 = TBB default); "
+            "results do not depend on it")
+        .min(0);
+}
+
+namespace {
+
+template <typename Fn>
+void parallelFor(int num_threads, size_t n, const Fn& fn) {
+    if (n == 0) return;
+    auto body = [&] {
+        tbb::parallel_for(tbb::blocked_range<size_t>(0, n),
+                          [&](const tbb::blocked_range<size_t>& r) {
+                              for (size_t i = r.begin(); i != r.end(); ++i) fn(i);
+                          });
+    };
+    if (num_threads == 1) {
+        for (size_t i = 0; i < n; ++i) fn(i);
+    } else if (num_threads > 1) {
+        tbb::task_arena arena(num_threads);
+        arena.execute(body);
+    } else {
+        body();
+    }
+}
+
+constexpr double kDegToRad = M_PI / 180.0;
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+// GlobalCloud
+
+struct GlobalCloud::Tree {
+    // Points by buffer pointer: a moved std::vector keeps its buffer, so the tree stays valid
+    // when its GlobalCloud is moved.
+    struct Adaptor {
+        const Eigen::Vector3d* points;
+        size_t count;
+        size_t kdtree_get_point_count() const { return count; }  // NOLINT
+        double kdtree_get_pt(size_t i, size_t dim) const {       // NOLINT
+            return points[i][static_cast<Eigen::Index>(dim)];
+        }
+        template <class BoundingBox>
+        bool kdtree_get_bbox(BoundingBox& /*bb*/) const {  // NOLINT
+            return false;
+        }
+    };
+    using Index = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<double, Adaptor>,
+                                                      Adaptor, 3, uint32_t>;
+    explicit Tree(const std::vector<Eigen::Vector3d>& points)
+        : adaptor{points.data(), points.size()},
+          index(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10)) {}
+    Adaptor adaptor;
+    Index index;
+};
+
+GlobalCloud::GlobalCloud() = default;
+GlobalCloud::~GlobalCloud() = default;
+GlobalCloud::GlobalCloud(GlobalCloud&&) noexcept = default;
+GlobalCloud& GlobalCloud::operator=(GlobalCloud&&) noexcept = default;
+
+bool GlobalCloud::nearest(const Eigen::Vector3d& query, uint32_t* index,
+                          double* distance_sq) const {
+    if (points_.empty() || !tree_) return false;
+    tree_->index.knnSearch(query.data(), 1, index, distance_sq);
+    return true;
+}
+
+Result<std::vector<GlobalCloud>> prepareClouds(const std::vector<Fragment>& fragments,
+                                               const GlobalConfig& config) {
+    if (!(config.voxel_size_m > 0.0)) return invalidArgument("global: voxel_size_m must be > 0");
+    if (config.max_points_per_fragment < 1) {
+        return invalidArgument("global: max_points_per_fragment must be >= 1");
+    }
+    for (size_t f = 0; f < fragments.size(); ++f) {
+        const PointCloud& c = fragments[f].points_F;
+        if (!c.empty() && !c.hasNormals()) {
+            return invalidArgument(
+                fmt::format("global: fragment {} has points without normals", f));
+        }
+        for (size_t k = 0; k < c.size(); ++k) {
+            if (!c.points[k].allFinite() || !c.normals[k].allFinite()) {
+                return invalidArgument(
+                    fmt::format("global: fragment {} point {} is not finite", f, k));
+            }
+        }
+    }
+    std::vector<GlobalCloud> clouds(fragments.size());
+    const double inv_voxel = 1.0 / config.voxel_size_m;
+    parallelFor(config.num_threads, fragments.size(), [&](size_t f) {
+        const PointCloud& c = fragments[f].points_F;
+        GlobalCloud& out = clouds[f];
+        using Key = std::array<int64_t, 3>;
+        std::vector<std::pair<Key, uint32_t>> keyed(c.size());
+        for (size_t k = 0; k < c.size(); ++k) {
+            const Eigen::Vector3d p = c.points[k].cast<double>();
+            keyed[k] = {Key{static_cast<int64_t>(std::floor(p.x() * inv_voxel)),
+                            static_cast<int64_t>(std::floor(p.y() * inv_voxel)),
+                            static_cast<int64_t>(std::floor(p.z() * inv_voxel))},
+                        static_cast<uint32_t>(k)};
+        }
+        std::sort(keyed.begin(), keyed.end());
+        std::vector<Eigen::Vector3d> pts, nrm;
+        std::vector<uint32_t> src;
+        for (size_t a = 0; a < keyed.size();) {
+            size_t b = a;
+            Eigen::Vector3d sum_p = Eigen::Vector3d::Zero();
+            Eigen::Vector3d sum_n = Eigen::Vector3d::Zero();
+            while (b < keyed.size() && keyed[b].first == keyed[a].first) {
+                sum_p += c.points[keyed[b].second].cast<double>();
+                sum_n += c.normals[keyed[b].second].cast<double>();
+                ++b;
+            }
+            const double count = static_cast<double>(b - a);
+            const Eigen::Vector3d centroid = sum_p / count;
+            const double nn = sum_n.norm();
+            // A voxel whose normals cancel (thin structure seen from both sides) has no usable
+            // orientation for point-to-plane terms.
+            if (nn > 0.5 * count) {
+                uint32_t best = keyed[a].second;
+                double best_d = std::numeric_limits<double>::infinity();
+                for (size_t k = a; k < b; ++k) {
+                    const double d =
+                        (c.points[keyed[k].second].cast<double>() - centroid).squaredNorm();
+                    if (d < best_d) {
+                        best_d = d;
+                        best = keyed[k].second;
+                    }
+                }
+                pts.push_back(centroid);
+                nrm.push_back(sum_n / nn);
+                src.push_back(best);
+            }
+            a = b;
+        }
+        const size_t max_points = static_cast<size_t>(config.max_points_per_fragment);
+        if (pts.size() > max_points) {
+            std::vector<Eigen::Vector3d> p2, n2;
+            std::vector<uint32_t> s2;
+            for (size_t k = 0; k < max_points; ++k) {
+                const size_t idx = k * pts.size() / max_points;
+                p2.push_back(pts[idx]);
+                n2.push_back(nrm[idx]);
+                s2.push_back(src[idx]);
+            }
+            pts.swap(p2);
+            nrm.swap(n2);
+            src.swap(s2);
+        }
+        out.points_ = std::move(pts);
+        out.normals_ = std::move(nrm);
+        out.source_index_ = std::move(src);
+        if (!out.points_.empty()) out.tree_ = std::make_unique<GlobalCloud::Tree>(out.points_);
+    });
+    return clouds;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Layout support regions
+
+namespace {
+
+double pointSegmentDistance(const Eigen::Vector2d& p, const Eigen::Vector2d& a,
+                            const Eigen::Vector2d& b) {
+    const Eigen::Vector2d e = b - a;
+    const double len_sq = e.squaredNorm();
+    double s = len_sq > 0.0 ? (p - a).dot(e) / len_sq : 0.0;
+    s = std::clamp(s, 0.0, 1.0);
+    return (p - (a + s * e)).norm();
+}
+
+bool insidePolygon(const std::vector<Eigen::Vector2d>& poly, const Eigen::Vector2d& p) {
+    bool inside = false;
+    for (size_t k = 0, l = poly.size() - 1; k < poly.size(); l = k++) {
+        const Eigen::Vector2d& a = poly[k];
+        const Eigen::Vector2d& b = poly[l];
+        if ((a.y() > p.y()) != (b.y() > p.y())) {
+            const double x = (b.x() - a.x()) * (p.y() - a.y()) / (b.y() - a.y()) + a.x();
+            if (p.x() < x) inside = !inside;
+        }
+    }
+    return inside;
+}
+
+/// The layout prepared for correspondence search: planes in W, support regions in L.
+struct PreparedLayout {
+    struct Plane {
+        HessianPlane world;
+        LayoutPlaneKind kind = LayoutPlaneKind::kWall;
+        Eigen::Vector2d a = Eigen::Vector2d::Zero();  // wall segment start (L)
+        Eigen::Vector2d u = Eigen::Vector2d::Zero();  // unit direction along the wall (L)
+        double length = 0.0;
+    };
+    Eigen::Isometry3d T_L_W = Eigen::Isometry3d::Identity();
+    std::vector<Plane> planes;
+    std::vector<Eigen::Vector2d> polygon;
+    double height = 0.0;
+    double cos_normal = 1.0;
+    double max_distance = 0.0;
+    double wall_margin = 0.0;
+    double floor_margin = 0.0;
+
+    bool inSupport(const Plane& plane, const Eigen::Vector3d& x_W) const {
+        const Eigen::Vector3d x_L = T_L_W * x_W;
+        if (plane.kind == LayoutPlaneKind::kWall) {
+            if (plane.length > 0.0) {
+                const double s = plane.u.dot(x_L.head<2>() - plane.a);
+                if (s < -wall_margin || s > plane.length + wall_margin) return false;
+            }
+            if (height > 0.0 && (x_L.z() < -wall_margin || x_L.z() > height + wall_margin)) {
+                return false;
+            }
+            return true;
+        }
+        if (polygon.size() < 3) return true;
+        const Eigen::Vector2d xy = x_L.head<2>();
+        if (insidePolygon(polygon, xy)) return true;
+        for (size_t k = 0; k < polygon.size(); ++k) {
+            if (pointSegmentDistance(xy, polygon[k], polygon[(k + 1) % polygon.size()]) <=
+                floor_margin) {
+                return true;
+            }
+        }
+        return false;
+    }
+
+    /// The plane x (normal m, both in W) is pulled onto, -1 for none.
+    int assign(const Eigen::Vector3d& x_W, const Eigen::Vector3d& m_W) const {
+        int best = -1;
+        double best_d = max_distance;
+        for (size_t k = 0; k < planes.size(); ++k) {
+            const Plane& pl = planes[k];
+            const double d = std::abs(pl.world.signedDistance(x_W));
+            if (d >= best_d) continue;
+            if (pl.world.normal.dot(m_W) < cos_normal) continue;
+            if (!inSupport(pl, x_W)) continue;
+            best = static_cast<int>(k);
+            best_d = d;
+        }
+        return best;
+    }
+};
+
+Result<PreparedLayout> prepareLayout(const Layout& layout, const GlobalConfig& config) {
+    PreparedLayout out;
+    if (!lie::isValidPose(layout.T_W_L, 1e-6)) {
+        return invalidArgument("global: the layout's T_W_L is not a valid pose");
+    }
+    out.T_L_W = layout.T_W_L.inverse();
+    out.polygon = layout.room_polygon_L;
+    for (const Eigen::Vector2d& v : out.polygon) {
+        if (!v.allFinite()) return invalidArgument("global: the layout polygon is not finite");
+    }
+    out.height = layout.ceiling_height_m;
+    if (!std::isfinite(out.height)) return invalidArgument("global: ceiling height not finite");
+    out.cos_normal = std::cos(config.layout_max_normal_angle_deg * kDegToRad);
+    out.max_distance = config.layout_max_distance_m;
+    out.wall_margin = config.wall_margin_m;
+    out.floor_margin = config.floor_margin_m;
+    for (const LayoutPlane& lp : layout.planes) {
+        if (!lp.normal_L.allFinite() || !std::isfinite(lp.d_L) ||
+            std::abs(lp.normal_L.norm() - 1.0) > 1e-6) {
+            return invalidArgument(
+                fmt::format("global: layout plane {} has a non-unit or non-finite normal", lp.id));
+        }
+        PreparedLayout::Plane p;
+        p.world = planeInWorld(layout, lp);
+        p.kind = lp.kind;
+        if (lp.kind == LayoutPlaneKind::kWall) {
+            const Eigen::Vector2d e = lp.end_L - lp.start_L;
+            if (!e.allFinite()) {
+                return invalidArgument(fmt::format("global: wall {} segment not finite", lp.id));
+            }
+            p.a = lp.start_L;
+            p.length = e.norm();
+            p.u = p.length > 0.0 ? Eigen::Vector2d(e / p.length) : Eigen::Vector2d::Zero();
+        }
+        out.planes.push_back(p);
+    }
+    return out;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Correspondences
+
+struct FragMatch {
+    uint32_t p = 0;  // point index in the source cloud (pair.from)
+    uint32_t q = 0;  // point index in the target cloud (pair.to)
+};
+
+/// Correspondences of a fragment pair (both directions): from -> to and to -> from.
+struct PairMatches {
+    uint32_t a = 0;
+    uint32_t b = 0;
+    std::vector<FragMatch> a_to_b;
+    std::vector<FragMatch> b_to_a;
+    bool from_prior = false;
+};
+
+struct LayoutMatch {
+    uint32_t p = 0;
+    int plane = -1;
+};
+
+struct Correspondences {
+    std::vector<std::vector<LayoutMatch>> layout;  // per fragment
+    std::vector<PairMatches> pairs;                // kept pairs, in (a, b) order
+};
+
+void matchDirection(const GlobalCloud& from, const GlobalCloud& to,
+                    const Eigen::Isometry3d& T_W_from, const Eigen::Isometry3d& T_W_to,
+                    const GlobalConfig& config, std::vector<FragMatch>* out) {
+    out->clear();
+    if (from.size() == 0 || to.size() == 0) return;
+    const Eigen::Isometry3d T_to_from = T_W_to.inverse() * T_W_from;
+    const Eigen::Matrix3d R = T_to_from.linear();
+    const double max_sq = config.frag_max_distance_m * config.frag_max_distance_m;
+    const double cos_gate = std::cos(config.frag_max_normal_angle_deg * kDegToRad);
+    for (size_t k = 0; k < from.size(); ++k) {
+        const Eigen::Vector3d query = T_to_from * from.points()[k];
+        uint32_t idx = 0;
+        double d_sq = 0.0;
+        if (!to.nearest(query, &idx, &d_sq) || d_sq >= max_sq) continue;
+        if ((R * from.normals()[k]).dot(to.normals()[idx]) < cos_gate) continue;
+        out->push_back({static_cast<uint32_t>(k), idx});
+    }
+}
+
+Correspondences establish(const std::vector<GlobalCloud>& clouds,
+                          const std::vector<Eigen::Isometry3d>& T_W_F,
+                          const std::vector<PairPrior>& priors, const PreparedLayout* layout,
+                          const GlobalConfig& config) {
+    const size_t n = clouds.size();
+    Correspondences c;
+    // C_i: fragment-layout correspondences.
+    c.layout.resize(n);
+    if (layout != nullptr && !layout->planes.empty()) {
+        parallelFor(config.num_threads, n, [&](size_t i) {
+            const GlobalCloud& cl = clouds[i];
+            const Eigen::Isometry3d& T = T_W_F[i];
+            for (size_t k = 0; k < cl.size(); ++k) {
+                const int plane = layout->assign(T * cl.points()[k], T.linear() * cl.normals()[k]);
+                if (plane >= 0) c.layout[i].push_back({static_cast<uint32_t>(k), plane});
+            }
+        });
+    }
+    // C_ij: candidate pairs = the priors' pairs plus pairs whose bounding spheres meet.
+    std::map<std::pair<uint32_t, uint32_t>, bool> candidates;  // value: from a prior
+    for (const PairPrior& p : priors) {
+        candidates[{std::min(p.i, p.j), std::max(p.i, p.j)}] = true;
+    }
+    if (config.frag_pairs_from_overlap) {
+        std::vector<Eigen::Vector3d> centre(n, Eigen::Vector3d::Zero());
+        std::vector<double> radius(n, 0.0);
+        for (size_t i = 0; i < n; ++i) {
+            const GlobalCloud& cl = clouds[i];
+            if (cl.size() == 0) continue;
+            Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+            for (const auto& p : cl.points()) sum += p;
+            const Eigen::Vector3d mean = sum / static_cast<double>(cl.size());
+            double r = 0.0;
+            for (const auto& p : cl.points()) r = std::max(r, (p - mean).norm());
+            centre[i] = T_W_F[i] * mean;
+            radius[i] = r;
+        }
+        for (uint32_t a = 0; a < n; ++a) {
+            for (uint32_t b = a + 1; b < n; ++b) {
+                if (clouds[a].size() == 0 || clouds[b].size() == 0) continue;
+                if ((centre[a] - centre[b]).norm() >
+                    radius[a] + radius[b] + config.frag_max_distance_m) {
+                    continue;
+                }
+                candidates.emplace(std::make_pair(a, b), false);
+            }
+        }
+    }
+    std::vector<PairMatches> all;
+    all.reserve(candidates.size());
+    for (const auto& [key, from_prior] : candidates) {
+        PairMatches pm;
+        pm.a = key.first;
+        pm.b = key.second;
+        pm.from_prior = from_prior;
+        all.push_back(std::move(pm));
+    }
+    parallelFor(config.num_threads, all.size(), [&](size_t k) {
+        PairMatches& pm = all[k];
+        matchDirection(clouds[pm.a], clouds[pm.b], T_W_F[pm.a], T_W_F[pm.b], config, &pm.a_to_b);
+        matchDirection(clouds[pm.b], clouds[pm.a], T_W_F[pm.b], T_W_F[pm.a], config, &pm.b_to_a);
+    });
+    for (PairMatches& pm : all) {
+        if (pm.a_to_b.empty() && pm.b_to_a.empty()) continue;
+        if (!pm.from_prior) {
+            const size_t na = clouds[pm.a].size();
+            const size_t nb = clouds[pm.b].size();
+            const double overlap =
+                na <= nb ? static_cast<double>(pm.a_to_b.size()) / static_cast<double>(na)
+                         : static_cast<double>(pm.b_to_a.size()) / static_cast<double>(nb);
+            if (overlap < config.min_overlap) continue;
+        }
+        c.pairs.push_back(std::move(pm));
+    }
+    return c;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Energy and normal equations
+
+/// Contributions of one group of residuals to the normal equations: blocks of at most two
+/// fragments (a, b).
+struct GroupSystem {
+    uint32_t a = 0;
+    uint32_t b = 0;
+    Matrix6d H_aa = Matrix6d::Zero();
+    Matrix6d H_ab = Matrix6d::Zero();
+    Matrix6d H_bb = Matrix6d::Zero();
+    Vector6d b_a = Vector6d::Zero();
+    Vector6d b_b = Vector6d::Zero();
+    double cost = 0.0;  // Σ ρ (unscaled)
+};
+
+inline double huberWeight(double r, double delta, double* rho) {
+    const double ar = std::abs(r);
+    if (ar <= delta) {
+        *rho = r * r;
+        return 1.0;
+    }
+    *rho = 2.0 * delta * ar - delta * delta;
+    return delta / ar;
+}
+
+/// Normalised information Λ̂ = Λ / (trace(Λ_translation) / 3).
+Matrix6d normalisedInformation(const Matrix6d& information) {
+    const double n = information.bottomRightCorner<3, 3>().trace() / 3.0;
+    return n > 0.0 ? Matrix6d(information / n) : information;
+}
+
+struct Problem {
+    const std::vector<GlobalCloud>* clouds = nullptr;
+    const std::vector<PairPrior>* priors = nullptr;
+    std::vector<Matrix6d> info_hat;  // per prior
+    const PreparedLayout* layout = nullptr;
+    const GlobalConfig* config = nullptr;
+};
+
+/// Evaluates E (and, when `system` is set, the Gauss-Newton system of the scaled energy) at
+/// `T_W_F` for fixed correspondences.
+EnergyTerms evaluate(const Problem& pb, const Correspondences& c,
+                     const std::vector<Eigen::Isometry3d>& T_W_F,
+                     std::vector<GroupSystem>* system) {
+    const GlobalConfig& cfg = *pb.config;
+    const size_t n_layout_groups = c.layout.size();
+    const size_t n_pair_groups = c.pairs.size();
+    const size_t n_prior_groups = pb.priors->size();
+    std::vector<GroupSystem> groups(n_layout_groups + n_pair_groups + n_prior_groups);
+    const bool want = system != nullptr;
+    const double delta = cfg.huber_delta_m;
+
+    // Layout groups: one per fragment, Eq. (8).
+    parallelFor(cfg.num_threads, n_layout_groups, [&](size_t i) {
+        GroupSystem& g = groups[i];
+        g.a = g.b = static_cast<uint32_t>(i);
+        const GlobalCloud& cl = (*pb.clouds)[i];
+        RowJacobian J;
+        for (const LayoutMatch& m : c.layout[i]) {
+            const double r = layoutResidual(T_W_F[i], cl.points()[m.p],
+                                            pb.layout->planes[static_cast<size_t>(m.plane)].world,
+                                            want ? &J : nullptr);
+            double rho = 0.0;
+            const double w = huberWeight(r, delta, &rho);
+            g.cost += rho;
+            if (want) {
+                g.H_aa.noalias() += w * J.transpose() * J;
+                g.b_a.noalias() += w * r * J.transpose();
+            }
+        }
+    });
+    // Fragment pair groups, Eq. (9), both directions.
+    parallelFor(cfg.num_threads, n_pair_groups, [&](size_t k) {
+        const PairMatches& pm = c.pairs[k];
+        GroupSystem& g = groups[n_layout_groups + k];
+        g.a = pm.a;
+        g.b = pm.b;
+        const GlobalCloud& ca = (*pb.clouds)[pm.a];
+        const GlobalCloud& cb = (*pb.clouds)[pm.b];
+        RowJacobian Ja, Jb;
+        auto add = [&](const GlobalCloud& from, const GlobalCloud& to, uint32_t i, uint32_t j,
+                       const std::vector<FragMatch>& matches, bool from_is_a) {
+            for (const FragMatch& m : matches) {
+                RowJacobian Ji, Jj;
+                const double r =
+                    fragResidual(T_W_F[i], T_W_F[j], from.points()[m.p], to.points()[m.q],
+                                 to.normals()[m.q], want ? &Ji : nullptr, want ? &Jj : nullptr);
+                double rho = 0.0;
+                const double w = huberWeight(r, delta, &rho);
+                g.cost += rho;
+                if (want) {
+                    Ja = from_is_a ? Ji : Jj;
+                    Jb = from_is_a ? Jj : Ji;
+                    g.H_aa.noalias() += w * Ja.transpose() * Ja;
+                    g.H_ab.noalias() += w * Ja.transpose() * Jb;
+                    g.H_bb.noalias() += w * Jb.transpose() * Jb;
+                    g.b_a.noalias() += w * r * Ja.transpose();
+                    g.b_b.noalias() += w * r * Jb.transpose();
+                }
+            }
+        };
+        add(ca, cb, pm.a, pm.b, pm.a_to_b, true);
+        add(cb, ca, pm.b, pm.a, pm.b_to_a, false);
+    });
+    // Pair priors, Eq. (10).
+    parallelFor(cfg.num_threads, n_prior_groups, [&](size_t k) {
+        const PairPrior& p = (*pb.priors)[k];
+        GroupSystem& g = groups[n_layout_groups + n_pair_groups + k];
+        g.a = p.i;
+        g.b = p.j;
+        Matrix6d Ji, Jj;
+        const Vector6d e = pairResidual(T_W_F[p.i], T_W_F[p.j], p.T_i_j, want ? &Ji : nullptr,
+                                        want ? &Jj : nullptr);
+        const Matrix6d& L = pb.info_hat[k];
+        g.cost = e.dot(L * e);
+        if (want) {
+            g.H_aa = Ji.transpose() * L * Ji;
+            g.H_ab = Ji.transpose() * L * Jj;
+            g.H_bb = Jj.transpose() * L * Jj;
+            g.b_a = Ji.transpose() * L * e;
+            g.b_b = Jj.transpose() * L * e;
+        }
+    });
+
+    EnergyTerms e;
+    for (const auto& l : c.layout) e.num_layout += l.size();
+    for (const auto& pm : c.pairs) e.num_frag += pm.a_to_b.size() + pm.b_to_a.size();
+    e.num_pair = n_prior_groups;
+    const double s_layout = e.num_layout > 0 ? 1.0 / static_cast<double>(e.num_layout) : 0.0;
+    const double s_frag = e.num_frag > 0 ? cfg.frag_weight / static_cast<double>(e.num_frag) : 0.0;
+    const double s_pair = e.num_pair > 0 ? cfg.pair_weight / static_cast<double>(e.num_pair) : 0.0;
+    for (size_t k = 0; k < groups.size(); ++k) {
+        const double s = k < n_layout_groups                   ? s_layout
+                         : k < n_layout_groups + n_pair_groups ? s_frag
+                                                               : s_pair;
+        double& term = k < n_layout_groups                   ? e.layout
+                       : k < n_layout_groups + n_pair_groups ? e.frag
+                                                             : e.pair;
+        term += s * groups[k].cost;
+        if (want) {
+            GroupSystem& g = groups[k];
+            g.H_aa *= s;
+            g.H_ab *= s;
+            g.H_bb *= s;
+            g.b_a *= s;
+            g.b_b *= s;
+        }
+    }
+    e.total = e.layout + e.frag + e.pair;
+    if (want) *system = std::move(groups);
+    return e;
+}
+
+/// Solves (H + mu diag(H)) xi = -b over fragments 1..n-1. False when the factorisation fails.
+bool solveStep(const std::vector<GroupSystem>& groups, size_t n, double mu,
+               std::vector<Vector6d>* xi) {
+    const Eigen::Index m = static_cast<Eigen::Index>(6 * (n - 1));
+    std::vector<Matrix6d> diag(n, Matrix6d::Zero());
+    std::vector<Vector6d> rhs(n, Vector6d::Zero());
+    std::map<std::pair<uint32_t, uint32_t>, Matrix6d> off;
+    for (const GroupSystem& g : groups) {
+        diag[g.a] += g.H_aa;
+        rhs[g.a] += g.b_a;
+        if (g.a != g.b) {
+            diag[g.b] += g.H_bb;
+            rhs[g.b] += g.b_b;
+            if (g.a == 0 || g.b == 0) continue;
+            if (g.a < g.b) {
+                auto it = off.try_emplace({g.a, g.b}, Matrix6d::Zero()).first;
+                it->second += g.H_ab;
+            } else {
+                auto it = off.try_emplace({g.b, g.a}, Matrix6d::Zero()).first;
+                it->second += g.H_ab.transpose();
+            }
+        }
+    }
+    std::vector<Eigen::Triplet<double>> triplets;
+    triplets.reserve(36 * (n + 2 * off.size()));
+    Eigen::VectorXd b(m);
+    for (size_t i = 1; i < n; ++i) {
+        const Eigen::Index o = static_cast<Eigen::Index>(6 * (i - 1));
+        Matrix6d D = diag[i];
+        for (int k = 0; k < 6; ++k) {
+            // Damping on the diagonal; an unconstrained fragment gets an identity block (its
+            // right-hand side is zero, so its step is zero).
+            const double dk = D(k, k);
+            D(k, k) = dk > 0.0 ? dk * (1.0 + mu) : 1.0;
+        }
+        for (int r = 0; r < 6; ++r) {
+            for (int col = 0; col < 6; ++col) triplets.emplace_back(o + r, o + col, D(r, col));
+        }
+        b.segment<6>(o) = rhs[i];
+    }
+    for (const auto& [key, block] : off) {
+        const Eigen::Index oi = static_cast<Eigen::Index>(6 * (key.first - 1));
+        const Eigen::Index oj = static_cast<Eigen::Index>(6 * (key.second - 1));
+        for (int r = 0; r < 6; ++r) {
+            for (int col = 0; col < 6; ++col) {
+                triplets.emplace_back(oi + r, oj + col, block(r, col));
+                triplets.emplace_back(oj + col, oi + r, block(r, col));
+            }
+        }
+    }
+    Eigen::SparseMatrix<double> A(m, m);
+    A.setFromTriplets(triplets.begin(), triplets.end());
+    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(A);
+    if (ldlt.info() != Eigen::Success) return false;
+    const Eigen::VectorXd x = ldlt.solve(-b);
+    if (ldlt.info() != Eigen::Success || !x.allFinite()) return false;
+    xi->assign(n, Vector6d::Zero());
+    for (size_t i = 1; i < n; ++i) {
+        (*xi)[i] = x.segment<6>(static_cast<Eigen::Index>(6 * (i - 1)));
+    }
+    return true;
+}
+
+Status validateInputs(size_t n, const std::vector<Eigen::Isometry3d>& T_W_F,
+                      const std::vector<PairPrior>& priors, const GlobalConfig& config) {
+    if (T_W_F.size() != n) {
+        return invalidArgument(fmt::format("global: {} poses for {} fragments", T_W_F.size(), n));
+    }
+    for (size_t i = 0; i < n; ++i) {
+        if (!lie::isValidPose(T_W_F[i], 1e-6)) {
+            return invalidArgument(fmt::format("global: pose of fragment {} is not valid", i));
+        }
+    }
+    for (size_t k = 0; k < priors.size(); ++k) {
+        const PairPrior& p = priors[k];
+        if (p.i >= n || p.j >= n || p.i == p.j) {
+            return invalidArgument(fmt::format(
+                "global: pair prior {} ({}, {}) is not a pair of distinct fragments < {}", k, p.i,
+                p.j, n));
+        }
+        if (!lie::isValidPose(p.T_i_j, 1e-6)) {
+            return invalidArgument(fmt::format("global: pair prior {} transform not valid", k));
+        }
+        if (!p.information.allFinite() ||
+            (p.information - p.information.transpose()).cwiseAbs().maxCoeff() >
+                1e-9 * std::max(1.0, p.information.cwiseAbs().maxCoeff())) {
+            return invalidArgument(
+                fmt::format("global: pair prior {} information is not finite and symmetric", k));
+        }
+    }
+    const Status s = config::validate(config);
+    if (!s.isOk()) return invalidArgument("global: " + s.message());
+    return Status::ok();
+}
+
+}  // namespace
+
+std::vector<std::vector<int>> layoutAssignments(const std::vector<GlobalCloud>& clouds,
+                                                const std::vector<Eigen::Isometry3d>& T_W_F,
+                                                const Layout& layout, const GlobalConfig& config) {
+    std::vector<std::vector<int>> out(clouds.size());
+    Result<PreparedLayout> pl = prepareLayout(layout, config);
+    for (size_t i = 0; i < clouds.size(); ++i) {
+        out[i].assign(clouds[i].size(), -1);
+        if (!pl.isOk() || i >= T_W_F.size()) continue;
+        for (size_t k = 0; k < clouds[i].size(); ++k) {
+            out[i][k] = pl->assign(T_W_F[i] * clouds[i].points()[k],
+                                   T_W_F[i].linear() * clouds[i].normals()[k]);
+        }
+    }
+    return out;
+}
+
+Result<GlobalResult> refinePoses(const std::vector<GlobalCloud>& clouds,
+                                 std::vector<Eigen::Isometry3d> T_W_F,
+                                 const std::vector<PairPrior>& priors, const Layout& layout,
+                                 const GlobalConfig& config) {
+    const size_t n = clouds.size();
+    PLUMB_RETURN_IF_ERROR(validateInputs(n, T_W_F, priors, config));
+    GlobalResult result;
+    if (n <= 1) {
+        result.T_W_F = std::move(T_W_F);
+        result.converged = true;
+        return result;
+    }
+    std::optional<PreparedLayout> prepared;
+    if (config.use_layout && !layout.planes.empty()) {
+        Result<PreparedLayout> pl = prepareLayout(layout, config);
+        if (!pl.isOk()) return pl.status();
+        prepared = std::move(pl).value();
+    }
+    Problem pb;
+    pb.clouds = &clouds;
+    pb.priors = &priors;
+    pb.layout = prepared ? &*prepared : nullptr;
+    pb.config = &config;
+    for (const PairPrior& p : priors) pb.info_hat.push_back(normalisedInformation(p.information));
+
+    for (int round = 0; round < config.rounds; ++round) {
+        const Correspondences corr = establish(clouds, T_W_F, priors, pb.layout, config);
+        std::vector<GroupSystem> system;
+        EnergyTerms energy = evaluate(pb, corr, T_W_F, &system);
+        if (round == 0) result.initial = energy;
+        result.num_frag_pairs = corr.pairs.size();
+        result.rounds = round + 1;
+        double mu = config.initial_damping;
+        bool converged = false;
+        for (int it = 0; it < config.max_iterations; ++it) {
+            GlobalIteration rec;
+            rec.round = round;
+            rec.iteration = it;
+            rec.damping = mu;
+            std::vector<Vector6d> xi;
+            if (!solveStep(system, n, mu, &xi)) {
+                rec.energy = energy;
+                result.iterations.push_back(rec);
+                mu *= 10.0;
+                if (mu > 1e8) break;
+                continue;
+            }
+            std::vector<Eigen::Isometry3d> candidate = T_W_F;
+            for (size_t i = 1; i < n; ++i) {
+                rec.max_step_rad = std::max(rec.max_step_rad, xi[i].head<3>().norm());
+                rec.max_step_m = std::max(rec.max_step_m, xi[i].tail<3>().norm());
+                candidate[i] = lie::orthonormalized(lie::expSE3(xi[i]) * T_W_F[i]);
+            }
+            std::vector<GroupSystem> candidate_system;
+            const EnergyTerms candidate_energy = evaluate(pb, corr, candidate, &candidate_system);
+            // LM acceptance: E never increases within the inner loop.
+            if (candidate_energy.total <= energy.total) {
+                rec.accepted = true;
+                T_W_F = std::move(candidate);
+                system = std::move(candidate_system);
+                energy = candidate_energy;
+                mu = std::max(mu / 3.0, 1e-12);
+            } else {
+                mu *= 10.0;
+            }
+            rec.energy = energy;
+            result.iterations.push_back(rec);
+            if (rec.accepted &&
+                std::max(rec.max_step_rad, rec.max_step_m) < config.step_tolerance) {
+                converged = true;
+                break;
+            }
+            if (mu > 1e8) break;
+        }
+        result.final = energy;
+        result.converged = converged;
+        const double nl = static_cast<double>(energy.num_layout);
+        result.lambda1 = energy.num_frag > 0
+                             ? config.frag_weight * nl / static_cast<double>(energy.num_frag)
+                             : 0.0;
+        result.lambda2 = energy.num_pair > 0
+                             ? config.pair_weight * nl / static_cast<double>(energy.num_pair)
+                             : 0.0;
+    }
+    result.T_W_F = std::move(T_W_F);
+    return result;
+}
+
+Result<GlobalResult> refinePoses(const std::vector<Fragment>& fragments,
+                                 std::vector<Eigen::Isometry3d> T_W_F,
+                                 const std::vector<PairPrior>& priors, const Layout& layout,
+                                 const GlobalConfig& config) {
+    Result<std::vector<GlobalCloud>> clouds = prepareClouds(fragments, config);
+    if (!clouds.isOk()) return clouds.status();
+    return refinePoses(clouds.value(), std::move(T_W_F), priors, layout, config);
+}
+
+}  // namespace plumb::global
