@@ -1,0 +1,828 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "backend/layout/estimate_layout.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <numbers>
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "backend/layout/plane_fit.hpp"
+#include "backend/layout/tlinkage.hpp"
+#include "common/config/config.hpp"
+#include "common/config/schema.hpp"
+
+namespace plumb::layout {
+
+void describe(config::Schema& s, LayoutConfig& c) {
+    s.field("tau_m", c.tau_m, "second T-linkage inlier scale", "m").positive().max(1.0);
+    s.field("cutoff_factor", c.cutoff_factor, "preferences vanish beyond cutoff_factor * tau")
+        .positive();
+    s.field("max_group_angle_deg", c.max_group_angle_deg,
+            "groups whose planes differ by more never share a dominant plane", "deg")
+        .range(0.0, 90.0);
+    s.field("max_group_points", c.max_group_points, "points per group in residuals and fits")
+        .min(3);
+    s.field("min_dominant_area_m2", c.min_dominant_area_m2,
+            "dominant planes with less occupied area are ignored", "m^2")
+        .min(0.0);
+    s.field("grid_cell_m", c.grid_cell_m, "occupancy grid cell size", "m").positive().max(1.0);
+    s.field("min_cell_points", c.min_cell_points, "points for an occupied base-grid cell").min(1);
+    s.field("closing_kernel_cells", c.closing_kernel_cells,
+            "morphological closing kernel diameter (0 = none)", "cells")
+        .range(0, 51);
+    s.field("base_min_one_sided", c.base_min_one_sided,
+            "base plane: fraction of points on its room side")
+        .range(0.0, 1.0);
+    s.field("base_side_margin_m", c.base_side_margin_m,
+            "base plane: points closer than this do not count for the side test", "m")
+        .min(0.0);
+    s.field("camera_up_C", c.camera_up_C,
+            "up direction of an upright camera in the camera frame (0 = no gravity hint)");
+    s.field("base_max_tilt_deg", c.base_max_tilt_deg,
+            "with the hint: base-plane candidates within this angle of horizontal", "deg")
+        .range(0.0, 90.0);
+    s.field("tau1", c.tau1, "Eq. 6: walls need |n . n_base| below this").range(0.0, 1.0);
+    s.field("tau2_m", c.tau2_m, "Eq. 7: walls need a mean boundary distance below this", "m")
+        .positive();
+    s.field("min_wall_area_m2", c.min_wall_area_m2, "walls with less occupied area are dropped",
+            "m^2")
+        .min(0.0);
+    s.field("wall_merge_angle_deg", c.wall_merge_angle_deg, "wall merge: maximum angle", "deg")
+        .range(0.0, 90.0);
+    s.field("wall_merge_offset_m", c.wall_merge_offset_m, "wall merge: maximum offset", "m")
+        .min(0.0);
+    s.field("opposite_max_angle_deg", c.opposite_max_angle_deg,
+            "opposite plane: maximum angle to the base", "deg")
+        .range(0.0, 90.0);
+    s.field("min_room_height_m", c.min_room_height_m,
+            "opposite plane: minimum distance from the base", "m")
+        .positive();
+    s.field("snap_angle_deg", c.snap_angle_deg,
+            "weak Manhattan: snap walls within this angle of a multiple of 90 deg", "deg")
+        .range(0.0, 45.0);
+    s.field("refit_band_m", c.refit_band_m, "offset re-estimation band", "m").positive();
+    s.field("min_contour_run_cells", c.min_contour_run_cells,
+            "room polygon: ignore shorter contour runs", "cells")
+        .min(1);
+}
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double msSince(Clock::time_point t0) {
+    return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+constexpr double kDeg = std::numbers::pi / 180.0;
+
+struct Group {
+    int fragment = 0;
+    int label = 0;
+    Eigen::Vector3d n = Eigen::Vector3d::UnitZ();
+    double d = 0.0;
+    std::vector<Eigen::Vector3d> all;     // every labelled point, world
+    std::vector<Eigen::Vector3d> capped;  // a stride subsample of at most max_group_points
+};
+
+/// A plane with the points that support it (world frame).
+struct SupportedPlane {
+    int id = 0;
+    Eigen::Vector3d n = Eigen::Vector3d::UnitZ();
+    double d = 0.0;
+    double area = 0.0;
+    std::vector<int> groups;
+    std::vector<const Eigen::Vector3d*> all;
+    std::vector<const Eigen::Vector3d*> capped;
+    double rms = 0.0;
+};
+
+/// Two unit vectors spanning the plane perpendicular to n.
+void planeBasis(const Eigen::Vector3d& n, Eigen::Vector3d* e1, Eigen::Vector3d* e2) {
+    Eigen::Index axis;
+    n.cwiseAbs().minCoeff(&axis);
+    Eigen::Vector3d a = Eigen::Vector3d::Zero();
+    a(axis) = 1.0;
+    *e1 = (a - a.dot(n) * n).normalized();
+    *e2 = n.cross(*e1);
+}
+
+/// Occupied area of points projected into the plane's own 2-D grid (reference §4.7).
+double occupiedArea(const SupportedPlane& p, double cell) {
+    Eigen::Vector3d e1, e2;
+    planeBasis(p.n, &e1, &e2);
+    std::vector<int64_t> keys;
+    keys.reserve(p.all.size());
+    for (const Eigen::Vector3d* x : p.all) {
+        const auto u = static_cast<int64_t>(std::floor(e1.dot(*x) / cell));
+        const auto v = static_cast<int64_t>(std::floor(e2.dot(*x) / cell));
+        keys.push_back((u << 32) ^ (v & 0xFFFFFFFF));
+    }
+    std::sort(keys.begin(), keys.end());
+    const auto cells = std::unique(keys.begin(), keys.end()) - keys.begin();
+    return static_cast<double>(cells) * cell * cell;
+}
+
+/// Least-squares refit with one trimming pass (points within `band` of the first fit).
+void refitPlane(SupportedPlane* p, double band) {
+    PlaneMoments m;
+    for (const Eigen::Vector3d* x : p->capped) m.add(*x);
+    PlaneFitResult f = m.fit();
+    if (!f.valid) return;
+    PlaneMoments trimmed;
+    for (const Eigen::Vector3d* x : p->capped) {
+        if (std::abs(f.normal.dot(*x) + f.d) <= band) trimmed.add(*x);
+    }
+    const PlaneFitResult g = trimmed.fit();
+    if (g.valid) f = g;
+    const Eigen::Vector3d n = f.normal.dot(p->n) < 0 ? -f.normal : f.normal;
+    p->n = n;
+    p->d = -n.dot(f.centroid);
+    p->rms = f.rms_m;
+}
+
+/// Offset for a fixed normal over the points within `band` of the current plane.
+double refitOffset(const SupportedPlane& p, const Eigen::Vector3d& n, double band) {
+    PlaneMoments m;
+    for (const Eigen::Vector3d* x : p.capped) {
+        if (std::abs(p.n.dot(*x) + p.d) <= band) m.add(*x);
+    }
+    if (m.count() == 0) return p.d;
+    return m.offsetFor(n);
+}
+
+bool isRigid(const Eigen::Isometry3d& T) {
+    if (!T.matrix().allFinite()) return false;
+    const Eigen::Matrix3d R = T.linear();
+    return (R.transpose() * R - Eigen::Matrix3d::Identity()).norm() < 1e-6 &&
+           std::abs(R.determinant() - 1.0) < 1e-6;
+}
+
+struct Line2 {
+    Eigen::Vector2d n;  // unit
+    double d;           // n.x + d = 0
+};
+
+bool intersect(const Line2& a, const Line2& b, Eigen::Vector2d* x) {
+    const double det = a.n.x() * b.n.y() - a.n.y() * b.n.x();
+    if (std::abs(det) < std::sin(10.0 * kDeg)) return false;
+    *x = Eigen::Vector2d((-a.d * b.n.y() + b.d * a.n.y()) / det,
+                         (-a.n.x() * b.d + b.n.x() * a.d) / det);
+    return true;
+}
+
+double signedArea(const std::vector<Eigen::Vector2d>& poly) {
+    double a = 0.0;
+    for (size_t k = 0; k < poly.size(); ++k) {
+        const auto& p = poly[k];
+        const auto& q = poly[(k + 1) % poly.size()];
+        a += p.x() * q.y() - q.x() * p.y();
+    }
+    return 0.5 * a;
+}
+
+}  // namespace
+
+Result<LayoutEstimate> estimateLayout(const std::vector<Fragment>& fragments,
+                                      const std::vector<FragmentPlanes>& planes,
+                                      const std::vector<Eigen::Isometry3d>& T_W_F,
+                                      const LayoutConfig& config) {
+    const auto t_start = Clock::now();
+    PLUMB_RETURN_IF_ERROR(config::validate(config));
+    if (fragments.size() != planes.size() || fragments.size() != T_W_F.size()) {
+        return invalidArgument(
+            fmt::format("estimateLayout: {} fragments, {} plane sets and {} poses (must be equal)",
+                        fragments.size(), planes.size(), T_W_F.size()));
+    }
+    if (fragments.empty()) return invalidArgument("estimateLayout: no fragments");
+    for (size_t i = 0; i < T_W_F.size(); ++i) {
+        if (!isRigid(T_W_F[i])) {
+            return invalidArgument(
+                fmt::format("estimateLayout: pose of fragment {} is not a finite rigid transform",
+                            fragments[i].id));
+        }
+        if (planes[i].labels.size() != planes[i].sample_F.size()) {
+            return invalidArgument(
+                fmt::format("estimateLayout: plane set {} has {} labels for {} sample points", i,
+                            planes[i].labels.size(), planes[i].sample_F.size()));
+        }
+    }
+    LayoutEstimate est;
+    LayoutDiagnostics& diag = est.diagnostics;
+    diag.num_fragments = static_cast<int>(fragments.size());
+    const double cell = config.grid_cell_m;
+
+    // 1. Groups and all points in the world frame (reference §4.6).
+    auto t0 = Clock::now();
+    std::vector<Group> groups;
+    std::vector<Eigen::Vector3d> all_points;
+    for (size_t i = 0; i < planes.size(); ++i) {
+        const FragmentPlanes& fp = planes[i];
+        const Eigen::Isometry3d& T = T_W_F[i];
+        std::vector<std::vector<Eigen::Vector3d>> by_label(fp.planes.size());
+        for (size_t k = 0; k < fp.sample_F.size(); ++k) {
+            const Eigen::Vector3d p = T * fp.sample_F.points[k].cast<double>();
+            all_points.push_back(p);
+            const int l = fp.labels[k];
+            if (l >= 0 && l < static_cast<int>(fp.planes.size())) by_label[l].push_back(p);
+        }
+        for (size_t l = 0; l < fp.planes.size(); ++l) {
+            if (by_label[l].size() < 3) continue;
+            Group g;
+            g.fragment = static_cast<int>(i);
+            g.label = static_cast<int>(l);
+            g.n = T.linear() * fp.planes[l].normal_F;
+            g.d = fp.planes[l].d_F - g.n.dot(T.translation());
+            g.all = std::move(by_label[l]);
+            const size_t stride =
+                (g.all.size() + config.max_group_points - 1) / config.max_group_points;
+            for (size_t k = 0; k < g.all.size(); k += stride) g.capped.push_back(g.all[k]);
+            groups.push_back(std::move(g));
+        }
+    }
+    const int num_groups = static_cast<int>(groups.size());
+    diag.num_groups = num_groups;
+    diag.num_hypotheses = num_groups;
+    if (num_groups == 0) {
+        return failedPrecondition("estimateLayout: no plane in any fragment");
+    }
+
+    // 2. Second T-linkage: items = groups, hypotheses = the groups' planes.
+    const double cos_group = std::cos(config.max_group_angle_deg * kDeg);
+    std::vector<PreferenceVector> prefs(num_groups);
+    for (int g = 0; g < num_groups; ++g) {
+        prefs[g] = preferencesFromResiduals(
+            num_groups,
+            [&](int h) {
+                if (std::abs(groups[h].n.dot(groups[g].n)) < cos_group) return -1.0;
+                double s = 0.0;
+                for (const Eigen::Vector3d& x : groups[g].capped) {
+                    s += std::abs(groups[h].n.dot(x) + groups[h].d);
+                }
+                return s / static_cast<double>(groups[g].capped.size());
+            },
+            config.tau_m, config.cutoff_factor);
+    }
+    const TLinkageResult tl = tLinkage(prefs);
+    diag.num_clusters = tl.num_clusters;
+    std::vector<SupportedPlane> dominant;
+    for (const std::vector<int>& cl : tl.members) {
+        SupportedPlane sp;
+        Eigen::Vector3d nsum = Eigen::Vector3d::Zero();
+        for (int g : cl) {
+            sp.groups.push_back(g);
+            nsum += static_cast<double>(groups[g].all.size()) * groups[g].n;
+            for (const Eigen::Vector3d& x : groups[g].all) sp.all.push_back(&x);
+            for (const Eigen::Vector3d& x : groups[g].capped) sp.capped.push_back(&x);
+        }
+        sp.n = nsum.normalized();
+        sp.d = groups[cl.front()].d;
+        refitPlane(&sp, 3.0 * config.tau_m);
+        sp.area = occupiedArea(sp, cell);
+        if (sp.area < config.min_dominant_area_m2) continue;
+        dominant.push_back(std::move(sp));
+    }
+    std::stable_sort(
+        dominant.begin(), dominant.end(),
+        [](const SupportedPlane& a, const SupportedPlane& b) { return a.area > b.area; });
+    for (size_t k = 0; k < dominant.size(); ++k) {
+        dominant[k].id = static_cast<int>(k);
+        DominantPlane dp;
+        dp.id = dominant[k].id;
+        dp.normal_W = dominant[k].n;
+        dp.d_W = dominant[k].d;
+        dp.area_m2 = dominant[k].area;
+        dp.num_groups = static_cast<int>(dominant[k].groups.size());
+        dp.num_points = static_cast<int>(dominant[k].all.size());
+        dp.rms_m = dominant[k].rms;
+        for (int g : dominant[k].groups) dp.fragments.push_back(fragments[groups[g].fragment].id);
+        std::sort(dp.fragments.begin(), dp.fragments.end());
+        dp.fragments.erase(std::unique(dp.fragments.begin(), dp.fragments.end()),
+                           dp.fragments.end());
+        diag.dominant_planes.push_back(dp);
+    }
+    diag.ms_clustering = msSince(t0);
+    if (dominant.empty()) {
+        return failedPrecondition("estimateLayout: no dominant plane with enough area");
+    }
+
+    // 3. Base plane (reference §4.7): largest area among one-sided, roughly horizontal planes.
+    Eigen::Vector3d up_hint = Eigen::Vector3d::Zero();
+    if (config.camera_up_C.norm() > 1e-9) {
+        for (const Eigen::Isometry3d& T : T_W_F) up_hint += T.linear() * config.camera_up_C;
+        if (up_hint.norm() > 1e-9) up_hint.normalize();
+    }
+    diag.up_hint_W = up_hint;
+    const bool have_hint = up_hint.squaredNorm() > 0.5;
+    auto sideCounts = [&](const SupportedPlane& p, size_t* pos, size_t* neg) {
+        *pos = *neg = 0;
+        for (const Eigen::Vector3d& x : all_points) {
+            const double s = p.n.dot(x) + p.d;
+            if (s > config.base_side_margin_m) ++*pos;
+            if (s < -config.base_side_margin_m) ++*neg;
+        }
+    };
+    const double cos_tilt = std::cos(config.base_max_tilt_deg * kDeg);
+    int base = -1;
+    for (int pass = 0; pass < 3 && base < 0; ++pass) {
+        for (size_t k = 0; k < dominant.size(); ++k) {
+            const bool horizontal = !have_hint || std::abs(dominant[k].n.dot(up_hint)) >= cos_tilt;
+            size_t pos = 0, neg = 0;
+            sideCounts(dominant[k], &pos, &neg);
+            const double one_sided =
+                pos + neg == 0 ? 1.0 : static_cast<double>(std::max(pos, neg)) / (pos + neg);
+            const bool sided = one_sided >= config.base_min_one_sided;
+            // Pass 0: both tests; pass 1: horizontal only; pass 2: the largest plane.
+            if ((pass == 0 && horizontal && sided) || (pass == 1 && horizontal) || pass == 2) {
+                base = static_cast<int>(k);  // sorted by area: the first hit is the largest
+                break;
+            }
+        }
+    }
+    SupportedPlane& bp = dominant[base];
+    {
+        size_t pos = 0, neg = 0;
+        sideCounts(bp, &pos, &neg);
+        if (neg > pos) {  // orient into the room
+            bp.n = -bp.n;
+            bp.d = -bp.d;
+        }
+    }
+    const Eigen::Vector3d n_b = bp.n;
+    const bool base_is_floor = !have_hint || n_b.dot(up_hint) >= 0.0;
+    diag.base_plane_id = bp.id;
+    diag.base_kind = base_is_floor ? "floor" : "ceiling";
+
+    // 4. Occupancy grid on the base plane and its boundary (reference §4.8).
+    t0 = Clock::now();
+    Eigen::Vector3d e1, e2;
+    planeBasis(n_b, &e1, &e2);
+    double umin = 1e300, umax = -1e300, vmin = 1e300, vmax = -1e300;
+    for (const Eigen::Vector3d& x : all_points) {
+        umin = std::min(umin, e1.dot(x));
+        umax = std::max(umax, e1.dot(x));
+        vmin = std::min(vmin, e2.dot(x));
+        vmax = std::max(vmax, e2.dot(x));
+    }
+    const int pad = 2 + config.closing_kernel_cells;
+    umin -= pad * cell;
+    vmin -= pad * cell;
+    const int gw = static_cast<int>(std::ceil((umax - umin) / cell)) + pad + 1;
+    const int gh = static_cast<int>(std::ceil((vmax - vmin) / cell)) + pad + 1;
+    if (static_cast<double>(gw) * gh > 25e6) {
+        return invalidArgument(fmt::format(
+            "estimateLayout: the points span {:.1f} x {:.1f} m, too large for a {} m grid",
+            umax - umin, vmax - vmin, cell));
+    }
+    diag.grid_width = gw;
+    diag.grid_height = gh;
+    auto toCell = [&](const Eigen::Vector3d& x) {
+        return cv::Point(std::clamp(static_cast<int>((e1.dot(x) - umin) / cell), 0, gw - 1),
+                         std::clamp(static_cast<int>((e2.dot(x) - vmin) / cell), 0, gh - 1));
+    };
+    cv::Mat counts = cv::Mat::zeros(gh, gw, CV_32S);
+    for (const Eigen::Vector3d& x : all_points) ++counts.at<int>(toCell(x));
+    cv::Mat occ = counts >= config.min_cell_points;  // CV_8U, 255 = occupied
+    if (config.closing_kernel_cells > 0) {
+        const cv::Mat kernel = cv::getStructuringElement(
+            cv::MORPH_ELLIPSE, cv::Size(config.closing_kernel_cells, config.closing_kernel_cells));
+        cv::morphologyEx(occ, occ, cv::MORPH_CLOSE, kernel);
+    }
+    std::vector<std::vector<cv::Point>> contours;
+    cv::findContours(occ.clone(), contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
+    if (contours.empty()) {
+        return failedPrecondition("estimateLayout: empty occupancy grid on the base plane");
+    }
+    size_t largest = 0;
+    for (size_t c = 1; c < contours.size(); ++c) {
+        if (cv::contourArea(contours[c]) > cv::contourArea(contours[largest])) largest = c;
+    }
+    // The room region = the largest outer contour, filled (interior holes, i.e. furniture
+    // shadows, become occupied); its 1-cell outline is dO.
+    cv::Mat room = cv::Mat::zeros(gh, gw, CV_8U);
+    cv::drawContours(room, contours, static_cast<int>(largest), cv::Scalar(255), cv::FILLED);
+    cv::Mat boundary = cv::Mat::zeros(gh, gw, CV_8U);
+    cv::drawContours(boundary, contours, static_cast<int>(largest), cv::Scalar(255), 1);
+    diag.occupied_cells = cv::countNonZero(room);
+    diag.boundary_cells = cv::countNonZero(boundary);
+    cv::Mat not_boundary = boundary == 0;
+    cv::Mat dist;
+    cv::distanceTransform(not_boundary, dist, cv::DIST_L2, cv::DIST_MASK_PRECISE);
+    diag.ms_grid = msSince(t0);
+    const std::vector<cv::Point>& contour = contours[largest];
+
+    // 5. Walls (Eq. 6-7) and the opposite plane.
+    const double cos_opp = std::cos(config.opposite_max_angle_deg * kDeg);
+    std::vector<int> wall_ids;
+    int opposite = -1;
+    for (size_t k = 0; k < dominant.size(); ++k) {
+        const SupportedPlane& p = dominant[k];
+        WallDecision wd;
+        wd.plane_id = p.id;
+        wd.abs_dot_base = std::abs(p.n.dot(n_b));
+        if (static_cast<int>(k) == base) {
+            wd.reason = "base plane";
+            diag.walls.push_back(wd);
+            continue;
+        }
+        double g = 0.0;
+        for (const Eigen::Vector3d* x : p.capped) g += dist.at<float>(toCell(*x));
+        wd.boundary_distance_m = p.capped.empty() ? 1e9 : g / p.capped.size() * cell;
+        if (wd.abs_dot_base >= config.tau1) {
+            wd.reason = "not vertical";
+            if (wd.abs_dot_base >= cos_opp) {
+                PlaneMoments m;
+                for (const Eigen::Vector3d* x : p.capped) m.add(*x);
+                const double height = n_b.dot(m.mean()) + bp.d;
+                if (height >= config.min_room_height_m && opposite < 0) {
+                    opposite = static_cast<int>(k);  // largest first
+                    wd.reason = "opposite plane";
+                }
+            }
+        } else if (wd.boundary_distance_m >= config.tau2_m) {
+            wd.reason = "far from boundary";
+        } else if (p.area < config.min_wall_area_m2) {
+            wd.reason = "too small";
+        } else {
+            // Merge into an already kept, near-coplanar wall.
+            int merged = -1;
+            for (int w : wall_ids) {
+                SupportedPlane& q = dominant[w];
+                if (std::abs(q.n.dot(p.n)) < std::cos(config.wall_merge_angle_deg * kDeg)) continue;
+                PlaneMoments m;
+                for (const Eigen::Vector3d* x : p.capped) m.add(*x);
+                if (std::abs(q.n.dot(m.mean()) + q.d) > config.wall_merge_offset_m) continue;
+                merged = w;
+                break;
+            }
+            if (merged >= 0) {
+                SupportedPlane& q = dominant[merged];
+                q.all.insert(q.all.end(), p.all.begin(), p.all.end());
+                q.capped.insert(q.capped.end(), p.capped.begin(), p.capped.end());
+                q.groups.insert(q.groups.end(), p.groups.begin(), p.groups.end());
+                refitPlane(&q, 3.0 * config.tau_m);
+                wd.reason = fmt::format("merged into {}", q.id);
+            } else {
+                wd.kept = true;
+                wd.reason = "wall";
+                wall_ids.push_back(static_cast<int>(k));
+            }
+        }
+        diag.walls.push_back(wd);
+    }
+    diag.opposite_plane_id = opposite >= 0 ? dominant[opposite].id : -1;
+
+    // 6. Weak-Manhattan snapping (reference §4.10).
+    std::vector<Eigen::Vector3d> wall_n(wall_ids.size());
+    std::vector<double> wall_d(wall_ids.size());
+    std::vector<bool> snapped(wall_ids.size(), false);
+    const int ref = wall_ids.empty() ? -1 : 0;  // walls are in area order: the first is largest
+    for (size_t w = 0; w < wall_ids.size(); ++w) {
+        const SupportedPlane& p = dominant[wall_ids[w]];
+        wall_n[w] = (p.n - p.n.dot(n_b) * n_b).normalized();
+    }
+    if (ref >= 0) {
+        const double phi_ref = std::atan2(wall_n[ref].dot(e2), wall_n[ref].dot(e1));
+        int num_snapped = 0;
+        for (size_t w = 0; w < wall_ids.size(); ++w) {
+            SnapDecision sd;
+            sd.plane_id = dominant[wall_ids[w]].id;
+            sd.normal_before_W = wall_n[w];
+            sd.reference = static_cast<int>(w) == ref;
+            const double phi = std::atan2(wall_n[w].dot(e2), wall_n[w].dot(e1));
+            double rel = std::fmod((phi - phi_ref) / kDeg, 180.0);
+            if (rel < 0) rel += 180.0;
+            sd.angle_to_reference_deg = rel;
+            const double nearest = std::round(rel / 90.0) * 90.0;
+            sd.residual_deg = std::abs(rel - nearest);
+            if (!sd.reference && sd.residual_deg <= config.snap_angle_deg) {
+                const double target = phi + (nearest - rel) * kDeg;
+                wall_n[w] = std::cos(target) * e1 + std::sin(target) * e2;
+                sd.snapped = true;
+                snapped[w] = true;
+                ++num_snapped;
+            }
+            diag.snapping.push_back(sd);
+        }
+        if (num_snapped > 0) {
+            snapped[ref] = true;
+            diag.snapping[ref].snapped = true;
+        }
+    }
+    for (size_t w = 0; w < wall_ids.size(); ++w) {
+        wall_d[w] = refitOffset(dominant[wall_ids[w]], wall_n[w], config.refit_band_m);
+    }
+    const double d_base = refitOffset(bp, n_b, config.refit_band_m);
+    double d_opp = 0.0;
+    if (opposite >= 0) d_opp = refitOffset(dominant[opposite], -n_b, config.refit_band_m);
+
+    // 7. Layout frame: z up along the floor normal, floor at z = 0.
+    Eigen::Vector3d up;
+    double d_floor;  // floor plane: up.x + d_floor = 0
+    double height = 0.0;
+    bool have_ceiling = false;
+    if (base_is_floor) {
+        up = n_b;
+        d_floor = d_base;
+        if (opposite >= 0) {
+            have_ceiling = true;
+            // Ceiling oriented by -n_b: -up.x + d_opp = 0, i.e. at height d_opp + d_floor.
+            height = d_opp + d_floor;
+        }
+    } else {
+        up = -n_b;
+        have_ceiling = true;
+        // Ceiling: n_b.x + d_base = 0 -> up.x = d_base.
+        if (opposite >= 0) {
+            d_floor = d_opp;  // opposite oriented with -n_b = up: up.x + d_opp = 0
+        } else {
+            std::vector<double> heights;
+            heights.reserve(all_points.size());
+            for (const Eigen::Vector3d& x : all_points) heights.push_back(up.dot(x));
+            const size_t q = heights.size() / 100;
+            std::nth_element(heights.begin(), heights.begin() + q, heights.end());
+            d_floor = -heights[q];
+            diag.floor_inferred = true;
+        }
+        height = d_base + d_floor;
+    }
+    Eigen::Vector3d x_axis;
+    if (ref >= 0) {
+        x_axis = wall_n[ref];
+    } else {
+        x_axis = e1;
+    }
+    x_axis = (x_axis - x_axis.dot(up) * up).normalized();
+    const Eigen::Vector3d y_axis = up.cross(x_axis);
+    Eigen::Isometry3d T_W_L = Eigen::Isometry3d::Identity();
+    T_W_L.linear().col(0) = x_axis;
+    T_W_L.linear().col(1) = y_axis;
+    T_W_L.linear().col(2) = up;
+    T_W_L.translation() = -d_floor * up;
+    const Eigen::Isometry3d T_L_W = T_W_L.inverse();
+    Layout& layout = est.layout;
+    layout.T_W_L = T_W_L;
+    layout.ceiling_height_m = have_ceiling ? height : 0.0;
+
+    // Walls as 2-D lines in L with the extent of their points.
+    struct Wall2 {
+        Line2 line;
+        double tmin = 0.0, tmax = 0.0;  // extent along the direction (-n.y, n.x)
+        int index = 0;                  // into wall_ids
+    };
+    std::vector<Wall2> walls2(wall_ids.size());
+    for (size_t w = 0; w < wall_ids.size(); ++w) {
+        const Eigen::Vector3d nL = T_L_W.linear() * wall_n[w];
+        Wall2& w2 = walls2[w];
+        w2.line.n = Eigen::Vector2d(nL.x(), nL.y()).normalized();
+        w2.line.d = wall_d[w] + wall_n[w].dot(T_W_L.translation());
+        w2.index = static_cast<int>(w);
+        const Eigen::Vector2d dir(-w2.line.n.y(), w2.line.n.x());
+        std::vector<double> ts;
+        for (const Eigen::Vector3d* x : dominant[wall_ids[w]].all) {
+            const Eigen::Vector3d xl = T_L_W * *x;
+            ts.push_back(dir.dot(xl.head<2>()));
+        }
+        std::sort(ts.begin(), ts.end());
+        w2.tmin = ts[ts.size() / 200];
+        w2.tmax = ts[ts.size() - 1 - ts.size() / 200];
+    }
+    // Contour cells in L (2-D).
+    auto cellToL = [&](const cv::Point& c) {
+        const Eigen::Vector3d x =
+            (umin + (c.x + 0.5) * cell) * e1 + (vmin + (c.y + 0.5) * cell) * e2 - bp.d * n_b;
+        return Eigen::Vector2d((T_L_W * x).head<2>());
+    };
+    auto insideRoom = [&](const Eigen::Vector2d& q) {
+        const Eigen::Vector3d x = T_W_L * Eigen::Vector3d(q.x(), q.y(), 0.0);
+        const double u = (e1.dot(x) - umin) / cell, v = (e2.dot(x) - vmin) / cell;
+        if (u < 0 || v < 0 || u >= gw || v >= gh) return false;
+        return room.at<uint8_t>(static_cast<int>(v), static_cast<int>(u)) != 0;
+    };
+    // Label each contour cell with the nearest wall line it lies on (within tau2 and the wall's
+    // extent), compress runs, and intersect consecutive walls.
+    std::vector<int> seq;
+    {
+        std::vector<int> lab(contour.size(), -1);
+        for (size_t c = 0; c < contour.size(); ++c) {
+            const Eigen::Vector2d q = cellToL(contour[c]);
+            double best = config.tau2_m;
+            for (const Wall2& w2 : walls2) {
+                const double dd = std::abs(w2.line.n.dot(q) + w2.line.d);
+                const double t = Eigen::Vector2d(-w2.line.n.y(), w2.line.n.x()).dot(q);
+                if (dd < best && t >= w2.tmin - 0.3 && t <= w2.tmax + 0.3) {
+                    best = dd;
+                    lab[c] = w2.index;
+                }
+            }
+        }
+        std::vector<std::pair<int, int>> runs;  // (label, length)
+        for (int l : lab) {
+            if (!runs.empty() && runs.back().first == l) {
+                ++runs.back().second;
+            } else {
+                runs.emplace_back(l, 1);
+            }
+        }
+        if (runs.size() > 1 && runs.front().first == runs.back().first) {
+            runs.front().second += runs.back().second;
+            runs.pop_back();
+        }
+        for (const auto& [l, len] : runs) {
+            if (l < 0 || len < config.min_contour_run_cells) continue;
+            if (!seq.empty() && seq.back() == l) continue;
+            seq.push_back(l);
+        }
+        while (seq.size() > 1 && seq.front() == seq.back()) seq.pop_back();
+    }
+    std::vector<Eigen::Vector2d> polygon;
+    std::vector<int> edge_wall;  // wall index of polygon edge k (vertex k -> k + 1)
+    bool polygon_ok = false;
+    if (seq.size() >= 3) {
+        const size_t m = seq.size();
+        for (size_t k = 0; k < m; ++k) {
+            const Wall2& a = walls2[seq[k]];
+            const Wall2& b = walls2[seq[(k + 1) % m]];
+            Eigen::Vector2d x;
+            if (intersect(a.line, b.line, &x)) {
+                polygon.push_back(x);
+                edge_wall.push_back(seq[(k + 1) % m]);
+            } else {
+                // Parallel neighbours (a step between them): a ends where b begins.
+                const Eigen::Vector2d da(-a.line.n.y(), a.line.n.x());
+                const Eigen::Vector2d db(-b.line.n.y(), b.line.n.x());
+                const Eigen::Vector2d pa0 = -a.line.d * a.line.n;
+                const Eigen::Vector2d pb0 = -b.line.d * b.line.n;
+                const double tb_on_a = da.dot(pb0 + 0.5 * (b.tmin + b.tmax) * db);
+                const double ta =
+                    std::abs(tb_on_a - a.tmin) < std::abs(tb_on_a - a.tmax) ? a.tmin : a.tmax;
+                const Eigen::Vector2d va = pa0 + ta * da;
+                const Eigen::Vector2d vb = va - (b.line.n.dot(va) + b.line.d) * b.line.n;
+                polygon.push_back(va);
+                edge_wall.push_back(-1);
+                polygon.push_back(vb);
+                edge_wall.push_back(seq[(k + 1) % m]);
+            }
+        }
+        // polygon[k] starts edge_wall[k]; rotate bookkeeping so edge k = wall of vertex k -> k+1.
+        if (signedArea(polygon) < 0) {
+            std::reverse(polygon.begin(), polygon.end());
+            std::reverse(edge_wall.begin(), edge_wall.end());
+            // After reversal vertex k -> k+1 runs along the wall that ended at old vertex k.
+            std::vector<int> fixed(edge_wall.size());
+            for (size_t k = 0; k < edge_wall.size(); ++k) {
+                fixed[k] = edge_wall[(k + 1) % edge_wall.size()];
+            }
+            edge_wall.swap(fixed);
+        }
+        polygon_ok = makeRoomLayout(polygon, 1.0).isOk();
+    }
+    if (!polygon_ok) {
+        std::vector<cv::Point> approx;
+        cv::approxPolyDP(contour, approx, 2.0, true);
+        polygon.clear();
+        edge_wall.clear();
+        for (const cv::Point& c : approx) polygon.push_back(cellToL(c));
+        if (signedArea(polygon) < 0) std::reverse(polygon.begin(), polygon.end());
+        edge_wall.assign(polygon.size(), -1);
+        diag.polygon_method = "contour";
+    } else {
+        diag.polygon_method = "walls";
+    }
+    layout.room_polygon_L = polygon;
+
+    // Planes in L.
+    LayoutPlane floor;
+    floor.id = 0;
+    floor.kind = LayoutPlaneKind::kFloor;
+    floor.normal_L = Eigen::Vector3d::UnitZ();
+    floor.d_L = 0.0;
+    layout.planes.push_back(floor);
+    if (have_ceiling) {
+        LayoutPlane ceiling;
+        ceiling.id = 1;
+        ceiling.kind = LayoutPlaneKind::kCeiling;
+        ceiling.normal_L = -Eigen::Vector3d::UnitZ();
+        ceiling.d_L = height;
+        layout.planes.push_back(ceiling);
+    }
+    // Walls: polygon order first, then the others.
+    std::vector<int> order;
+    for (int w : edge_wall) {
+        if (w >= 0 && std::find(order.begin(), order.end(), w) == order.end()) order.push_back(w);
+    }
+    for (size_t w = 0; w < walls2.size(); ++w) {
+        if (std::find(order.begin(), order.end(), static_cast<int>(w)) == order.end()) {
+            order.push_back(static_cast<int>(w));
+        }
+    }
+    int next_id = 2;
+    for (int w : order) {
+        const Wall2& w2 = walls2[w];
+        LayoutPlane lp;
+        lp.id = next_id++;
+        lp.kind = LayoutPlaneKind::kWall;
+        lp.manhattan_snapped = snapped[w];
+        // Segment: the longest polygon edge on this wall, else the points' extent.
+        double best_len = -1.0;
+        for (size_t k = 0; k < edge_wall.size(); ++k) {
+            if (edge_wall[k] != w) continue;
+            const Eigen::Vector2d& a = polygon[k];
+            const Eigen::Vector2d& b = polygon[(k + 1) % polygon.size()];
+            if ((b - a).norm() > best_len) {
+                best_len = (b - a).norm();
+                lp.start_L = a;
+                lp.end_L = b;
+            }
+        }
+        Eigen::Vector2d n2 = w2.line.n;
+        double d2 = w2.line.d;
+        const Eigen::Vector2d dir(-n2.y(), n2.x());
+        if (best_len < 0) {
+            const Eigen::Vector2d p0 = -d2 * n2;
+            lp.start_L = p0 + w2.tmin * dir;
+            lp.end_L = p0 + w2.tmax * dir;
+        }
+        // Normal into the room: the left of a counter-clockwise polygon edge, else the side of
+        // the segment's midpoint where the occupancy region lies.
+        bool flip = false;
+        if (best_len >= 0) {
+            const Eigen::Vector2d e = lp.end_L - lp.start_L;
+            flip = n2.dot(Eigen::Vector2d(-e.y(), e.x())) < 0;
+        } else {
+            const Eigen::Vector2d mid = 0.5 * (lp.start_L + lp.end_L);
+            flip = !insideRoom(mid + 0.2 * n2) && insideRoom(mid - 0.2 * n2);
+        }
+        if (flip) {
+            n2 = -n2;
+            d2 = -d2;
+        }
+        lp.normal_L = Eigen::Vector3d(n2.x(), n2.y(), 0.0);
+        lp.d_L = d2;
+        layout.planes.push_back(lp);
+    }
+    diag.ms_total = msSince(t_start);
+    return est;
+}
+
+namespace {
+nlohmann::json vec(const Eigen::Vector3d& v) {
+    return nlohmann::json::array({v.x(), v.y(), v.z()});
+}
+}  // namespace
+
+nlohmann::json toJson(const LayoutDiagnostics& d) {
+    nlohmann::json j;
+    j["num_fragments"] = d.num_fragments;
+    j["num_groups"] = d.num_groups;
+    j["num_hypotheses"] = d.num_hypotheses;
+    j["num_clusters"] = d.num_clusters;
+    j["dominant_planes"] = nlohmann::json::array();
+    for (const DominantPlane& p : d.dominant_planes) {
+        j["dominant_planes"].push_back({{"id", p.id},
+                                        {"normal_W", vec(p.normal_W)},
+                                        {"d_W", p.d_W},
+                                        {"area_m2", p.area_m2},
+                                        {"num_groups", p.num_groups},
+                                        {"num_points", p.num_points},
+                                        {"rms_m", p.rms_m},
+                                        {"fragments", p.fragments}});
+    }
+    j["base_plane_id"] = d.base_plane_id;
+    j["base_kind"] = d.base_kind;
+    j["opposite_plane_id"] = d.opposite_plane_id;
+    j["floor_inferred"] = d.floor_inferred;
+    j["up_hint_W"] = vec(d.up_hint_W);
+    j["grid"] = {{"width", d.grid_width},
+                 {"height", d.grid_height},
+                 {"occupied_cells", d.occupied_cells},
+                 {"boundary_cells", d.boundary_cells}};
+    j["walls"] = nlohmann::json::array();
+    for (const WallDecision& w : d.walls) {
+        j["walls"].push_back({{"plane_id", w.plane_id},
+                              {"kept", w.kept},
+                              {"abs_dot_base", w.abs_dot_base},
+                              {"boundary_distance_m", w.boundary_distance_m},
+                              {"reason", w.reason}});
+    }
+    j["snapping"] = nlohmann::json::array();
+    for (const SnapDecision& s : d.snapping) {
+        j["snapping"].push_back({{"plane_id", s.plane_id},
+                                 {"angle_to_reference_deg", s.angle_to_reference_deg},
+                                 {"residual_deg", s.residual_deg},
+                                 {"snapped", s.snapped},
+                                 {"reference", s.reference},
+                                 {"normal_before_W", vec(s.normal_before_W)}});
+    }
+    j["polygon_method"] = d.polygon_method;
+    j["ms_clustering"] = d.ms_clustering;
+    j["ms_grid"] = d.ms_grid;
+    j["ms_total"] = d.ms_total;
+    return j;
+}
+
+}  // namespace plumb::layout

@@ -1,0 +1,167 @@
+// SPDX-License-Identifier: Apache-2.0
+#pragma once
+
+// World-frame layout estimation, the second half of the paper's §3.2 (reference §4.6-4.10).
+// Inputs are the cached per-fragment planes (fragment_planes.hpp) and the current fragment poses
+// T_W_F; only this part re-runs in each outer iteration of Algorithm 1.
+//
+//   1. every labelled point group (fragment i, plane l) and its plane go to the world frame;
+//   2. second T-linkage over the groups (hypotheses = the groups' planes, residual = mean
+//      |n.p + d| of a group's points) -> dominant planes, each refitted to its groups' points;
+//   3. base plane = the dominant plane with the largest occupied area (cells of its own 2-D grid)
+//      among those with (almost) all other points on one side and, when a gravity hint is given,
+//      roughly horizontal;
+//   4. occupancy grid of all points on the base plane, closed, hole-filled; its outer contour is
+//      the morphological boundary dO (Iwanowski 2007);
+//   5. walls (Eq. 6-7): |n . n_base| < tau1 and mean distance of the plane's projected points to
+//      dO < tau2; near-coplanar walls merged; the opposite horizontal plane (ceiling or floor);
+//   6. weak-Manhattan snapping: walls made exactly vertical; those within snap_angle of a multiple
+//      of 90 degrees from the largest wall are made exactly orthogonal/parallel to it, the others
+//      keep their angle; offsets re-estimated with the normals fixed;
+//   7. layout frame L: z up (the floor normal), floor at z = 0, x along the largest wall's normal;
+//      the room polygon from the walls in the order the boundary contour meets them.
+//
+// Deterministic; the result depends only on the inputs and the configuration.
+
+#include <nlohmann/json_fwd.hpp>
+
+#include <Eigen/Geometry>
+#include <string>
+#include <vector>
+
+#include "backend/layout/fragment_planes.hpp"
+#include "common/core/status.hpp"
+#include "common/fragment/fragment.hpp"
+#include "common/layout/layout.hpp"
+
+namespace plumb::config {
+class Schema;
+}
+
+namespace plumb::layout {
+
+/// Parameters of world-frame layout estimation. Defaults and their reasons: docs/layout.md.
+struct LayoutConfig {
+    /// Second T-linkage inlier scale, metres: larger than the fragment tau because residual
+    /// misregistration adds up (reference §4.6: 1.5x; 2x tolerates 3 cm / 1 deg pose errors).
+    double tau_m = 0.025;
+    /// Preferences vanish beyond cutoff_factor * tau.
+    double cutoff_factor = 5.0;
+    /// Two groups whose planes differ by more than this never share a dominant plane, degrees.
+    double max_group_angle_deg = 10.0;
+    /// At most this many points per group enter residuals and fits (caps dense fragments).
+    int max_group_points = 400;
+    /// Dominant planes with less occupied area are ignored, m^2.
+    double min_dominant_area_m2 = 0.3;
+    /// Cell size of the occupancy grids (plane areas and the base-plane grid), metres.
+    double grid_cell_m = 0.05;
+    /// A base-grid cell is occupied with at least this many projected sample points.
+    int min_cell_points = 2;
+    /// Morphological closing of the base grid: elliptic kernel diameter, cells.
+    int closing_kernel_cells = 5;
+    /// Base plane: at least this fraction of the points farther than base_side_margin_m from it
+    /// must lie on one side (the room envelope).
+    double base_min_one_sided = 0.95;
+    double base_side_margin_m = 0.1;
+    /// Up direction of an upright camera in the camera frame (x right, y down, z forward:
+    /// (0, -1, 0)); ICL-NUIM's y-flipped frames use (0, 1, 0). The fragments' first-frame
+    /// rotations average it into a gravity hint. Zero disables the hint (then the base plane is
+    /// taken as the floor).
+    Eigen::Vector3d camera_up_C = Eigen::Vector3d(0.0, -1.0, 0.0);
+    /// With the hint, base-plane candidates must be within this angle of horizontal, degrees.
+    double base_max_tilt_deg = 30.0;
+    /// Eq. 6: walls need |n . n_base| < tau1 (cos 80 deg: within 10 deg of vertical).
+    double tau1 = 0.17;
+    /// Eq. 7: walls need a mean distance of their points to the boundary dO below tau2, metres.
+    double tau2_m = 0.25;
+    /// Walls with less occupied area are dropped, m^2.
+    double min_wall_area_m2 = 0.3;
+    /// Walls closer than this in angle (degrees) and offset (metres) are merged.
+    double wall_merge_angle_deg = 5.0;
+    double wall_merge_offset_m = 0.05;
+    /// Opposite horizontal plane: within this angle of the base (degrees) and at least this far
+    /// from it (metres).
+    double opposite_max_angle_deg = 10.0;
+    double min_room_height_m = 1.8;
+    /// Weak Manhattan: walls within this angle of a multiple of 90 degrees from the reference
+    /// wall are snapped to it exactly, degrees (reference §4.10).
+    double snap_angle_deg = 5.0;
+    /// Offsets are re-estimated over the plane's points within this distance, metres.
+    double refit_band_m = 0.06;
+    /// Room polygon: contour runs shorter than this many cells are ignored.
+    int min_contour_run_cells = 4;
+};
+void describe(config::Schema& s, LayoutConfig& c);
+
+/// A dominant plane of the second clustering, in the world frame.
+struct DominantPlane {
+    int id = 0;
+    Eigen::Vector3d normal_W = Eigen::Vector3d::UnitZ();
+    double d_W = 0.0;
+    double area_m2 = 0.0;  ///< occupied cells of its own grid x cell area
+    int num_groups = 0;
+    int num_points = 0;
+    double rms_m = 0.0;
+    std::vector<int> fragments;  ///< fragments contributing a group
+};
+
+/// Why a dominant plane is or is not a wall.
+struct WallDecision {
+    int plane_id = 0;
+    bool kept = false;
+    double abs_dot_base = 0.0;         ///< |n . n_base| (Eq. 6)
+    double boundary_distance_m = 0.0;  ///< g(dO, pi) (Eq. 7)
+    std::string reason;  ///< "wall", "base plane", "not vertical", "far from boundary",
+                         ///< "too small", "merged into N", "opposite plane"
+};
+
+/// What the weak-Manhattan step did to one wall.
+struct SnapDecision {
+    int plane_id = 0;
+    double angle_to_reference_deg = 0.0;  ///< before snapping, in [0, 180)
+    double residual_deg = 0.0;            ///< distance to the nearest multiple of 90
+    bool snapped = false;
+    bool reference = false;
+    Eigen::Vector3d normal_before_W = Eigen::Vector3d::Zero();  ///< verticalised, unsnapped
+};
+
+struct LayoutDiagnostics {
+    int num_fragments = 0;
+    int num_groups = 0;
+    int num_hypotheses = 0;  ///< = groups (each group's plane is a hypothesis)
+    int num_clusters = 0;    ///< second T-linkage clusters (before the area test)
+    std::vector<DominantPlane> dominant_planes;
+    int base_plane_id = -1;
+    std::string base_kind;  ///< "floor" or "ceiling"
+    int opposite_plane_id = -1;
+    bool floor_inferred = false;  ///< no floor plane seen: z = 0 at the lowest points
+    Eigen::Vector3d up_hint_W = Eigen::Vector3d::Zero();
+    int grid_width = 0;
+    int grid_height = 0;
+    int occupied_cells = 0;
+    int boundary_cells = 0;
+    std::vector<WallDecision> walls;
+    std::vector<SnapDecision> snapping;
+    std::string polygon_method;  ///< "walls" (contour order) or "contour" (fallback)
+    double ms_clustering = 0.0;
+    double ms_grid = 0.0;
+    double ms_total = 0.0;
+};
+
+struct LayoutEstimate {
+    Layout layout;
+    LayoutDiagnostics diagnostics;
+};
+
+/// Estimates the layout. `fragments`, `planes` and `T_W_F` are parallel (same size, same order;
+/// planes[i] from extractFragmentPlanes(fragments[i])). Errors: size mismatch, non-rigid or
+/// non-finite poses, no planes at all, no base plane, an invalid configuration.
+Result<LayoutEstimate> estimateLayout(const std::vector<Fragment>& fragments,
+                                      const std::vector<FragmentPlanes>& planes,
+                                      const std::vector<Eigen::Isometry3d>& T_W_F,
+                                      const LayoutConfig& config = {});
+
+/// Diagnostics as a JSON object (for reports).
+nlohmann::json toJson(const LayoutDiagnostics& diagnostics);
+
+}  // namespace plumb::layout
