@@ -1,0 +1,233 @@
+// SPDX-License-Identifier: Apache-2.0
+// Layout estimation on simulated rooms fused with ground-truth poses (reference §4.11 a-c):
+// wall count, wall normals within 1 deg and offsets within 2 cm of the scene's exact layout, the
+// same with perturbed fragment poses, the weak-Manhattan wall left unsnapped, all six walls of
+// the L-shaped room.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <numbers>
+#include <random>
+
+#include "backend/layout/estimate_layout.hpp"
+#include "backend/layout/floorplan_svg.hpp"
+#include "backend/layout/fragment_planes.hpp"
+#include "common/eval/layout_metrics.hpp"
+#include "common/geometry/lie.hpp"
+#include "drivers/sim/sim_source.hpp"
+#include "tests/backend/layout/layout_fixtures.hpp"
+#include "tests/testing/shared_data.hpp"
+
+namespace plumb::layout {
+namespace {
+
+struct SimRoom {
+    sim::Scene scene;
+    Layout gt;
+    std::vector<Fragment> fragments;
+    std::vector<Eigen::Isometry3d> T_W_F;
+    std::vector<FragmentPlanes> planes;
+};
+
+/// Fuses a simulated loop around `name` (3 Hz, 6 frames per fragment, Redwood sensor noise
+/// without the distortion table) and extracts every fragment's planes; cached per scene.
+const SimRoom& simRoom(const std::string& name) {
+    static std::map<std::string, std::unique_ptr<SimRoom>> cache;
+    auto it = cache.find(name);
+    if (it != cache.end()) return *it->second;
+    auto room = std::make_unique<SimRoom>();
+    sim::SimConfig cfg;
+    cfg.scene = name;
+    cfg.noise.distortion = sim::DistortionKind::kNone;
+    cfg.trajectory.rate_hz = 3.0;
+    auto scene = sim::builtinScene(name);
+    EXPECT_TRUE(scene.isOk());
+    auto path = sim::pathControlPoints(*scene);
+    EXPECT_TRUE(path.isOk());
+    double perimeter = 0.0;
+    for (size_t k = 0; k < path->size(); ++k) {
+        perimeter += ((*path)[(k + 1) % path->size()] - (*path)[k]).norm();
+    }
+    cfg.trajectory.num_frames =
+        static_cast<size_t>(std::ceil(perimeter / 0.35 * cfg.trajectory.rate_hz));
+    auto source = sim::SimSource::create(cfg);
+    EXPECT_TRUE(source.isOk()) << source.status().toString();
+    room->scene = (*source)->scene();
+    room->gt = makeRoomLayout(room->scene.polygon, room->scene.height_m).value();
+    const sim::SimSource& src = **source;
+    auto fused = testing::fuseWithGroundTruth(
+        [&](size_t k) -> Result<Frame> {
+            auto f = src.render(k);
+            if (!f.isOk()) return f.status();
+            return f->frame;
+        },
+        cfg.trajectory.num_frames, 1, 6, src.camera());
+    EXPECT_TRUE(fused.isOk()) << fused.status().toString();
+    room->fragments = std::move(fused->fragments);
+    room->T_W_F = std::move(fused->T_W_F);
+    for (const Fragment& f : room->fragments) {
+        auto fp = extractFragmentPlanes(f);
+        EXPECT_TRUE(fp.isOk()) << fp.status().toString();
+        room->planes.push_back(std::move(fp).value());
+    }
+    return *cache.emplace(name, std::move(room)).first->second;
+}
+
+void expectLayoutMatches(const Layout& est, const Layout& gt, double max_angle_deg,
+                         double max_offset_m, const std::string& what) {
+    auto m = eval::evaluateLayout(est, gt);
+    ASSERT_TRUE(m.isOk()) << m.status().toString();
+    EXPECT_EQ(m->num_est_walls, m->num_gt_walls) << what;
+    EXPECT_TRUE(m->unmatched_gt_walls.empty()) << what;
+    EXPECT_TRUE(m->unmatched_est_walls.empty()) << what;
+    for (const eval::PlaneError& e : m->walls) {
+        EXPECT_LE(e.angle_error_deg, max_angle_deg) << what << " wall " << e.gt_id;
+        EXPECT_LE(std::abs(e.offset_error_m), max_offset_m) << what << " wall " << e.gt_id;
+    }
+    ASSERT_TRUE(m->floor.has_value()) << what;
+    EXPECT_LE(m->floor->angle_error_deg, max_angle_deg) << what;
+    EXPECT_LE(std::abs(m->floor->offset_error_m), max_offset_m) << what;
+    ASSERT_TRUE(m->ceiling.has_value()) << what;
+    EXPECT_LE(m->ceiling->angle_error_deg, max_angle_deg) << what;
+    EXPECT_LE(std::abs(m->ceiling->offset_error_m), max_offset_m) << what;
+    std::printf(
+        "[%s] walls %zu/%zu, max angle %.3f deg, max |offset| %.4f m, floor %.4f m, "
+        "ceiling %.4f m\n",
+        what.c_str(), m->num_est_walls, m->num_gt_walls, m->max_wall_angle_error_deg,
+        m->max_abs_wall_offset_error_m, m->floor->offset_error_m, m->ceiling->offset_error_m);
+}
+
+std::vector<Eigen::Isometry3d> perturbed(const std::vector<Eigen::Isometry3d>& poses,
+                                         uint32_t seed) {
+    std::mt19937 rng(seed);
+    std::normal_distribution<double> g(0.0, 1.0);
+    std::vector<Eigen::Isometry3d> out;
+    for (const Eigen::Isometry3d& T : poses) {
+        const Eigen::Vector3d axis = Eigen::Vector3d(g(rng), g(rng), g(rng)).normalized();
+        const Eigen::Vector3d dir = Eigen::Vector3d(g(rng), g(rng), g(rng)).normalized();
+        Eigen::Isometry3d D = Eigen::Isometry3d::Identity();
+        D.linear() = Eigen::AngleAxisd(1.0 * std::numbers::pi / 180.0, axis).toRotationMatrix();
+        D.translation() = 0.03 * dir;
+        out.push_back(D * T);  // 3 cm and 1 deg in the world, about the fragment origin
+    }
+    return out;
+}
+
+class SimLayout : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(SimLayout, GroundTruthPosesGiveTheRoom) {
+    const SimRoom& room = simRoom(GetParam());
+    ASSERT_FALSE(room.fragments.empty());
+    auto est = estimateLayout(room.fragments, room.planes, room.T_W_F);
+    ASSERT_TRUE(est.isOk()) << est.status().toString();
+    EXPECT_EQ(est->diagnostics.base_kind, "floor");
+    EXPECT_EQ(est->diagnostics.polygon_method, "walls");
+    EXPECT_EQ(static_cast<int>(est->layout.walls().size()), room.scene.numWalls());
+    expectLayoutMatches(est->layout, room.gt, 1.0, 0.02, GetParam() + " GT poses");
+    EXPECT_NEAR(est->layout.ceiling_height_m, room.scene.height_m, 0.02);
+    // The layout frame is gravity aligned with the floor at z = 0.
+    const Eigen::Vector3d up_W = est->layout.T_W_L.linear().col(2);
+    EXPECT_GT(up_W.z(), std::cos(1.0 * std::numbers::pi / 180.0));
+    EXPECT_NEAR(est->layout.T_W_L.translation().z(), 0.0, 0.02);
+    // The room polygon is the scene's (same vertex count, area within 3%).
+    ASSERT_EQ(est->layout.room_polygon_L.size(), room.scene.polygon.size());
+    auto area = [](const std::vector<Eigen::Vector2d>& p) {
+        double a = 0;
+        for (size_t k = 0; k < p.size(); ++k) {
+            a += p[k].x() * p[(k + 1) % p.size()].y() - p[(k + 1) % p.size()].x() * p[k].y();
+        }
+        return 0.5 * a;
+    };
+    EXPECT_NEAR(area(est->layout.room_polygon_L), area(room.scene.polygon),
+                0.03 * area(room.scene.polygon));
+    // Diagnostics and floor plan are produced.
+    const nlohmann::json j = toJson(est->diagnostics);
+    EXPECT_EQ(j["walls"].size(), est->diagnostics.walls.size());
+    const auto dir = testing::freshTempDir("layout_" + GetParam());
+    ASSERT_TRUE(writeFloorplanSvg(dir / "floorplan.svg", est->layout,
+                                  fragmentOutlines(room.fragments, room.T_W_F, est->layout))
+                    .isOk());
+    EXPECT_GT(std::filesystem::file_size(dir / "floorplan.svg"), 500u);
+}
+
+TEST_P(SimLayout, PerturbedPosesStillGiveTheRoom) {
+    const SimRoom& room = simRoom(GetParam());
+    for (uint32_t seed : {1u, 2u}) {
+        const auto poses = perturbed(room.T_W_F, seed);
+        auto est = estimateLayout(room.fragments, room.planes, poses);
+        ASSERT_TRUE(est.isOk()) << est.status().toString();
+        expectLayoutMatches(est->layout, room.gt, 1.0, 0.02,
+                            GetParam() + " perturbed seed " + std::to_string(seed));
+    }
+}
+
+INSTANTIATE_TEST_SUITE_P(Rooms, SimLayout,
+                         ::testing::Values("living_room", "weak_manhattan", "l_shape"));
+
+TEST(SimLayoutWeakManhattan, LeaningWallIsNotSnapped) {
+    const SimRoom& room = simRoom("weak_manhattan");
+    auto est = estimateLayout(room.fragments, room.planes, room.T_W_F);
+    ASSERT_TRUE(est.isOk()) << est.status().toString();
+    auto m = eval::evaluateLayout(est->layout, room.gt);
+    ASSERT_TRUE(m.isOk());
+    // GT wall 1 (id 3) runs (5.6, 0) -> (6.5, 4.4): 11.6 deg off the axes.
+    bool found = false;
+    int snapped = 0;
+    for (const eval::PlaneError& e : m->walls) {
+        const LayoutPlane* w = nullptr;
+        for (const LayoutPlane& p : est->layout.planes) {
+            if (p.id == e.est_id) w = &p;
+        }
+        ASSERT_NE(w, nullptr);
+        if (e.gt_id == 3) {
+            found = true;
+            EXPECT_FALSE(w->manhattan_snapped);
+            EXPECT_LE(e.angle_error_deg, 1.0);
+        } else {
+            snapped += w->manhattan_snapped ? 1 : 0;
+        }
+    }
+    EXPECT_TRUE(found);
+    EXPECT_EQ(snapped, 3);  // the three axis-aligned walls are snapped to each other
+    for (const eval::WallPairAngle& pa : m->wall_pairs) {
+        EXPECT_LE(pa.error_deg, 1.0) << pa.gt_id_a << "-" << pa.gt_id_b;
+    }
+}
+
+TEST(SimLayoutErrors, BadInputGivesSpecificErrors) {
+    const SimRoom& room = simRoom("living_room");
+    std::vector<Eigen::Isometry3d> short_poses(room.T_W_F.begin(), room.T_W_F.end() - 1);
+    EXPECT_EQ(estimateLayout(room.fragments, room.planes, short_poses).status().code(),
+              StatusCode::kInvalidArgument);
+    auto bad = room.T_W_F;
+    bad[0].matrix()(0, 3) = std::nan("");
+    EXPECT_EQ(estimateLayout(room.fragments, room.planes, bad).status().code(),
+              StatusCode::kInvalidArgument);
+    EXPECT_EQ(estimateLayout({}, {}, {}).status().code(), StatusCode::kInvalidArgument);
+    Fragment empty;
+    EXPECT_EQ(extractFragmentPlanes(empty).status().code(), StatusCode::kInvalidArgument);
+    FragmentPlaneConfig cfg;
+    cfg.tau_m = -1.0;
+    EXPECT_EQ(extractFragmentPlanes(room.fragments[0], cfg).status().code(),
+              StatusCode::kInvalidArgument);
+}
+
+TEST(SimLayoutPlanes, FragmentPlanesAreDeterministicAndPlanar) {
+    const SimRoom& room = simRoom("living_room");
+    auto again = extractFragmentPlanes(room.fragments[0]);
+    ASSERT_TRUE(again.isOk());
+    ASSERT_EQ(again->planes.size(), room.planes[0].planes.size());
+    EXPECT_EQ(again->labels, room.planes[0].labels);
+    int total = 0;
+    for (const FragmentPlanes& fp : room.planes) {
+        total += static_cast<int>(fp.planes.size());
+        for (const FragmentPlane& p : fp.planes) EXPECT_LT(p.rms_m, 0.015);
+    }
+    EXPECT_GE(total, static_cast<int>(room.planes.size()) * 2);
+}
+
+}  // namespace
+}  // namespace plumb::layout
