@@ -1,0 +1,93 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "backend/registration/cloud_ops.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <numeric>
+
+namespace plumb::registration::detail {
+
+KdTree3::KdTree3(const std::vector<Eigen::Vector3f>& points) {
+    adaptor_.points = &points;
+    tree_ = std::make_unique<Tree>(3, adaptor_, nanoflann::KDTreeSingleIndexAdaptorParams(10));
+}
+
+bool KdTree3::nearest(const Eigen::Vector3f& q, float max_dist_sq, uint32_t* index,
+                      float* dist_sq) const {
+    if (size() == 0) return false;
+    uint32_t idx = 0;
+    float d = 0.0f;
+    nanoflann::KNNResultSet<float, uint32_t, size_t> result(1);
+    result.init(&idx, &d);
+    tree_->findNeighbors(result, q.data(), nanoflann::SearchParams());
+    if (result.size() == 0 || d > max_dist_sq) return false;
+    *index = idx;
+    *dist_sq = d;
+    return true;
+}
+
+size_t KdTree3::knnWithin(const Eigen::Vector3f& q, size_t k, float radius_sq, uint32_t* indices,
+                          float* dists_sq) const {
+    if (size() == 0 || k == 0) return 0;
+    nanoflann::KNNResultSet<float, uint32_t, size_t> result(k);
+    result.init(indices, dists_sq);
+    tree_->findNeighbors(result, q.data(), nanoflann::SearchParams());
+    size_t n = result.size();
+    while (n > 0 && dists_sq[n - 1] > radius_sq) --n;
+    return n;
+}
+
+PointCloud voxelDownsample(const PointCloud& cloud, double voxel_m) {
+    PointCloud out;
+    const bool with_normals = cloud.hasNormals();
+    const bool with_colors = cloud.hasColors();
+    const double inv = 1.0 / voxel_m;
+    struct Keyed {
+        std::array<int64_t, 3> key;
+        uint32_t index;
+    };
+    std::vector<Keyed> keyed;
+    keyed.reserve(cloud.size());
+    for (size_t i = 0; i < cloud.size(); ++i) {
+        const Eigen::Vector3f& p = cloud.points[i];
+        if (!p.allFinite()) continue;
+        keyed.push_back({{static_cast<int64_t>(std::floor(p.x() * inv)),
+                          static_cast<int64_t>(std::floor(p.y() * inv)),
+                          static_cast<int64_t>(std::floor(p.z() * inv))},
+                         static_cast<uint32_t>(i)});
+    }
+    std::sort(keyed.begin(), keyed.end(), [](const Keyed& a, const Keyed& b) {
+        return a.key != b.key ? a.key < b.key : a.index < b.index;
+    });
+    out.reserve(keyed.size() / 4 + 1, with_normals, with_colors);
+    size_t i = 0;
+    while (i < keyed.size()) {
+        size_t j = i;
+        Eigen::Vector3d sum_p = Eigen::Vector3d::Zero();
+        Eigen::Vector3d sum_n = Eigen::Vector3d::Zero();
+        Eigen::Vector3d sum_c = Eigen::Vector3d::Zero();
+        while (j < keyed.size() && keyed[j].key == keyed[i].key) {
+            const uint32_t k = keyed[j].index;
+            sum_p += cloud.points[k].cast<double>();
+            if (with_normals) sum_n += cloud.normals[k].cast<double>();
+            if (with_colors) sum_c += cloud.colors[k].cast<double>();
+            ++j;
+        }
+        const double count = static_cast<double>(j - i);
+        if (with_normals) {
+            const double norm = sum_n.norm();
+            if (!(norm > 1e-9)) {  // opposite normals cancel: skip the ambiguous voxel
+                i = j;
+                continue;
+            }
+            out.normals.push_back((sum_n / norm).cast<float>());
+        }
+        out.points.push_back((sum_p / count).cast<float>());
+        if (with_colors) out.colors.push_back((sum_c / count).array().round().cast<uint8_t>());
+        i = j;
+    }
+    return out;
+}
+
+}  // namespace plumb::registration::detail

@@ -1,0 +1,135 @@
+// SPDX-License-Identifier: Apache-2.0
+#pragma once
+
+// Pairwise fragment registration (reference §3.2-3.4): multi-scale point-to-plane ICP, FPFH
+// feature matching with seeded RANSAC, and the overlap / information-matrix evaluation of an
+// alignment. Transforms follow the pose-graph convention (backend/posegraph/pose_graph.hpp):
+// T_source_target maps target-fragment points into the source frame (p_s = T_s_t p_t).
+//
+// All functions are deterministic: RANSAC draws from std::mt19937_64 seeded by the caller, and
+// parallel sums are reduced over fixed chunks in a fixed order, so results do not depend on the
+// thread count.
+
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "backend/registration/prepared_fragment.hpp"
+#include "common/cloud/point_cloud.hpp"
+#include "common/config/schema.hpp"
+#include "common/geometry/lie.hpp"
+
+namespace plumb::registration {
+
+struct IcpConfig {
+    /// Voxel sizes of the ICP pyramid, coarse to fine (Open3D refine: 0.05, 0.025, 0.0125).
+    std::vector<double> voxel_sizes_m = {0.05, 0.025, 0.0125};
+    /// Iterations per level (Open3D refine: 50, 30, 14).
+    std::vector<int64_t> iterations = {50, 30, 14};
+    /// Correspondence distance per level = factor x the level's voxel size (Open3D: 1.4).
+    double distance_factor = 1.4;
+    /// Stop a level when both fitness and RMSE change by less than this (Open3D: 1e-6).
+    double relative_change = 1e-6;
+    /// Worker threads (0 = all); results do not depend on it.
+    int num_threads = 0;
+};
+void describe(config::Schema& s, IcpConfig& c);
+
+struct RansacConfig {
+    /// Inlier distance of a correspondence, metres (Open3D: 1.4 x voxel = 0.07).
+    double max_correspondence_distance_m = 0.07;
+    /// Keep only mutual nearest neighbours in feature space (when at least 10 remain).
+    bool mutual_filter = true;
+    /// Edge-length checker: each sample edge ratio must be at least this (Open3D: 0.9).
+    double edge_length_similarity = 0.9;
+    /// Iteration cap and early-exit confidence (Open3D 0.16: max_iteration, confidence).
+    int max_iterations = 100000;
+    double confidence = 0.999;
+    /// Fewer inlier correspondences than this is a failure.
+    int min_inliers = 10;
+};
+void describe(config::Schema& s, RansacConfig& c);
+
+/// A cloud with its k-d tree. The cloud is owned and never moves, so the object is move-only.
+class IndexedCloud {
+  public:
+    IndexedCloud();
+    explicit IndexedCloud(PointCloud cloud);
+    ~IndexedCloud();
+    IndexedCloud(IndexedCloud&&) noexcept;
+    IndexedCloud& operator=(IndexedCloud&&) noexcept;
+
+    const PointCloud& cloud() const;
+    size_t size() const;
+    /// Nearest point within sqrt(max_dist_sq); false when none. Thread-safe.
+    bool nearest(const Eigen::Vector3f& q, float max_dist_sq, uint32_t* index,
+                 float* dist_sq) const;
+
+  private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
+
+/// Everything pair registration needs of one fragment, built once: the prepared (feature) level
+/// with its tree, the ICP pyramid and the features as a 33 x n matrix.
+struct FragmentIndex {
+    uint32_t id = 0;
+    IndexedCloud coarse;               ///< a copy of the prepared cloud, indexed
+    std::vector<IndexedCloud> levels;  ///< one per IcpConfig level
+    Eigen::MatrixXf features;          ///< 33 x n, column i = fpfh of point i
+    Eigen::VectorXf feature_sq_norms;  ///< |f_i|^2
+};
+
+/// Builds the index of a fragment: ICP levels are voxel-downsampled from the full fragment cloud
+/// (fused normals averaged; PCA normals when the fragment has none).
+FragmentIndex buildFragmentIndex(const Fragment& fragment, const PreparedFragment& prepared,
+                                 const IcpConfig& config);
+
+/// Result of a pairwise registration, with its evaluation.
+struct PairResult {
+    bool success = false;
+    std::string reason;  ///< why it failed, empty on success
+    Eigen::Isometry3d T_source_target = Eigen::Isometry3d::Identity();
+    Matrix6d information = Matrix6d::Zero();  ///< Choi's Λ (reference §3.4)
+    double overlap = 0.0;                     ///< fraction of the smaller fragment matched
+    double inlier_rmse_m = 0.0;               ///< RMSE of the correspondences within τ
+    int num_correspondences = 0;              ///< Λ(5,5)
+    int ransac_inliers = 0;                   ///< feature correspondences agreeing (RANSAC only)
+    int iterations = 0;                       ///< RANSAC or ICP iterations run
+};
+
+/// Point-to-plane ICP of `target` onto `source` (source carries normals) from `init`, one level.
+/// Minimises Σ (n_p · (T q - p))^2 over nearest neighbours within `max_distance_m`;
+/// Gauss-Newton with left updates T <- Exp(ξ) T. Returns the final transform, fitness in `overlap`
+/// (fraction of target points matched) and RMSE; fails with fewer than 6 correspondences.
+PairResult icpPointToPlane(const IndexedCloud& source, const PointCloud& target,
+                           const Eigen::Isometry3d& init, double max_distance_m, int max_iterations,
+                           double relative_change, int num_threads);
+
+/// Multi-scale point-to-plane ICP over the pyramids of both fragments (reference §3.2). Fails
+/// when a level fails.
+PairResult multiScaleIcp(const FragmentIndex& source, const FragmentIndex& target,
+                         const Eigen::Isometry3d& init, const IcpConfig& config);
+
+/// Evaluates an alignment on the prepared clouds with correspondence distance `tau_m`: the
+/// information matrix over target points with a source neighbour within τ, the overlap (fraction
+/// of the smaller fragment's points with a neighbour in the other, Choi's ≥ 30 % test) and the
+/// inlier RMSE. Sets success = true.
+PairResult evaluateAlignment(const FragmentIndex& source, const FragmentIndex& target,
+                             const Eigen::Isometry3d& T_source_target, double tau_m,
+                             int num_threads);
+
+/// FPFH matching (nearest neighbour in feature space, optionally mutual) and RANSAC over triples
+/// of correspondences with the edge-length and distance checkers (reference §3.3), seeded with
+/// `seed`. The best hypothesis (most inlier correspondences, then lowest RMSE) is refitted to its
+/// inliers. Fails when no hypothesis reaches min_inliers. Information/overlap are not filled.
+PairResult ransacFeatureMatching(const FragmentIndex& source, const FragmentIndex& target,
+                                 const RansacConfig& config, uint64_t seed);
+
+/// Closed-form rigid fit (Kabsch/Umeyama without scale) minimising Σ |T q_i - p_i|^2.
+Eigen::Isometry3d fitRigid(const std::vector<Eigen::Vector3d>& p,
+                           const std::vector<Eigen::Vector3d>& q);
+
+}  // namespace plumb::registration

@@ -1,0 +1,451 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "backend/registration/register_fragments.hpp"
+
+#include <algorithm>
+#include <cstdio>
+#include <optional>
+#include <utility>
+
+#include "backend/registration/cloud_ops.hpp"
+
+namespace plumb::registration {
+
+using posegraph::PoseGraphEdge;
+
+void describe(config::Schema& s, LiveConfig& c) {
+    s.field("min_predicted_overlap", c.min_predicted_overlap,
+            "live: fraction of the new fragment near an earlier one to make it a candidate")
+        .range(0.0, 1.0);
+    s.field("candidate_distance_m", c.candidate_distance_m,
+            "live: proximity radius of the predicted overlap (tolerates drift)", "m")
+        .positive();
+    s.field("max_candidates", c.max_candidates, "live: at most this many loop candidates").min(0);
+}
+
+void describe(config::Schema& s, RegistrationConfig& c) {
+    s.section("prepare", c.prepare, "downsampling, normals and FPFH");
+    s.section("icp", c.icp, "multi-scale point-to-plane ICP");
+    s.section("ransac", c.ransac, "FPFH matching and RANSAC for loop closures");
+    s.section("pose_graph", c.pose_graph, "line-process pose graph");
+    s.section("live", c.live, "live mode candidate selection");
+    s.field("min_overlap", c.min_overlap,
+            "loop closures need this fraction of the smaller fragment within tau")
+        .range(0.0, 1.0);
+    s.field("loop_icp_iterations", c.loop_icp_iterations,
+            "coarse ICP iterations when verifying a RANSAC loop candidate")
+        .min(1);
+    s.field("refinement_pass", c.refinement_pass,
+            "re-align surviving edges by ICP from the optimised poses and optimise again");
+    s.field("seed", c.seed, "seed of the RANSAC generators");
+    s.field("num_threads", c.num_threads, "worker threads, 0 = all; results do not depend on it")
+        .min(0);
+}
+
+namespace {
+
+uint64_t splitmix64(uint64_t x) {
+    x += 0x9e3779b97f4a7c15ULL;
+    x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
+    x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
+    return x ^ (x >> 31);
+}
+
+uint64_t pairSeed(uint64_t seed, uint32_t i, uint32_t j) {
+    return splitmix64(splitmix64(seed) ^ (static_cast<uint64_t>(i) << 32 | j));
+}
+
+std::string fmt2(const char* f, double a, double b) {
+    char buf[200];
+    std::snprintf(buf, sizeof(buf), f, a, b);
+    return buf;
+}
+
+/// The per-pair configuration: inner loops single-threaded (pairs run in parallel).
+RegistrationConfig innerConfig(const RegistrationConfig& c) {
+    RegistrationConfig inner = c;
+    inner.icp.num_threads = 1;
+    inner.prepare.num_threads = 1;
+    return inner;
+}
+
+double tauOf(const RegistrationConfig& c) { return c.pose_graph.max_correspondence_distance_m; }
+
+void setFromPair(PoseGraphEdge& e, const PairResult& eval) {
+    e.T_source_target = eval.T_source_target;
+    e.information = eval.information;
+    e.overlap = eval.overlap;
+    e.inlier_rmse_m = eval.inlier_rmse_m;
+}
+
+/// Odometry edge (s, s+1) by multi-scale ICP from the odometry relative pose.
+PoseGraphEdge odometryEdge(const FragmentIndex& s, const FragmentIndex& t,
+                           const Eigen::Isometry3d& T_odo, const RegistrationConfig& c,
+                           bool* icp_failed) {
+    PoseGraphEdge e;
+    e.source = s.id;
+    e.target = t.id;
+    e.kind = PoseGraphEdge::Kind::kOdometry;
+    const PairResult icp = multiScaleIcp(s, t, T_odo, c.icp);
+    Eigen::Isometry3d T = T_odo;
+    *icp_failed = !icp.success;
+    if (icp.success) {
+        T = icp.T_source_target;
+    } else {
+        e.reason = "ICP failed (" + icp.reason + "); odometry transform kept";
+    }
+    PairResult eval = evaluateAlignment(s, t, T, tauOf(c), c.icp.num_threads);
+    if (eval.num_correspondences < 6) {
+        // No usable overlap: keep the chain connected with a weak unit information.
+        eval.information = Matrix6d::Identity();
+        if (e.reason.empty()) e.reason = "no overlap; unit information";
+    }
+    setFromPair(e, eval);
+    return e;
+}
+
+enum class LoopOutcome { kRansacFailed, kRejected, kAccepted };
+
+/// Loop-closure candidate (s, t): RANSAC, coarse ICP, overlap test, multi-scale refinement.
+LoopOutcome loopEdge(const FragmentIndex& s, const FragmentIndex& t, const RegistrationConfig& c,
+                     PoseGraphEdge* out) {
+    const PairResult ransac = ransacFeatureMatching(s, t, c.ransac, pairSeed(c.seed, s.id, t.id));
+    if (!ransac.success) return LoopOutcome::kRansacFailed;
+    PoseGraphEdge& e = *out;
+    e.source = s.id;
+    e.target = t.id;
+    e.kind = PoseGraphEdge::Kind::kLoop;
+    Eigen::Isometry3d T = ransac.T_source_target;
+    if (!s.levels.empty() && !t.levels.empty() && !c.icp.voxel_sizes_m.empty()) {
+        const PairResult icp = icpPointToPlane(s.levels[0], t.levels[0].cloud(), T,
+                                               c.icp.distance_factor * c.icp.voxel_sizes_m[0],
+                                               c.loop_icp_iterations, c.icp.relative_change, 1);
+        if (icp.success) T = icp.T_source_target;
+    }
+    PairResult eval = evaluateAlignment(s, t, T, tauOf(c), 1);
+    if (eval.overlap < c.min_overlap) {
+        setFromPair(e, eval);
+        e.kept = false;
+        e.line_process = 0.0;
+        e.reason = fmt2("rejected: overlap %.3f < %.2f", eval.overlap, c.min_overlap);
+        return LoopOutcome::kRejected;
+    }
+    const PairResult fine = multiScaleIcp(s, t, T, c.icp);
+    if (fine.success) {
+        const PairResult refined = evaluateAlignment(s, t, fine.T_source_target, tauOf(c), 1);
+        if (refined.overlap >= c.min_overlap) eval = refined;
+    }
+    setFromPair(e, eval);
+    return LoopOutcome::kAccepted;
+}
+
+bool edgeLess(const PoseGraphEdge& a, const PoseGraphEdge& b) {
+    return a.source != b.source ? a.source < b.source : a.target < b.target;
+}
+
+Status checkInputs(const std::vector<Fragment>& fragments,
+                   const std::vector<PreparedFragment>& prepared, const RegistrationConfig& c) {
+    if (fragments.empty()) return invalidArgument("registration: no fragments");
+    if (fragments.size() != prepared.size()) {
+        return invalidArgument("registration: " + std::to_string(fragments.size()) +
+                               " fragments but " + std::to_string(prepared.size()) +
+                               " prepared fragments");
+    }
+    for (size_t i = 0; i < fragments.size(); ++i) {
+        if (fragments[i].id != i || prepared[i].id != i) {
+            return invalidArgument("registration: fragment " + std::to_string(i) + " has id " +
+                                   std::to_string(fragments[i].id) + " (prepared " +
+                                   std::to_string(prepared[i].id) + "); ids must be 0..n-1");
+        }
+        if (!fragments[i].T_W_F.matrix().allFinite()) {
+            return invalidArgument("registration: fragment " + std::to_string(i) +
+                                   " has a non-finite odometry pose");
+        }
+    }
+    if (c.icp.voxel_sizes_m.empty() || c.icp.iterations.size() != c.icp.voxel_sizes_m.size()) {
+        return invalidArgument(
+            "registration: icp.voxel_sizes_m and icp.iterations must be non-empty and of equal "
+            "length");
+    }
+    return Status::ok();
+}
+
+std::vector<FragmentIndex> buildIndices(const std::vector<Fragment>& fragments,
+                                        const std::vector<PreparedFragment>& prepared,
+                                        const RegistrationConfig& c) {
+    std::vector<FragmentIndex> idx(fragments.size());
+    const RegistrationConfig inner = innerConfig(c);
+    detail::parallelFor(c.num_threads, fragments.size(), [&](size_t i) {
+        idx[i] = buildFragmentIndex(fragments[i], prepared[i], inner.icp);
+    });
+    return idx;
+}
+
+void refineWithIndex(PoseGraph& graph, const std::vector<const FragmentIndex*>& idx,
+                     const RegistrationConfig& c, Progress* progress) {
+    const RegistrationConfig inner = innerConfig(c);
+    std::vector<size_t> todo;
+    for (size_t k = 0; k < graph.edges.size(); ++k) {
+        if (graph.edges[k].kept) todo.push_back(k);
+    }
+    detail::parallelFor(c.num_threads, todo.size(), [&](size_t n) {
+        PoseGraphEdge& e = graph.edges[todo[n]];
+        const FragmentIndex& s = *idx[e.source];
+        const FragmentIndex& t = *idx[e.target];
+        const Eigen::Isometry3d init = graph.T_W_F[e.source].inverse() * graph.T_W_F[e.target];
+        const PairResult icp = multiScaleIcp(s, t, init, inner.icp);
+        if (icp.success) {
+            const PairResult eval = evaluateAlignment(s, t, icp.T_source_target, tauOf(inner), 1);
+            if (e.kind == PoseGraphEdge::Kind::kLoop && eval.overlap < c.min_overlap) {
+                setFromPair(e, eval);
+                e.kept = false;
+                e.reason = fmt2("refinement: overlap %.3f < %.2f", eval.overlap, c.min_overlap);
+            } else if (eval.num_correspondences >= 6) {
+                setFromPair(e, eval);
+            }
+        }
+        e.line_process = 1.0;
+        if (progress != nullptr) progress->advance();
+    });
+}
+
+Result<RegistrationOutcome> finishGraph(PoseGraph graph,
+                                        const std::vector<const FragmentIndex*>& idx,
+                                        const RegistrationConfig& c, const PairStats& stats,
+                                        Progress* progress) {
+    RegistrationOutcome out;
+    out.stats = stats;
+    Result<posegraph::PoseGraphReport> first = posegraph::optimisePoseGraph(graph, c.pose_graph);
+    if (!first.isOk()) return first.status();
+    out.first = *first;
+    if (c.refinement_pass) {
+        refineWithIndex(graph, idx, c, progress);
+        Result<posegraph::PoseGraphReport> second =
+            posegraph::optimisePoseGraph(graph, c.pose_graph);
+        if (!second.isOk()) return second.status();
+        out.refined = *second;
+        out.refined_ran = true;
+    }
+    out.graph = std::move(graph);
+    return out;
+}
+
+std::vector<const FragmentIndex*> pointers(const std::vector<FragmentIndex>& idx) {
+    std::vector<const FragmentIndex*> p;
+    for (const FragmentIndex& f : idx) p.push_back(&f);
+    return p;
+}
+
+}  // namespace
+
+Result<PoseGraph> buildPoseGraph(const std::vector<Fragment>& fragments,
+                                 const std::vector<PreparedFragment>& prepared,
+                                 const RegistrationConfig& config, Progress* progress,
+                                 PairStats* stats_out) {
+    PLUMB_RETURN_IF_ERROR(checkInputs(fragments, prepared, config));
+    const std::vector<FragmentIndex> idx = buildIndices(fragments, prepared, config);
+    const RegistrationConfig inner = innerConfig(config);
+    const size_t n = fragments.size();
+    std::vector<std::pair<uint32_t, uint32_t>> pairs;
+    for (uint32_t i = 0; i < n; ++i) {
+        for (uint32_t j = i + 1; j < n; ++j) pairs.emplace_back(i, j);
+    }
+    std::vector<std::optional<PoseGraphEdge>> edges(pairs.size());
+    std::vector<int> outcome(pairs.size(), 0);  // 0 odo ok, 1 odo icp failed, 2.. loop outcomes
+    detail::parallelFor(config.num_threads, pairs.size(), [&](size_t k) {
+        const auto [i, j] = pairs[k];
+        if (j == i + 1) {
+            bool failed = false;
+            const Eigen::Isometry3d T_odo = fragments[i].T_W_F.inverse() * fragments[j].T_W_F;
+            edges[k] = odometryEdge(idx[i], idx[j], T_odo, inner, &failed);
+            outcome[k] = failed ? 1 : 0;
+        } else {
+            PoseGraphEdge e;
+            const LoopOutcome o = loopEdge(idx[i], idx[j], inner, &e);
+            outcome[k] = 2 + static_cast<int>(o);
+            if (o != LoopOutcome::kRansacFailed) edges[k] = std::move(e);
+        }
+        if (progress != nullptr) progress->advance();
+    });
+    PoseGraph graph;
+    for (const Fragment& f : fragments) graph.T_W_F.push_back(f.T_W_F);
+    PairStats stats;
+    for (size_t k = 0; k < pairs.size(); ++k) {
+        switch (outcome[k]) {
+            case 0:
+                ++stats.odometry_pairs;
+                break;
+            case 1:
+                ++stats.odometry_pairs;
+                ++stats.odometry_icp_failed;
+                break;
+            case 2 + static_cast<int>(LoopOutcome::kRansacFailed):
+                ++stats.loop_pairs_tried;
+                ++stats.ransac_failed;
+                break;
+            case 2 + static_cast<int>(LoopOutcome::kRejected):
+                ++stats.loop_pairs_tried;
+                ++stats.overlap_rejected;
+                break;
+            default:
+                ++stats.loop_pairs_tried;
+                ++stats.loops_accepted;
+                break;
+        }
+        if (edges[k]) graph.edges.push_back(std::move(*edges[k]));
+    }
+    std::stable_sort(graph.edges.begin(), graph.edges.end(), edgeLess);
+    if (stats_out != nullptr) *stats_out = stats;
+    return graph;
+}
+
+Status refineEdges(PoseGraph& graph, const std::vector<Fragment>& fragments,
+                   const std::vector<PreparedFragment>& prepared, const RegistrationConfig& config,
+                   Progress* progress) {
+    PLUMB_RETURN_IF_ERROR(checkInputs(fragments, prepared, config));
+    if (graph.T_W_F.size() != fragments.size()) {
+        return invalidArgument("refinement: the graph has " + std::to_string(graph.T_W_F.size()) +
+                               " nodes for " + std::to_string(fragments.size()) + " fragments");
+    }
+    for (const PoseGraphEdge& e : graph.edges) {
+        if (e.source >= fragments.size() || e.target >= fragments.size()) {
+            return invalidArgument("refinement: an edge names a missing fragment");
+        }
+    }
+    const std::vector<FragmentIndex> idx = buildIndices(fragments, prepared, config);
+    refineWithIndex(graph, pointers(idx), config, progress);
+    return Status::ok();
+}
+
+Result<RegistrationOutcome> registerFragments(const std::vector<Fragment>& fragments,
+                                              const std::vector<PreparedFragment>& prepared,
+                                              const RegistrationConfig& config,
+                                              Progress* progress) {
+    PLUMB_RETURN_IF_ERROR(checkInputs(fragments, prepared, config));
+    PairStats stats;
+    Result<PoseGraph> graph = buildPoseGraph(fragments, prepared, config, progress, &stats);
+    if (!graph.isOk()) return graph.status();
+    const std::vector<FragmentIndex> idx = buildIndices(fragments, prepared, config);
+    return finishGraph(std::move(graph.value()), pointers(idx), config, stats, progress);
+}
+
+// ---- LiveRegistrar ----
+
+LiveRegistrar::LiveRegistrar(RegistrationConfig config) : config_(std::move(config)) {}
+
+LiveRegistrar::~LiveRegistrar() { waitBackground(); }
+
+void LiveRegistrar::waitBackground() {
+    if (!background_.valid()) return;
+    std::vector<Eigen::Isometry3d> poses = background_.get();
+    // The optimisation ran on a snapshot of the graph with as many nodes as it has now (every
+    // change to the graph waits for it first).
+    if (poses.size() == graph_.T_W_F.size()) graph_.T_W_F = std::move(poses);
+}
+
+std::vector<Eigen::Isometry3d> LiveRegistrar::poses() {
+    waitBackground();
+    return graph_.T_W_F;
+}
+
+PoseGraph LiveRegistrar::graph() {
+    waitBackground();
+    return graph_;
+}
+
+Status LiveRegistrar::addFragment(Fragment fragment) {
+    if (fragment.id != fragments_.size()) {
+        return invalidArgument("live registration: expected fragment " +
+                               std::to_string(fragments_.size()) + ", got " +
+                               std::to_string(fragment.id));
+    }
+    if (config_.icp.voxel_sizes_m.empty() ||
+        config_.icp.iterations.size() != config_.icp.voxel_sizes_m.size()) {
+        return invalidArgument("live registration: icp levels and iterations differ in length");
+    }
+    Result<PreparedFragment> prepared = prepareFragment(fragment, config_.prepare);
+    if (!prepared.isOk()) return prepared.status();
+    auto index = std::make_unique<FragmentIndex>(
+        buildFragmentIndex(fragment, prepared.value(), config_.icp));
+    waitBackground();  // decisions below use the poses of the finished optimisation
+
+    const uint32_t k = fragment.id;
+    const RegistrationConfig inner = innerConfig(config_);
+    if (k == 0) {
+        graph_.T_W_F.push_back(fragment.T_W_F);
+    } else {
+        const Eigen::Isometry3d T_odo = fragments_.back().T_W_F.inverse() * fragment.T_W_F;
+        bool failed = false;
+        PoseGraphEdge odo = odometryEdge(*index_.back(), *index, T_odo, inner, &failed);
+        ++stats_.odometry_pairs;
+        if (failed) ++stats_.odometry_icp_failed;
+        graph_.T_W_F.push_back(graph_.T_W_F.back() * odo.T_source_target);
+        graph_.edges.push_back(std::move(odo));
+
+        // Candidates by predicted overlap under the current estimates.
+        const Eigen::Isometry3d& T_W_k = graph_.T_W_F.back();
+        const PointCloud& pts = index->coarse.cloud();
+        const float r2 = static_cast<float>(config_.live.candidate_distance_m *
+                                            config_.live.candidate_distance_m);
+        std::vector<std::pair<double, uint32_t>> scored;
+        for (uint32_t j = 0; j + 1 < k; ++j) {
+            const Eigen::Isometry3d T_jk = graph_.T_W_F[j].inverse() * T_W_k;
+            const Eigen::Matrix3f R = T_jk.rotation().cast<float>();
+            const Eigen::Vector3f t = T_jk.translation().cast<float>();
+            size_t near = 0;
+            for (const Eigen::Vector3f& p : pts.points) {
+                uint32_t idx = 0;
+                float d2 = 0.0f;
+                if (index_[j]->coarse.nearest(R * p + t, r2, &idx, &d2)) ++near;
+            }
+            const double predicted =
+                pts.empty() ? 0.0 : static_cast<double>(near) / static_cast<double>(pts.size());
+            if (predicted >= config_.live.min_predicted_overlap) scored.emplace_back(predicted, j);
+        }
+        std::sort(scored.begin(), scored.end(), [](const auto& a, const auto& b) {
+            return a.first != b.first ? a.first > b.first : a.second < b.second;
+        });
+        if (scored.size() > static_cast<size_t>(config_.live.max_candidates)) {
+            scored.resize(static_cast<size_t>(config_.live.max_candidates));
+        }
+        std::sort(scored.begin(), scored.end(),
+                  [](const auto& a, const auto& b) { return a.second < b.second; });
+        std::vector<std::optional<PoseGraphEdge>> loops(scored.size());
+        std::vector<LoopOutcome> outcomes(scored.size(), LoopOutcome::kRansacFailed);
+        detail::parallelFor(config_.num_threads, scored.size(), [&](size_t c) {
+            PoseGraphEdge e;
+            outcomes[c] = loopEdge(*index_[scored[c].second], *index, inner, &e);
+            if (outcomes[c] != LoopOutcome::kRansacFailed) loops[c] = std::move(e);
+        });
+        for (size_t c = 0; c < scored.size(); ++c) {
+            ++stats_.loop_pairs_tried;
+            if (outcomes[c] == LoopOutcome::kRansacFailed) ++stats_.ransac_failed;
+            if (outcomes[c] == LoopOutcome::kRejected) ++stats_.overlap_rejected;
+            if (outcomes[c] == LoopOutcome::kAccepted) ++stats_.loops_accepted;
+            if (loops[c]) graph_.edges.push_back(std::move(*loops[c]));
+        }
+        std::stable_sort(graph_.edges.begin(), graph_.edges.end(), edgeLess);
+    }
+    fragments_.push_back(std::move(fragment));
+    prepared_.push_back(std::move(prepared.value()));
+    index_.push_back(std::move(index));
+
+    // Background re-optimisation of a snapshot; its poses are adopted at the next wait.
+    PoseGraph snapshot = graph_;
+    const posegraph::PoseGraphConfig pg = config_.pose_graph;
+    background_ = std::async(std::launch::async, [snapshot = std::move(snapshot), pg]() mutable {
+        // On failure the snapshot's poses are returned unchanged.
+        (void)posegraph::optimisePoseGraph(snapshot, pg);
+        return snapshot.T_W_F;
+    });
+    return Status::ok();
+}
+
+Result<RegistrationOutcome> LiveRegistrar::finish(Progress* progress) {
+    waitBackground();
+    if (fragments_.empty()) return failedPrecondition("live registration: no fragments added");
+    std::vector<const FragmentIndex*> idx;
+    for (const auto& p : index_) idx.push_back(p.get());
+    return finishGraph(graph_, idx, config_, stats_, progress);
+}
+
+}  // namespace plumb::registration

@@ -1,0 +1,159 @@
+// SPDX-License-Identifier: Apache-2.0
+#pragma once
+
+// Initial registration of fragments (the paper's §3.1 after Choi, Zhou, Koltun CVPR 2015;
+// reference §3.2-3.7):
+//   1. consecutive pairs (i, i+1): multi-scale point-to-plane ICP initialised from odometry;
+//   2. non-consecutive pairs: FPFH matching + seeded RANSAC + ICP refinement, accepted when at
+//      least `min_overlap` of the smaller fragment lies within τ of the other;
+//   3. a pose graph with line processes (backend/posegraph/pose_graph.hpp) that prunes wrong
+//      loop closures by itself;
+//   4. a refinement pass: every surviving edge is re-aligned by multi-scale ICP from the
+//      optimised relative pose and the graph optimised again.
+// Offline (buildPoseGraph / registerFragments: all pairs after capture) and live (LiveRegistrar:
+// each arriving fragment against candidates chosen by predicted overlap, re-optimised in the
+// background) modes. Edge convention: see pose_graph.hpp (T_W_target ≈ T_W_source * T_s_t).
+//
+// Determinism: every pair is a pure function of its two fragments, the configuration and a seed
+// derived from (seed, source, target); pairs run in parallel but their results are gathered by
+// index, so outputs are identical for any thread count and run.
+
+#include <cstdint>
+#include <future>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "backend/posegraph/pose_graph.hpp"
+#include "backend/registration/pair_registration.hpp"
+#include "backend/registration/prepared_fragment.hpp"
+#include "common/config/schema.hpp"
+#include "common/core/progress.hpp"
+#include "common/core/status.hpp"
+#include "common/fragment/fragment.hpp"
+
+namespace plumb::registration {
+
+using posegraph::PoseGraph;
+using posegraph::PoseGraphEdge;
+
+struct LiveConfig {
+    /// A previous fragment is a loop candidate when at least this fraction of the new fragment's
+    /// points, placed with the current pose estimates, lies within candidate_distance_m of it.
+    double min_predicted_overlap = 0.15;
+    /// Proximity radius of the predicted overlap (tolerates drift), metres.
+    double candidate_distance_m = 0.3;
+    /// At most this many candidates per new fragment (highest predicted overlap first).
+    int max_candidates = 8;
+};
+void describe(config::Schema& s, LiveConfig& c);
+
+struct RegistrationConfig {
+    /// Downsampling, normals, FPFH.
+    PrepareConfig prepare;
+    /// Multi-scale point-to-plane ICP (odometry edges, refinement).
+    IcpConfig icp;
+    /// Feature matching and RANSAC (loop closures).
+    RansacConfig ransac;
+    /// Line-process pose graph; its max_correspondence_distance_m is also the τ of the overlap
+    /// test and of the information matrices.
+    posegraph::PoseGraphConfig pose_graph;
+    /// Live mode candidate selection.
+    LiveConfig live;
+    /// Loop closures need at least this overlap (fraction of the smaller fragment; paper: 30 %).
+    double min_overlap = 0.3;
+    /// ICP iterations at the coarsest level when verifying a RANSAC loop candidate.
+    int loop_icp_iterations = 30;
+    /// Run the refinement pass (re-ICP of surviving edges, optimise again).
+    bool refinement_pass = true;
+    /// Seed of the RANSAC generators (each pair uses a seed derived from it and the pair).
+    uint64_t seed = 1;
+    /// Worker threads (0 = all); results do not depend on it.
+    int num_threads = 0;
+};
+void describe(config::Schema& s, RegistrationConfig& c);
+
+/// Counts of the pair stage.
+struct PairStats {
+    int odometry_pairs = 0;
+    int odometry_icp_failed = 0;  ///< odometry edges that kept the odometry transform
+    int loop_pairs_tried = 0;
+    int ransac_failed = 0;
+    int overlap_rejected = 0;
+    int loops_accepted = 0;
+};
+
+/// Builds the pose graph of `fragments` (ids must be 0..n-1 in order; `prepared[i]` must belong
+/// to fragment i). Nodes start at the odometry poses T_W_F (re-anchored so node 0 is where
+/// fragment 0 is). Edges, sorted by (source, target): one odometry edge per consecutive pair
+/// (ICP result, or the odometry transform with reason set when ICP fails), and one loop edge per
+/// non-consecutive pair whose RANSAC succeeded: kept when its overlap ≥ min_overlap, otherwise
+/// kept = false with the reason. `progress` (may be null) counts pairs.
+/// Errors: empty input, mismatched sizes or ids, invalid configuration.
+Result<PoseGraph> buildPoseGraph(const std::vector<Fragment>& fragments,
+                                 const std::vector<PreparedFragment>& prepared,
+                                 const RegistrationConfig& config, Progress* progress,
+                                 PairStats* stats = nullptr);
+
+/// Refinement pass (reference §3.7): every kept edge is re-aligned by multi-scale ICP from the
+/// current relative pose T_W_s^-1 T_W_t, its Λ, overlap and RMSE recomputed; a loop edge whose
+/// overlap falls below min_overlap is dropped (kept = false, reason). Line processes are reset.
+Status refineEdges(PoseGraph& graph, const std::vector<Fragment>& fragments,
+                   const std::vector<PreparedFragment>& prepared, const RegistrationConfig& config,
+                   Progress* progress);
+
+struct RegistrationOutcome {
+    PoseGraph graph;
+    PairStats stats;
+    posegraph::PoseGraphReport first;    ///< optimisation of the initial graph
+    posegraph::PoseGraphReport refined;  ///< optimisation after the refinement pass
+    bool refined_ran = false;
+};
+
+/// The whole offline stage: build, optimise (prune), refine, optimise again.
+Result<RegistrationOutcome> registerFragments(const std::vector<Fragment>& fragments,
+                                              const std::vector<PreparedFragment>& prepared,
+                                              const RegistrationConfig& config, Progress* progress);
+
+/// Live mode: fragments arrive one at a time. addFragment() prepares the fragment, registers it
+/// against its predecessor (ICP from odometry) and against earlier fragments chosen by predicted
+/// overlap under the current pose estimates (FPFH + RANSAC + ICP + overlap test), then starts a
+/// background re-optimisation of the graph. The next addFragment() (or poses(), finish()) first
+/// waits for that optimisation, so every decision uses the same poses whatever the timing:
+/// the final result depends on the fragments and the configuration only.
+/// Not thread-safe: one caller.
+class LiveRegistrar {
+  public:
+    explicit LiveRegistrar(RegistrationConfig config);
+    ~LiveRegistrar();
+    LiveRegistrar(const LiveRegistrar&) = delete;
+    LiveRegistrar& operator=(const LiveRegistrar&) = delete;
+
+    /// Adds the next fragment (ids must arrive as 0, 1, 2, ...). Errors: an out-of-order id or a
+    /// fragment that cannot be prepared (it is then not added).
+    Status addFragment(Fragment fragment);
+
+    /// Current pose estimates (waits for the background optimisation).
+    std::vector<Eigen::Isometry3d> poses();
+    /// The graph so far (waits for the background optimisation). Edges are not pruned yet.
+    PoseGraph graph();
+    size_t size() const { return fragments_.size(); }
+    const std::vector<Fragment>& fragments() const { return fragments_; }
+    const std::vector<PreparedFragment>& prepared() const { return prepared_; }
+
+    /// Final optimisation with pruning, the refinement pass and the last optimisation.
+    Result<RegistrationOutcome> finish(Progress* progress = nullptr);
+
+  private:
+    void waitBackground();
+
+    RegistrationConfig config_;
+    std::vector<Fragment> fragments_;
+    std::vector<PreparedFragment> prepared_;
+    std::vector<std::unique_ptr<FragmentIndex>> index_;
+    PoseGraph graph_;
+    PairStats stats_;
+    std::future<std::vector<Eigen::Isometry3d>> background_;
+};
+
+}  // namespace plumb::registration
