@@ -1,12 +1,29 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "drivers/source.hpp"
 
+#include <cstdio>
 #include <filesystem>
 
 #include "drivers/dataset/dataset.hpp"
+#include "drivers/openni2/openni2_source.hpp"
 #include "drivers/sim/sim_source.hpp"
+#include "drivers/v4l2/v4l2_source.hpp"
 
 namespace plumb {
+namespace {
+
+/// "640x480@30" -> width, height, fps.
+Status parseDepthMode(const std::string& mode, int* width, int* height, int* fps) {
+    char x = 0;
+    char at = 0;
+    if (std::sscanf(mode.c_str(), "%d%c%d%c%d", width, &x, height, &at, fps) != 5 || x != 'x' ||
+        at != '@' || *width <= 0 || *height <= 0 || *fps <= 0) {
+        return invalidArgument("depth mode '" + mode + "' is not WxH@fps (e.g. 640x480@30)");
+    }
+    return Status::ok();
+}
+
+}  // namespace
 
 Result<std::unique_ptr<FrameSource>> openFrameSource(const std::string& uri,
                                                      const SourceOptions& options) {
@@ -41,8 +58,32 @@ Result<std::unique_ptr<FrameSource>> openFrameSource(const std::string& uri,
         if (!source.isOk()) return source.status();
         return std::unique_ptr<FrameSource>(std::move(source).value());
     }
+    if (scheme == "openni2" || uri == "openni2") {
+        openni2::OpenNI2Config config;
+        config.uri = scheme == "openni2" ? rest : "";
+        config.max_frames = options.max_frames;
+        config.intrinsics = options.intrinsics;
+        PLUMB_RETURN_IF_ERROR(
+            parseDepthMode(options.depth_mode, &config.width, &config.height, &config.fps));
+        auto source = openni2::OpenNI2Source::open(config);
+        if (!source.isOk()) return source.status();
+        return std::unique_ptr<FrameSource>(std::move(source).value());
+    }
+    if (scheme == "v4l2") {
+        v4l2::V4l2Config config;
+        config.device = rest;
+        config.max_frames = options.max_frames;
+        config.intrinsics = options.intrinsics;
+        if (options.depth_scale > 0.0) config.units_per_m = options.depth_scale;
+        PLUMB_RETURN_IF_ERROR(
+            parseDepthMode(options.depth_mode, &config.width, &config.height, &config.fps));
+        auto source = v4l2::V4l2Source::open(config);
+        if (!source.isOk()) return source.status();
+        return std::unique_ptr<FrameSource>(std::move(source).value());
+    }
     return unsupported("unknown frame source '" + uri + "' (scheme '" + scheme + "', target '" +
-                       rest + "'); use dataset:<dir> or sim:<scene>");
+                       rest +
+                       "'); use dataset:<dir>, sim:<scene>, openni2[:<uri>] or v4l2:/dev/videoN");
 }
 
 }  // namespace plumb

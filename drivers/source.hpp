@@ -4,6 +4,8 @@
 // Opens a FrameSource from a URI:
 //   dataset:<dir>     recorded dataset, layout detected (drivers/dataset)
 //   sim:<scene>       simulated handheld scanner (drivers/sim)
+//   openni2[:<uri>]   OpenNI2 device (first one without a URI) or .oni recording (drivers/openni2)
+//   v4l2:/dev/videoN  UVC/V4L2 depth camera (drivers/v4l2)
 // A bare directory path is taken as dataset:<dir>.
 
 #include <memory>
@@ -22,6 +24,8 @@ struct SourceOptions {
     size_t max_frames = 0;
     /// Seed for sources with randomness (the simulator's noise and hand shake).
     uint64_t seed = 1;
+    /// Live cameras (openni2, v4l2): depth mode "WxH@fps", e.g. "640x480@30" or "320x240@60".
+    std::string depth_mode = "640x480@30";
 };
 
 Result<std::unique_ptr<FrameSource>> openFrameSource(const std::string& uri,

@@ -1,0 +1,61 @@
+// SPDX-License-Identifier: Apache-2.0
+#pragma once
+
+// The virtual OpenNI2 device: a URI that names a simulated handheld scan, shared by the OpenNI2
+// driver plugin that streams it (drivers/openni2/sim_driver) and by tests that compare what came
+// through OpenNI2 with the simulator's own frames.
+//
+//   plumb-sim://<scene>[?frames=N&seed=S&unplug_at=K&unplug_frames=G&registration=1&realtime=0]
+//
+// frames        trajectory length (default 300); the camera goes idle after the last frame
+// seed          simulator seed (trajectory and noise), default 1
+// unplug_at     the device disconnects instead of sending frame K (default: never) ...
+// unplug_frames ... and reconnects G frame periods later (default 15); frames K..K+G-1 are lost,
+//               like a real camera that keeps moving while it is unplugged
+// registration  the device claims depth-to-colour registration support (default 0)
+// realtime      pace frames at the video mode's rate (default 1) or send them as fast as rendered
+// fault         send frame fault_at damaged, to test consumers: "short" (half the bytes),
+//               "empty" (0x0, no bytes) or "format" (labelled RGB888)
+
+#include <cstdint>
+#include <string>
+
+#include "common/core/status.hpp"
+#include "drivers/sim/sim_source.hpp"
+
+namespace plumb::openni2 {
+
+inline constexpr const char* kSimUriPrefix = "plumb-sim://";
+
+struct SimDeviceSpec {
+    std::string scene = "living_room";
+    size_t frames = 300;
+    uint64_t seed = 1;
+    int64_t unplug_at = -1;
+    int64_t unplug_frames = 15;
+    bool registration = false;
+    bool realtime = true;
+    std::string fault;  ///< "", "short", "empty" or "format"
+    int64_t fault_at = -1;
+};
+
+/// True when `uri` starts with plumb-sim://.
+bool isSimDeviceUri(const std::string& uri);
+
+/// Parses a plumb-sim:// URI; unknown keys and malformed numbers are invalidArgument.
+Result<SimDeviceSpec> parseSimDeviceUri(const std::string& uri);
+
+/// The simulator configuration the virtual device renders for a video mode of width x height:
+/// the default PrimeSense camera scaled to that size (640x480 fx = 525; 320x240 fx = 262.5).
+Result<sim::SimConfig> simConfigFor(const SimDeviceSpec& spec, int width, int height);
+
+/// Depth in metres to an OpenNI depth pixel with `units_per_m` (1000 for DEPTH_1_MM, 10000 for
+/// DEPTH_100_UM): rounded; 0, non-finite or out-of-range depth becomes 0 (invalid).
+uint16_t depthToPixel(float depth_m, double units_per_m);
+
+/// An OpenNI depth pixel back to metres (0 stays 0).
+inline float pixelToDepth(uint16_t pixel, double units_per_m) {
+    return static_cast<float>(static_cast<double>(pixel) / units_per_m);
+}
+
+}  // namespace plumb::openni2
