@@ -7,6 +7,7 @@ set -euo pipefail
 packages=(
     # toolchain
     build-essential cmake ninja-build pkg-config git clang clang-format clang-tidy
+    libclang-rt-14-dev  # libFuzzer runtime for the optional fuzz_decoders test
     # common/ and the device side
     libeigen3-dev libtbb-dev libfmt-dev libspdlog-dev libtomlplusplus-dev nlohmann-json3-dev
     libnanoflann-dev
@@ -18,9 +19,29 @@ packages=(
     libpcl-dev libopenmpi-dev libceres-dev libboost-graph-dev
     # tests, benchmarks and the peer (Open3D is an oracle and a peer, never on the runtime path)
     libgtest-dev libgmock-dev libbenchmark-dev libopen3d-dev python3-open3d python3-numpy
-    # monitor
-    libcpp-httplib-dev
+    # monitor, and its browser test (Debian's Chromium, driven by playwright-core from npm)
+    libcpp-httplib-dev chromium chromium-driver
 )
+
+# The monitor's browser test drives /usr/bin/chromium with playwright-core (pinned in
+# tools/monitor/browser-test/package-lock.json; it downloads no browser). Installed with the
+# machine's npm into tools/monitor/browser-test/node_modules, again only when the lock changed.
+browser_test_deps() {
+    local dir
+    dir="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)/monitor/browser-test"
+    [ -f "$dir/package-lock.json" ] || return 0
+    if ! command -v npm >/dev/null; then
+        echo "setup: npm not found: the monitor's browser test cannot run (install Node.js >= 20)" >&2
+        return 0
+    fi
+    if [ -f "$dir/node_modules/.package-lock.json" ] &&
+        [ "$dir/node_modules/.package-lock.json" -nt "$dir/package-lock.json" ]; then
+        return 0
+    fi
+    echo "setup: npm ci in $dir"
+    (cd "$dir" && npm ci --no-audit --no-fund --loglevel=error) ||
+        echo "setup: npm ci failed: the monitor's browser test will not run" >&2
+}
 
 missing=()
 for p in "${packages[@]}"; do
@@ -31,6 +52,7 @@ done
 
 if [ ${#missing[@]} -eq 0 ]; then
     echo "setup: all ${#packages[@]} packages present"
+    browser_test_deps
     exit 0
 fi
 
@@ -43,4 +65,5 @@ fi
 export DEBIAN_FRONTEND=noninteractive
 $SUDO apt-get update -qq
 $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+browser_test_deps
 echo "setup: done"

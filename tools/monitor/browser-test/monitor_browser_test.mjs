@@ -1,0 +1,158 @@
+// SPDX-License-Identifier: Apache-2.0
+// Browser test of `plumb monitor` (ctest: monitor_browser, label monitor).
+//
+//   node monitor_browser_test.mjs --plumb PLUMB --fixture FIXTURE --work DIR
+//
+// 1. FIXTURE writes a scan (DIR/scan/session.lcm: heartbeats + 8 fragments 0.4 s apart) and the
+//    backend's output for it (DIR/scan/backend: pose_graph.json with loops, layout.json).
+// 2. `plumb monitor --log session.lcm --dir backend --port 0 --token T` replays it in real time.
+// 3. Headless Chromium (/usr/bin/chromium, driven by playwright-core) opens the page and waits
+//    until all fragments, their outlines and the pose-graph edges (odometry and loops) are in the
+//    DOM, having arrived through server-sent events while the page stayed open.
+// 4. A screenshot is saved to DIR/monitor.png.
+// Exit 0 on success, 1 on failure, 77 (ctest skip) when Chromium or playwright-core is missing
+// outside CI; under CI=true a missing browser is a failure.
+import { spawn, spawnSync } from "node:child_process";
+import fs from "node:fs";
+import path from "node:path";
+import readline from "node:readline";
+
+const CHROMIUM = process.env.PLUMB_CHROMIUM || "/usr/bin/chromium";
+const TOKEN = "browser-test-token";
+const FRAGMENTS = 8;
+
+function arg(name) {
+  const i = process.argv.indexOf(name);
+  if (i < 0 || i + 1 >= process.argv.length) throw new Error("missing " + name);
+  return process.argv[i + 1];
+}
+function fail(message) {
+  console.error("monitor_browser: FAILED: " + message);
+  console.log("0 passed, 1 failed");
+  process.exit(1);
+}
+function unavailable(message) {
+  if (process.env.CI === "true") fail(message + " (CI=true: the browser test must run; run tools/setup.sh)");
+  console.log("monitor_browser: skipped: " + message);
+  process.exit(77);
+}
+
+const plumb = arg("--plumb");
+const fixture = arg("--fixture");
+const work = arg("--work");
+fs.rmSync(work, { recursive: true, force: true });
+fs.mkdirSync(work, { recursive: true });
+
+if (!fs.existsSync(CHROMIUM)) unavailable(CHROMIUM + " not found (Debian package chromium)");
+let chromium;
+try {
+  ({ chromium } = await import("playwright-core"));
+} catch (err) {
+  unavailable("playwright-core not installed (tools/setup.sh runs npm ci in tools/monitor/browser-test): " + err.message);
+}
+
+const scan = path.join(work, "scan");
+const made = spawnSync(fixture, [scan, "--fragments", String(FRAGMENTS), "--interval", "0.4"], { encoding: "utf8" });
+if (made.status !== 0) fail("fixture: " + made.stderr + made.stdout);
+console.log("monitor_browser: " + made.stdout.trim());
+
+const monitor = spawn(plumb, ["monitor", "--log", path.join(scan, "session.lcm"), "--speed", "1",
+                              "--dir", path.join(scan, "backend"), "--port", "0", "--token", TOKEN],
+                      { stdio: ["ignore", "pipe", "inherit"] });
+let monitorExit = null;
+monitor.on("exit", (code, signal) => { monitorExit = { code, signal }; });
+
+let browser = null;
+async function cleanup() {
+  if (browser) await browser.close().catch(() => {});
+  if (monitorExit === null) {
+    monitor.kill("SIGTERM");
+    await new Promise((resolve) => { if (monitorExit !== null) resolve(); else monitor.on("exit", resolve); });
+  }
+}
+
+try {
+  const url = await new Promise((resolve, reject) => {
+    const timer = setTimeout(() => reject(new Error("plumb monitor printed no URL within 30 s")), 30000);
+    const lines = readline.createInterface({ input: monitor.stdout });
+    lines.on("line", (line) => {
+      const m = line.match(/serving (http:\/\/\S+)/);
+      if (m) { clearTimeout(timer); resolve(m[1]); }
+    });
+    monitor.on("exit", (code) => reject(new Error("plumb monitor exited with " + code)));
+  });
+  console.log("monitor_browser: page " + url.replace(TOKEN, "<token>"));
+
+  browser = await chromium.launch({
+    executablePath: CHROMIUM,
+    headless: true,
+    args: ["--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+           "--disable-background-networking", "--disable-component-update", "--disable-sync",
+           "--disable-dev-shm-usage"],
+  });
+  const page = await browser.newPage({ viewport: { width: 1400, height: 900 } });
+  const external = [];
+  page.on("request", (req) => { if (!req.url().startsWith("http://127.0.0.1")) external.push(req.url()); });
+  const consoleErrors = [];
+  page.on("console", (msg) => { if (msg.type() === "error") consoleErrors.push(msg.text()); });
+  page.on("pageerror", (err) => consoleErrors.push(String(err)));
+
+  // Without the token the API refuses.
+  const denied = await page.request.get(new URL("/api/state", url).toString());
+  if (denied.status() !== 401) fail("GET /api/state without the token gave " + denied.status());
+
+  await page.goto(url);
+  const initial = await page.locator("#fragment-list tr.fragment").count();
+  let navigations = 0;
+  page.on("framenavigated", () => { navigations += 1; });
+
+  // Everything must arrive through the open page (server-sent events), within 60 s.
+  await page.waitForFunction((n) =>
+    document.querySelectorAll("#fragment-list tr.fragment").length >= n &&
+    document.querySelectorAll("#map polygon.fragment-outline").length >= n &&
+    document.querySelectorAll("#map line.edge.odometry").length >= n - 1 &&
+    document.querySelectorAll("#map line.edge.loop").length >= 2 &&
+    document.querySelector("#map polygon.room") !== null &&
+    document.getElementById("connection").textContent === "live",
+    FRAGMENTS, { timeout: 60000, polling: 100 });
+
+  const counts = await page.evaluate(() => ({
+    fragments: document.querySelectorAll("#fragment-list tr.fragment").length,
+    outlines: document.querySelectorAll("#map polygon.fragment-outline").length,
+    odometry: document.querySelectorAll("#map line.edge.odometry").length,
+    loops: document.querySelectorAll("#map line.edge.loop").length,
+    pruned: document.querySelectorAll("#map line.edge.pruned").length,
+    edgeRows: document.querySelectorAll("#edge-list tr.edge").length,
+    gaps: document.querySelectorAll("#map rect.gap").length,
+    tracking: document.querySelector("#device dd") ? document.querySelector("#device dd").textContent : "",
+    version: Number(document.body.dataset.version),
+  }));
+  console.log("monitor_browser: initial fragments " + initial + ", final " + JSON.stringify(counts) +
+              ", navigations after load " + navigations);
+  if (counts.fragments !== FRAGMENTS) fail("expected " + FRAGMENTS + " fragment rows, saw " + counts.fragments);
+  if (counts.odometry !== FRAGMENTS - 1) fail("expected " + (FRAGMENTS - 1) + " odometry edges, saw " + counts.odometry);
+  if (counts.loops !== 2 || counts.pruned !== 1) fail("expected 2 loop edges (1 pruned), saw " + counts.loops + "/" + counts.pruned);
+  if (counts.tracking !== "ok") fail("device panel shows tracking '" + counts.tracking + "'");
+  if (navigations !== 0) fail("the page reloaded instead of updating in place");
+  if (external.length) fail("the page requested other origins: " + external.join(", "));
+  if (consoleErrors.length) fail("console errors: " + consoleErrors.join(" | "));
+
+  // The loop edge's colour follows its weight: the kept loop (0.9) is green, the pruned one grey.
+  const loopColours = await page.evaluate(() =>
+    [...document.querySelectorAll("#map line.edge.loop")].map((e) => e.getAttribute("stroke")));
+  if (!loopColours.some((c) => c.startsWith("hsl(108"))) fail("loop edge colours " + loopColours.join(", "));
+
+  const shot = path.join(work, "monitor.png");
+  await page.screenshot({ path: shot, fullPage: true });
+  const size = fs.statSync(shot).size;
+  if (size < 10000) fail("screenshot is only " + size + " bytes");
+  console.log("monitor_browser: screenshot " + shot + " (" + size + " bytes)");
+
+  await cleanup();
+  if (!monitorExit || monitorExit.code !== 0) fail("plumb monitor did not stop cleanly: " + JSON.stringify(monitorExit));
+  console.log("1 passed, 0 failed");
+  process.exit(0);
+} catch (err) {
+  await cleanup();
+  fail(err && err.stack ? err.stack : String(err));
+}

@@ -1,0 +1,246 @@
+// SPDX-License-Identifier: Apache-2.0
+// plumb monitor page: renders /api/state and follows /api/events (server-sent events).
+"use strict";
+(function () {
+  const SVG = "http://www.w3.org/2000/svg";
+  const params = new URLSearchParams(window.location.search);
+  const token = params.get("token");
+  const withToken = (path) => (token ? path + "?token=" + encodeURIComponent(token) : path);
+  const $ = (id) => document.getElementById(id);
+  let lastState = null;
+  let seenFragments = new Set();
+
+  function el(tag, attrs, text) {
+    const e = document.createElementNS(SVG, tag);
+    for (const [k, v] of Object.entries(attrs || {})) e.setAttribute(k, v);
+    if (text !== undefined) e.textContent = text;
+    return e;
+  }
+  function clear(node) { while (node.firstChild) node.removeChild(node.firstChild); }
+  function fmtBytes(b) {
+    if (b >= 1 << 30) return (b / (1 << 30)).toFixed(2) + " GiB";
+    if (b >= 1 << 20) return (b / (1 << 20)).toFixed(1) + " MiB";
+    if (b >= 1 << 10) return (b / (1 << 10)).toFixed(1) + " KiB";
+    return b + " B";
+  }
+  function dl(rows) {
+    const d = document.createElement("dl");
+    for (const [k, v, cls] of rows) {
+      const dt = document.createElement("dt"); dt.textContent = k;
+      const dd = document.createElement("dd"); dd.textContent = v;
+      if (cls) dd.className = cls;
+      d.append(dt, dd);
+    }
+    return d;
+  }
+  function edgeColour(e) {
+    if (!e.kept) return "#999";
+    if (e.kind === "odometry") return "#4a6fa5";
+    const w = Math.max(0, Math.min(1, e.line_process));
+    return "hsl(" + Math.round(120 * w) + ", 70%, " + (45 - 7 * w).toFixed(0) + "%)";
+  }
+  function pts(list) { return list.map((p) => p[0] + "," + p[1]).join(" "); }
+
+  function renderDevice(s) {
+    const box = $("device");
+    clear(box);
+    const d = s.device;
+    if (!d) { box.textContent = s.source.mode === "directory" ? "review of an output directory" : "no heartbeat yet"; box.className = "muted"; return; }
+    box.className = "";
+    const age = Date.now() / 1000 - d.received_unix_s;
+    const stale = age > d.stale_after_s;
+    const trackCls = d.tracking === "ok" ? "badge good" : d.tracking === "lost" ? "badge bad" : "badge warn";
+    box.append(dl([
+      ["tracking", d.tracking, trackCls],
+      ["fps", d.fps.toFixed(1)],
+      ["frames", d.frames_processed + " processed"],
+      ["dropped", String(d.frames_dropped), d.frames_dropped > 0 ? "badge warn" : ""],
+      ["fragments", d.fragments_cut + " cut, " + d.fragments_acked + " acked"],
+      ["spool", d.spool_fragments + " fragments, " + fmtBytes(d.spool_bytes)],
+      ["memory", fmtBytes(d.memory_bytes)],
+      ["session", String(d.session_id)],
+      ["heartbeat", stale ? "stale (" + age.toFixed(0) + " s)" : "seq " + d.seq, stale ? "badge bad" : ""],
+    ]));
+  }
+
+  function renderSide(s) {
+    const link = $("link");
+    clear(link);
+    if (s.link) {
+      link.className = "";
+      link.append(dl([
+        ["messages", String(s.link.messages)],
+        ["chunks", String(s.link.chunks_received)],
+        ["fragments", String(s.link.fragments_completed)],
+        ["CRC failures", String(s.link.chunk_crc_failures + s.link.fragment_crc_failures)],
+        ["malformed", String(s.link.malformed)],
+      ]));
+    } else { link.className = "muted"; link.textContent = "—"; }
+    if (s.source.replay) {
+      link.append(dl([["replay", s.source.replay.messages + " messages" + (s.source.replay.finished ? ", finished" : "")]]));
+    }
+    const cov = $("coverage");
+    clear(cov);
+    const c = s.coverage;
+    cov.className = "";
+    cov.append(dl([
+      ["covered", c.cells_of_interest ? (100 * c.fraction).toFixed(1) + " %" : "—"],
+      ["gaps", c.num_gaps + " cells of " + c.cell_m.toFixed(2) + " m"],
+      ["region", c.region === "room_polygon" ? "room (layout)" : "hull of points"],
+    ]));
+    const lay = $("layout");
+    clear(lay);
+    if (s.layout) {
+      lay.className = "";
+      const walls = s.layout.planes.filter((p) => p.kind === "wall");
+      lay.append(dl([
+        ["walls", String(walls.length)],
+        ["snapped", String(walls.filter((w) => w.manhattan_snapped).length)],
+        ["ceiling", s.layout.ceiling_height_m.toFixed(2) + " m"],
+        ["polygon", s.layout.room_polygon_V.length + " corners"],
+      ]));
+    } else { lay.className = "muted"; lay.textContent = "no layout yet"; }
+    const errs = $("errors");
+    clear(errs);
+    for (const m of s.errors) { const li = document.createElement("li"); li.textContent = m; errs.append(li); }
+  }
+
+  function renderLists(s) {
+    const body = $("fragment-list").querySelector("tbody");
+    clear(body);
+    const now = new Set();
+    for (const f of s.fragments.slice().reverse()) {
+      const key = f.session + ":" + f.id;
+      now.add(key);
+      const tr = document.createElement("tr");
+      tr.className = "fragment" + (seenFragments.has(key) ? "" : " new");
+      tr.dataset.id = f.id;
+      for (const v of [f.id, f.frames[0] + "–" + f.frames[1], f.num_points, f.pose_source, f.end, f.ack]) {
+        const td = document.createElement("td"); td.textContent = String(v); tr.append(td);
+      }
+      body.append(tr);
+    }
+    seenFragments = now;
+    $("fragment-count").textContent = String(s.fragments.length);
+    const eb = $("edge-list").querySelector("tbody");
+    clear(eb);
+    for (const e of s.edges) {
+      const tr = document.createElement("tr");
+      tr.className = "edge " + e.kind;
+      tr.dataset.source = e.source; tr.dataset.target = e.target;
+      const state = e.provisional ? "provisional" : e.kept ? "kept" : "pruned: " + e.reason;
+      for (const v of [e.source + "→" + e.target, e.kind, e.line_process.toFixed(2), e.overlap.toFixed(2),
+                       (100 * e.inlier_rmse_m).toFixed(1) + " cm", state]) {
+        const td = document.createElement("td"); td.textContent = String(v); tr.append(td);
+      }
+      tr.firstChild.style.borderLeft = "4px solid " + edgeColour(e);
+      eb.append(tr);
+    }
+    $("edge-count").textContent = String(s.edges.length);
+  }
+
+  function renderMap(s) {
+    const layers = {};
+    for (const name of ["gaps", "room", "fragments", "trajectory", "edges", "nodes"]) {
+      layers[name] = $("layer-" + name);
+      clear(layers[name]);
+    }
+    let lo = [Infinity, Infinity], hi = [-Infinity, -Infinity];
+    const grow = (p) => { lo = [Math.min(lo[0], p[0]), Math.min(lo[1], p[1])]; hi = [Math.max(hi[0], p[0]), Math.max(hi[1], p[1])]; };
+    $("map-frame").textContent = s.view.frame === "layout" ? "(layout frame, floor plan)" : "(first camera frame, y up = -y camera)";
+
+    const c = s.coverage;
+    for (const [ix, iy] of c.gaps) {
+      layers.gaps.append(el("rect", { class: "gap", x: c.origin_V[0] + ix * c.cell_m, y: c.origin_V[1] + iy * c.cell_m,
+                                      width: c.cell_m, height: c.cell_m, fill: "rgba(229,62,62,0.30)" }));
+    }
+    if (s.layout) {
+      const poly = s.layout.room_polygon_V;
+      poly.forEach(grow);
+      layers.room.append(el("polygon", { class: "room", points: pts(poly), fill: "rgba(45,55,72,0.04)", stroke: "#2d3748",
+                                         "stroke-width": 2, "vector-effect": "non-scaling-stroke" }));
+      for (const w of s.layout.walls_V) {
+        layers.room.append(el("line", { class: "wall", x1: w.start_V[0], y1: w.start_V[1], x2: w.end_V[0], y2: w.end_V[1],
+                                        stroke: w.manhattan_snapped ? "#2b6cb0" : "#2d3748", "stroke-width": 4,
+                                        "stroke-opacity": 0.5, "vector-effect": "non-scaling-stroke" }));
+      }
+    }
+    const pos = new Map();
+    const newest = s.fragments.length ? s.fragments[s.fragments.length - 1].session : 0;
+    s.fragments.forEach((f, i) => {
+      const hue = (f.id * 47) % 360;
+      if (f.outline_V.length >= 3) {
+        f.outline_V.forEach(grow);
+        const poly = el("polygon", { class: "fragment-outline", "data-id": f.id, points: pts(f.outline_V),
+                                     fill: "hsla(" + hue + ",60%,55%,0.12)", stroke: "hsl(" + hue + ",60%,40%)",
+                                     "stroke-width": 1, "vector-effect": "non-scaling-stroke" });
+        poly.append(el("title", {}, "fragment " + f.id + ": frames " + f.frames[0] + "–" + f.frames[1] + ", " + f.num_points + " points"));
+        layers.fragments.append(poly);
+      }
+      grow(f.position_V);
+      if (f.session === newest) pos.set(f.id, f.position_V);
+      layers.nodes.append(el("circle", { class: "fragment-node", "data-id": f.id, cx: f.position_V[0], cy: f.position_V[1],
+                                         r: 4, fill: "hsl(" + hue + ",60%,40%)", "vector-effect": "non-scaling-stroke",
+                                         transform: "" }));
+    });
+    if (s.trajectory_V.length > 1) {
+      s.trajectory_V.forEach(grow);
+      layers.trajectory.append(el("polyline", { class: "trajectory", points: pts(s.trajectory_V), fill: "none",
+                                                stroke: "#718096", "stroke-width": 1, "vector-effect": "non-scaling-stroke" }));
+    }
+    for (const e of s.edges) {
+      const a = pos.get(e.source), b = pos.get(e.target);
+      if (!a || !b) continue;
+      const attrs = { class: "edge " + e.kind + (e.kept ? "" : " pruned"), "data-source": e.source, "data-target": e.target,
+                      x1: a[0], y1: a[1], x2: b[0], y2: b[1], stroke: edgeColour(e),
+                      "stroke-width": e.kind === "loop" ? 1 + 2 * e.line_process : 2, "vector-effect": "non-scaling-stroke" };
+      if (!e.kept || e.provisional) attrs["stroke-dasharray"] = e.kept ? "6 3" : "3 3";
+      const line = el("line", attrs);
+      line.append(el("title", {}, e.kind + " " + e.source + "→" + e.target + ", weight " + e.line_process.toFixed(2)));
+      layers.edges.append(line);
+    }
+    if (!isFinite(lo[0])) { lo = [-2.5, -2.5]; hi = [2.5, 2.5]; }
+    const m = 0.1 * Math.max(hi[0] - lo[0], hi[1] - lo[1], 1);
+    // The world group flips y (scale(1,-1)), so the view box spans -hi.y .. -lo.y vertically.
+    $("map").setAttribute("viewBox", [lo[0] - m, -hi[1] - m, hi[0] - lo[0] + 2 * m, hi[1] - lo[1] + 2 * m].join(" "));
+    // Node circles keep a fixed screen size: r is in map units, so scale it with the view.
+    const r = 0.008 * Math.max(hi[0] - lo[0], hi[1] - lo[1], 1);
+    for (const cEl of layers.nodes.children) cEl.setAttribute("r", r);
+  }
+
+  function render(s) {
+    lastState = s;
+    $("source").textContent = s.source.mode + (s.source.detail ? ": " + s.source.detail : "");
+    $("version").textContent = "v" + s.version;
+    renderDevice(s);
+    renderSide(s);
+    renderLists(s);
+    renderMap(s);
+    document.body.dataset.version = s.version;
+  }
+
+  function setConnection(ok, text) {
+    const c = $("connection");
+    c.textContent = text;
+    c.className = "badge " + (ok ? "good" : "bad");
+  }
+
+  async function poll() {
+    try {
+      const r = await fetch(withToken("api/state"));
+      if (r.ok) render(await r.json());
+      else setConnection(false, "HTTP " + r.status);
+    } catch (err) { setConnection(false, "offline"); }
+  }
+
+  function connect() {
+    const es = new EventSource(withToken("api/events"));
+    es.addEventListener("state", (ev) => { setConnection(true, "live"); render(JSON.parse(ev.data)); });
+    es.onerror = () => { setConnection(false, "reconnecting"); };
+  }
+
+  poll();
+  connect();
+  // The heartbeat age grows without new events: re-render the device panel every second.
+  setInterval(() => { if (lastState) renderDevice(lastState); }, 1000);
+})();

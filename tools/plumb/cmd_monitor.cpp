@@ -1,0 +1,223 @@
+// SPDX-License-Identifier: Apache-2.0
+// `plumb monitor`: a local web page showing fragments, the pose graph, the layout and the
+// device's health as they arrive (live LCM, a replayed LCM log, or an output directory).
+
+#include <csignal>
+#include <cstdio>
+#include <cstdlib>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "common/config/config.hpp"
+#include "common/config/registry.hpp"
+#include "tools/plumb/command.hpp"
+
+#if defined(PLUMB_HAVE_MONITOR)
+#include "messages/lcm_transport.hpp"
+#include "tools/monitor/monitor_config.hpp"
+#include "tools/monitor/monitor_state.hpp"
+#include "tools/monitor/server.hpp"
+#include "tools/monitor/sources.hpp"
+
+PLUMB_PROGRAM_CONFIG(monitor, "monitor", plumb::monitor::MonitorConfig,
+                     "plumb monitor: the live web monitor (server, state, sources)");
+#endif
+
+namespace plumb::tools {
+namespace {
+
+constexpr const char* kUsage =
+    "usage: plumb monitor (--dir OUT | --live [--lcm-url U] | --log LOG [--speed X]) [options]\n"
+    "\n"
+    "Serves a local web page with the device status (fps, tracking, dropped frames, spool),\n"
+    "the fragment list, a top view of the fragments in the current global frame, the pose-graph\n"
+    "edges coloured by kind and line-process weight, the layout and floor plan, and the coverage\n"
+    "gaps. The page updates within a second of a fragment arriving (server-sent events).\n"
+    "The monitor only listens: it never acknowledges fragments or asks for retransmissions.\n"
+    "\n"
+    "sources (--dir may be combined with --live or --log: the backend's output beside the wire):\n"
+    "  --dir OUT       an output directory: fragments/ (fragment store), pose_graph.json,\n"
+    "                  layout.json, trajectory.txt; watched for changes\n"
+    "  --live          LCM heartbeats and fragments as they are sent\n"
+    "  --lcm-url U     LCM URL for --live (default udpm://239.255.76.67:7667?ttl=0)\n"
+    "  --log LOG       replay an LCM log (lcm-logger format)\n"
+    "  --speed X       replay speed: 1 real time (default), 0 as fast as possible\n"
+    "\n"
+    "options:\n"
+    "  --port P        TCP port (default 8765; 0 picks a free one)\n"
+    "  --bind A        address to listen on (default 127.0.0.1: this machine only)\n"
+    "  --token T       require T on every request (?token=T or 'Authorization: Bearer T');\n"
+    "                  also read from PLUMB_MONITOR_TOKEN. Required when --bind is not loopback\n"
+    "  --config FILE   configuration (schema 'monitor', see plumb config doc monitor)\n"
+    "  --set K=V       override one configuration key\n"
+    "\n"
+    "The first line on stdout is 'plumb monitor: serving <url>'. Stop with Ctrl-C (SIGINT) or\n"
+    "SIGTERM; exit status 0 after a clean stop, 1 when a source or the server cannot start,\n"
+    "2 for a bad command line.\n";
+
+int usageError(const std::string& message) {
+    std::fprintf(stderr, "plumb monitor: %s (see plumb monitor --help)\n", message.c_str());
+    return kExitUsage;
+}
+
+#if defined(PLUMB_HAVE_MONITOR)
+
+bool parseDouble(const std::string& text, double& out) {
+    char* end = nullptr;
+    out = std::strtod(text.c_str(), &end);
+    return end != text.c_str() && *end == '\0';
+}
+
+int runMonitor(const std::vector<std::string>& raw_args) {
+    std::vector<std::string> args = raw_args;
+    for (const std::string& a : args) {
+        if (a == "--help" || a == "-h") {
+            std::fputs(kUsage, stdout);
+            return kExitOk;
+        }
+    }
+    auto config_args = config::extractConfigArgs(args);
+    if (!config_args.isOk()) return usageError(config_args.status().message());
+    monitor::MonitorConfig cfg;
+    if (Status s = config::load(*config_args, cfg); !s.isOk()) {
+        std::fprintf(stderr, "plumb monitor: %s\n", s.message().c_str());
+        return kExitUsage;
+    }
+    if (const char* env = std::getenv("PLUMB_MONITOR_TOKEN"); env != nullptr && *env != '\0') {
+        cfg.server.token = env;
+    }
+
+    std::string dir, log;
+    bool live = false;
+    for (size_t i = 0; i < args.size(); ++i) {
+        const std::string& a = args[i];
+        auto value = [&](std::string& out) -> bool {
+            if (i + 1 >= args.size()) return false;
+            out = args[++i];
+            return true;
+        };
+        std::string v;
+        if (a == "--dir") {
+            if (!value(dir)) return usageError("--dir needs a directory");
+        } else if (a == "--log") {
+            if (!value(log)) return usageError("--log needs a file");
+        } else if (a == "--live") {
+            live = true;
+        } else if (a == "--lcm-url") {
+            if (!value(cfg.lcm_url)) return usageError("--lcm-url needs a URL");
+        } else if (a == "--speed") {
+            if (!value(v) || !parseDouble(v, cfg.replay_speed) || !(cfg.replay_speed >= 0.0)) {
+                return usageError("--speed needs a number >= 0");
+            }
+        } else if (a == "--port") {
+            double port = 0;
+            if (!value(v) || !parseDouble(v, port) || port < 0 || port > 65535 ||
+                port != static_cast<int>(port)) {
+                return usageError("--port needs an integer in [0, 65535]");
+            }
+            cfg.server.port = static_cast<int>(port);
+        } else if (a == "--bind") {
+            if (!value(cfg.server.bind)) return usageError("--bind needs an address");
+        } else if (a == "--token") {
+            if (!value(cfg.server.token) || cfg.server.token.empty()) {
+                return usageError("--token needs a non-empty value");
+            }
+        } else {
+            return usageError("unknown argument '" + a + "'");
+        }
+    }
+    if (live && !log.empty()) return usageError("--live and --log exclude each other");
+    if (!live && log.empty() && dir.empty()) {
+        return usageError("name a source: --dir OUT, --live or --log LOG");
+    }
+    if (live && !messages::keepsTrafficOnHost(cfg.lcm_url)) {
+        std::fprintf(stderr,
+                     "plumb monitor: warning: %s may receive traffic from other machines "
+                     "(use ttl=0 or memq://)\n",
+                     cfg.lcm_url.c_str());
+    }
+    if (!monitor::isLoopbackAddress(cfg.server.bind) && cfg.server.token.empty()) {
+        return usageError("--bind " + cfg.server.bind +
+                          " exposes the monitor beyond this machine: set --token as well");
+    }
+
+    // Signals go to sigwait() below: block them before any thread starts so every thread
+    // inherits the mask.
+    sigset_t signals;
+    sigemptyset(&signals);
+    sigaddset(&signals, SIGINT);
+    sigaddset(&signals, SIGTERM);
+    pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+
+    monitor::MonitorState state(cfg.state);
+    std::string mode = live ? "live" : (!log.empty() ? "replay" : "directory");
+    std::string detail = live ? cfg.lcm_url : log;
+    if (!dir.empty()) detail += (detail.empty() ? "" : " + ") + dir;
+    state.setSource(mode, detail);
+
+    std::unique_ptr<monitor::DirectoryWatcher> watcher;
+    if (!dir.empty()) {
+        watcher = std::make_unique<monitor::DirectoryWatcher>(dir, state, cfg.directory);
+        watcher->scanOnce();  // the page starts with what is already there
+        watcher->start();
+    }
+    std::unique_ptr<monitor::LiveSource> live_source;
+    if (live) {
+        auto s = monitor::LiveSource::start(cfg.lcm_url, state);
+        if (!s.isOk()) {
+            std::fprintf(stderr, "plumb monitor: %s\n", s.status().message().c_str());
+            return kExitFailure;
+        }
+        live_source = std::move(*s);
+    }
+    std::unique_ptr<monitor::LogReplaySource> replay;
+    if (!log.empty()) {
+        auto s = monitor::LogReplaySource::start(log, cfg.replay_speed, state);
+        if (!s.isOk()) {
+            std::fprintf(stderr, "plumb monitor: %s\n", s.status().message().c_str());
+            return kExitFailure;
+        }
+        replay = std::move(*s);
+    }
+    auto server = monitor::MonitorServer::start(cfg.server, state);
+    if (!server.isOk()) {
+        std::fprintf(stderr, "plumb monitor: %s\n", server.status().message().c_str());
+        return kExitFailure;
+    }
+    std::fprintf(stdout, "plumb monitor: serving %s\n", (*server)->url().c_str());
+    std::fflush(stdout);
+
+    int signal_number = 0;
+    sigwait(&signals, &signal_number);
+    std::fprintf(stderr, "plumb monitor: stopping (signal %d)\n", signal_number);
+    (*server)->stop();
+    if (replay) replay->stop();
+    if (live_source) live_source->stop();
+    if (watcher) watcher->stop();
+    return kExitOk;
+}
+
+#else
+
+int runMonitor(const std::vector<std::string>& args) {
+    for (const std::string& a : args) {
+        if (a == "--help" || a == "-h") {
+            std::fputs(kUsage, stdout);
+            return kExitOk;
+        }
+    }
+    std::fprintf(stderr,
+                 "plumb monitor: this build has no monitor (needs LCM and cpp-httplib: "
+                 "run tools/setup.sh and reconfigure)\n");
+    return kExitFailure;
+}
+
+#endif
+
+}  // namespace
+
+PLUMB_COMMAND(monitor, "monitor", "serve a live web page of fragments, pose graph, layout",
+              runMonitor);
+
+}  // namespace plumb::tools
