@@ -60,8 +60,10 @@ bool compareLayouts(const Layout& a, const Layout& b, double* max_angle_deg, dou
             double best_angle = 180.0;
             double best_offset = 0.0;
             for (const HessianPlane& q : pb) {
-                const double c = std::clamp(p.normal.dot(q.normal), -1.0, 1.0);
-                const double angle = std::acos(c) * 180.0 / M_PI;
+                // atan2 stays accurate for nearly parallel normals (acos does not).
+                const double angle =
+                    std::atan2(p.normal.cross(q.normal).norm(), p.normal.dot(q.normal)) * 180.0 /
+                    M_PI;
                 if (angle < best_angle) {
                     best_angle = angle;
                     best_offset = std::abs(p.d - q.d);
