@@ -7,6 +7,7 @@
 
 #include <cstdio>
 
+#include "common/config/config.hpp"
 #include "tests/backend/global/global_test_util.hpp"
 #include "tests/backend/global/sim_fragments.hpp"
 
@@ -96,6 +97,21 @@ TEST(Alternation, CompareLayoutsMeasuresPlaneChanges) {
     EXPECT_NEAR(offset, 0.01, 1e-12);
     b.planes.pop_back();
     EXPECT_FALSE(compareLayouts(a, b, &angle, &offset));
+}
+
+TEST(Alternation, ConfigIsDocumentedAndRoundTrips) {
+    AlternationConfig c;
+    c.global.pair_weight = 0.25;
+    c.max_outer_iterations = 7;
+    const std::string toml = config::toToml(c, "alternation");
+    EXPECT_NE(toml.find("pair_weight"), std::string::npos);
+    EXPECT_NE(toml.find("wall_margin_m"), std::string::npos);
+    AlternationConfig back;
+    ASSERT_TRUE(config::loadString(toml, "roundtrip", back).isOk());
+    EXPECT_EQ(back.global.pair_weight, 0.25);
+    EXPECT_EQ(back.max_outer_iterations, 7);
+    EXPECT_FALSE(config::applyOverrides({"registration.frag_max_distance_m=-1"}, back).isOk() &&
+                 config::validate(back).isOk());
 }
 
 }  // namespace

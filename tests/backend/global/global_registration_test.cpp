@@ -286,6 +286,16 @@ TEST(GlobalRegistration, WithoutLayoutItStillAlignsFragments) {
                 100 * rec1, 100 * testing::cameraPositionRmse(sim, T0),
                 100 * testing::cameraPositionRmse(sim, r->T_W_F));
     EXPECT_LT(rec1, rec0);
+    // The layout term (the paper's contribution) does better than the baseline on the same input.
+    cfg.use_layout = true;
+    Result<GlobalResult> with = refinePoses(clouds, T0, priors, sim.layout_gt, cfg);
+    ASSERT_TRUE(with.isOk());
+    const double rec_layout = testing::meanReconstructionError(sim, with->T_W_F);
+    std::printf("with layout: recon error %.2f cm, camera RMSE %.2f cm\n", 100 * rec_layout,
+                100 * testing::cameraPositionRmse(sim, with->T_W_F));
+    EXPECT_LT(rec_layout, rec1);
+    EXPECT_LT(testing::cameraPositionRmse(sim, with->T_W_F),
+              testing::cameraPositionRmse(sim, r->T_W_F));
 }
 
 TEST(GlobalRegistration, BadInputGivesSpecificErrors) {
