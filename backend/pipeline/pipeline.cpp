@@ -1,0 +1,377 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "backend/pipeline/pipeline.hpp"
+
+#include <fmt/format.h>
+
+#include <fstream>
+#include <numbers>
+#include <sstream>
+
+#include "backend/layout/estimate_layout.hpp"
+#include "backend/layout/floorplan_svg.hpp"
+#include "backend/layout/fragment_planes.hpp"
+#include "backend/registration/outputs.hpp"
+#include "backend/registration/prepared_fragment.hpp"
+#include "backend/report/report_html.hpp"
+#include "backend/report/stage_timer.hpp"
+#include "common/core/logging.hpp"
+#include "common/core/progress.hpp"
+#include "common/io/ply.hpp"
+#include "common/io/trajectory.hpp"
+#include "common/layout/layout_json.hpp"
+
+namespace plumb::backend {
+
+namespace fs = std::filesystem;
+
+void describe(config::Schema& s, LayoutStageConfig& c) {
+    s.section("planes", c.planes, "per-fragment planes: supervoxels, T-linkage, graph cuts");
+    s.section("estimate", c.estimate, "dominant planes, base plane, walls, weak Manhattan");
+}
+
+void describe(config::Schema& s, PipelineConfig& c) {
+    s.field("use_layout", c.use_layout,
+            "run layout estimation and layout-constrained global registration (false = the "
+            "Choi-style baseline, --no-layout)");
+    s.field("compare_baseline", c.compare_baseline,
+            "with use_layout, also produce the baseline in <out>/baseline for comparison");
+    s.section("registration", c.registration, "initial registration (paper §3.1)");
+    s.section("layout", c.layout, "layout estimation (paper §3.2)");
+    s.section("alternation", c.alternation,
+              "Algorithm 1 and layout-constrained global registration (paper §3.3)");
+    s.section("final_model", c.final_model, "the final mesh");
+}
+
+namespace {
+
+ProgressOptions progressOptions(bool show) {
+    ProgressOptions o;
+    if (!show) o.mode = ProgressOptions::Mode::kQuiet;
+    return o;
+}
+
+Status writeText(const fs::path& path, const std::string& text) {
+    const fs::path tmp = path.string() + ".tmp";
+    {
+        std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+        if (!out) return ioError(fmt::format("{}: cannot open for writing", tmp.string()));
+        out << text;
+        out.flush();
+        if (!out) return ioError(fmt::format("{}: write failed (disk full?)", tmp.string()));
+    }
+    std::error_code ec;
+    fs::rename(tmp, path, ec);
+    if (ec) return ioError(fmt::format("{}: {}", path.string(), ec.message()));
+    return Status::ok();
+}
+
+Status prefixed(const Status& status, const std::string& stage) {
+    return Status(status.code(), stage + ": " + status.message());
+}
+
+/// The pose-graph edges that survived, as the priors E_pair of the global registration.
+std::vector<global::PairPrior> pairPriors(const posegraph::PoseGraph& graph) {
+    std::vector<global::PairPrior> priors;
+    for (const auto& e : graph.edges) {
+        if (!e.kept) continue;
+        priors.push_back({e.source, e.target, e.T_source_target, e.information});
+    }
+    return priors;
+}
+
+Result<TriangleMesh> finalMesh(const PipelineInput& input, const std::vector<Eigen::Isometry3d>& T,
+                               const FinalModelConfig& config, const std::string& what,
+                               bool show_progress, bool* from_raw) {
+    if (input.open_raw_frames) {
+        Result<std::unique_ptr<FrameSource>> source = input.open_raw_frames();
+        if (!source.isOk()) return prefixed(source.status(), "reopening the raw frames");
+        const std::optional<size_t> total = (*source)->size();
+        Progress progress("re-integrating frames (" + what + ")", total.value_or(0),
+                          progressOptions(show_progress));
+        Result<FinalModel> model =
+            integrateRawFrames(**source, input.fragments, T, config, &progress);
+        progress.finish();
+        if (!model.isOk()) return model.status();
+        *from_raw = true;
+        return std::move(model->mesh);
+    }
+    Progress progress("fusing fragment surfaces (" + what + ")", input.fragments.size(),
+                      progressOptions(show_progress));
+    Result<FinalModel> model =
+        fuseFragmentSurfaces(input.fragments, T, input.camera, config, &progress);
+    progress.finish();
+    if (!model.isOk()) return model.status();
+    *from_raw = false;
+    return std::move(model->mesh);
+}
+
+posegraph::PoseGraph withPoses(posegraph::PoseGraph graph,
+                               const std::vector<Eigen::Isometry3d>& T) {
+    graph.T_W_F = T;
+    return graph;
+}
+
+nlohmann::json edgeSummary(const registration::RegistrationOutcome& outcome) {
+    int odometry = 0, loops = 0, pruned = 0, rejected = 0;
+    for (const auto& e : outcome.graph.edges) {
+        if (e.kind == posegraph::PoseGraphEdge::Kind::kOdometry) {
+            ++odometry;
+        } else if (e.kept) {
+            ++loops;
+        } else if (e.line_process < 1.0 || e.reason.find("line process") != std::string::npos) {
+            ++pruned;
+        } else {
+            ++rejected;
+        }
+    }
+    const registration::PairStats& s = outcome.stats;
+    return {{"odometry_edges", odometry},
+            {"loop_edges", loops},
+            {"pruned_edges", pruned},
+            {"rejected_edges", rejected},
+            {"loop_pairs_tried", s.loop_pairs_tried},
+            {"ransac_failed", s.ransac_failed},
+            {"overlap_rejected", s.overlap_rejected},
+            {"pose_graph_iterations", outcome.first.iterations + outcome.refined.iterations},
+            {"line_process_mu", outcome.refined_ran ? outcome.refined.mu : outcome.first.mu}};
+}
+
+}  // namespace
+
+Result<PipelineResult> runPipeline(const PipelineInput& input, const PipelineConfig& config,
+                                   const fs::path& out_dir, bool show_progress) {
+    if (input.fragments.empty()) return invalidArgument("no fragments to reconstruct from");
+    for (size_t i = 0; i < input.fragments.size(); ++i) {
+        if (input.fragments[i].id != i)
+            return invalidArgument(
+                fmt::format("fragment ids must be 0..{} in order; position {} holds fragment {}",
+                            input.fragments.size() - 1, i, input.fragments[i].id));
+    }
+    std::error_code ec;
+    fs::create_directories(out_dir, ec);
+    if (ec) return ioError(fmt::format("{}: cannot create: {}", out_dir.string(), ec.message()));
+
+    StageTimer timer;
+    const std::vector<Fragment>& fragments = input.fragments;
+    const size_t n = fragments.size();
+
+    // 1. Preparation (§3.1).
+    std::vector<registration::PreparedFragment> prepared(n);
+    {
+        auto scope = timer.scope("prepare fragments (downsample, normals, FPFH)");
+        Progress progress("preparing fragments", n, progressOptions(show_progress));
+        for (size_t i = 0; i < n; ++i) {
+            Result<registration::PreparedFragment> p =
+                registration::prepareFragment(fragments[i], config.registration.prepare);
+            if (!p.isOk()) return prefixed(p.status(), fmt::format("preparing fragment {}", i));
+            prepared[i] = std::move(*p);
+            progress.advance();
+        }
+        progress.finish();
+    }
+
+    // 2. Initial registration: the baseline (Choi et al. 2015).
+    registration::RegistrationOutcome outcome;
+    {
+        auto scope = timer.scope("initial registration (pairs, loop closures, pose graph)");
+        Progress progress("registering fragment pairs", 0, progressOptions(show_progress));
+        Result<registration::RegistrationOutcome> r =
+            registration::registerFragments(fragments, prepared, config.registration, &progress);
+        progress.finish();
+        if (!r.isOk()) return prefixed(r.status(), "initial registration");
+        outcome = std::move(*r);
+    }
+    const std::vector<Eigen::Isometry3d> T_baseline = outcome.graph.T_W_F;
+
+    // 3. Layout (§3.2) and Algorithm 1 (§3.3).
+    std::vector<layout::FragmentPlanes> planes(n);
+    {
+        auto scope = timer.scope("per-fragment planes (supervoxels, T-linkage, graph cuts)");
+        Progress progress("extracting fragment planes", n, progressOptions(show_progress));
+        for (size_t i = 0; i < n; ++i) {
+            Result<layout::FragmentPlanes> p =
+                layout::extractFragmentPlanes(fragments[i], config.layout.planes);
+            if (!p.isOk()) return prefixed(p.status(), fmt::format("planes of fragment {}", i));
+            planes[i] = std::move(*p);
+            progress.advance();
+        }
+        progress.finish();
+    }
+    nlohmann::json layout_diagnostics;
+    const global::LayoutEstimator estimator =
+        [&](const std::vector<Eigen::Isometry3d>& T) -> Result<Layout> {
+        Result<layout::LayoutEstimate> e =
+            layout::estimateLayout(fragments, planes, T, config.layout.estimate);
+        if (!e.isOk()) return e.status();
+        layout_diagnostics = layout::toJson(e->diagnostics);
+        return std::move(e->layout);
+    };
+
+    std::optional<Layout> baseline_layout;
+    {
+        auto scope = timer.scope("layout at the baseline poses");
+        Result<Layout> l = estimator(T_baseline);
+        if (l.isOk()) {
+            baseline_layout = std::move(*l);
+        } else {
+            log::warn("no layout at the baseline poses: {}", l.status().toString());
+        }
+    }
+
+    std::vector<Eigen::Isometry3d> T_full = T_baseline;
+    std::optional<Layout> full_layout = baseline_layout;
+    nlohmann::json energies = nlohmann::json::array();
+    nlohmann::json alternation_summary;
+    if (config.use_layout) {
+        auto scope = timer.scope("Algorithm 1: layout <-> global registration");
+        Progress progress("alternating layout and registration",
+                          static_cast<uint64_t>(config.alternation.max_outer_iterations),
+                          progressOptions(show_progress));
+        Result<global::AlternationResult> a =
+            global::alternate(fragments, T_baseline, pairPriors(outcome.graph), estimator,
+                              config.alternation, &progress);
+        progress.finish();
+        if (!a.isOk()) return prefixed(a.status(), "layout-constrained global registration");
+        T_full = a->T_W_F;
+        full_layout = a->layout;
+        for (const auto& outer : a->iterations) {
+            for (const auto& inner : outer.inner) {
+                energies.push_back({{"outer", outer.iteration},
+                                    {"round", inner.round},
+                                    {"inner", inner.iteration},
+                                    {"accepted", inner.accepted},
+                                    {"energy", inner.energy.total},
+                                    {"layout", inner.energy.layout},
+                                    {"frag", inner.energy.frag},
+                                    {"pair", inner.energy.pair}});
+            }
+        }
+        alternation_summary = {{"outer_iterations", a->iterations.size()},
+                               {"converged", a->converged},
+                               {"stop_reason", a->stop_reason}};
+    }
+
+    // 4./5. Final models, outputs and evaluation per variant.
+    struct Plan {
+        std::string name;
+        const std::vector<Eigen::Isometry3d>* T;
+        const std::optional<Layout>* layout;
+        fs::path dir;
+    };
+    std::vector<Plan> plans;
+    if (config.use_layout) {
+        plans.push_back({"full", &T_full, &full_layout, out_dir});
+        if (config.compare_baseline)
+            plans.push_back({"baseline", &T_baseline, &baseline_layout, out_dir / "baseline"});
+    } else {
+        plans.push_back({"baseline", &T_baseline, &baseline_layout, out_dir});
+    }
+
+    PipelineResult result;
+    ReportFigures figures;
+    nlohmann::json variants_json = nlohmann::json::object();
+    bool from_raw = false;
+    for (const Plan& plan : plans) {
+        fs::create_directories(plan.dir, ec);
+        if (ec)
+            return ioError(fmt::format("{}: cannot create: {}", plan.dir.string(), ec.message()));
+        VariantResult v;
+        v.name = plan.name;
+        v.T_W_F = *plan.T;
+        v.layout = *plan.layout;
+        {
+            auto scope = timer.scope("final model (" + plan.name + ")");
+            Result<TriangleMesh> mesh =
+                finalMesh(input, v.T_W_F, config.final_model, plan.name, show_progress, &from_raw);
+            if (!mesh.isOk()) return prefixed(mesh.status(), "final model (" + plan.name + ")");
+            v.mesh = std::move(*mesh);
+        }
+        auto scope = timer.scope("outputs and evaluation (" + plan.name + ")");
+        const posegraph::PoseGraph graph = withPoses(outcome.graph, v.T_W_F);
+        const posegraph::PoseGraphReport& report =
+            outcome.refined_ran ? outcome.refined : outcome.first;
+        Status s = registration::writeRegistrationOutputs(plan.dir, fragments, graph, report);
+        if (!s.isOk()) return prefixed(s, "writing " + plan.dir.string());
+        s = io::writeTriangleMesh(plan.dir / "mesh.ply", v.mesh);
+        if (!s.isOk()) return prefixed(s, "writing the mesh");
+        if (v.layout) {
+            s = io::writeLayoutJson(plan.dir / "layout.json", *v.layout);
+            if (!s.isOk()) return prefixed(s, "writing layout.json");
+            s = layout::writeFloorplanSvg(plan.dir / "floorplan.svg", *v.layout);
+            if (!s.isOk()) return prefixed(s, "writing floorplan.svg");
+        }
+        Result<io::Trajectory> trajectory = registration::frameTrajectory(fragments, graph);
+        if (!trajectory.isOk()) return trajectory.status();
+        Result<VariantEvaluation> ev =
+            evaluateVariant(plan.name, *trajectory, v.mesh, v.layout, input.ground_truth,
+                            full_layout, EvaluationConfig{});
+        if (!ev.isOk()) return prefixed(ev.status(), "evaluating " + plan.name);
+        v.evaluation = std::move(*ev);
+        variants_json[plan.name] = toJson(v.evaluation);
+        figures.top_views[plan.name] = topViewSvg(v.mesh, full_layout);
+        result.variants.push_back(std::move(v));
+    }
+
+    size_t frames = 0;
+    for (const Fragment& f : fragments) frames += f.frames.size();
+    nlohmann::json metrics;
+    metrics["format"] = "plumb-metrics-1";
+    metrics["input"] = input.description;
+    metrics["fragments"] = n;
+    metrics["frames"] = frames;
+    metrics["ground_truth"] = input.ground_truth.description.empty()
+                                  ? std::string("none")
+                                  : input.ground_truth.description;
+    metrics["final_model"] = from_raw ? "raw frames re-integrated" : "fragment surfaces fused";
+    metrics["variants"] = variants_json;
+    metrics["registration"] = edgeSummary(outcome);
+    if (!alternation_summary.is_null()) metrics["alternation"] = alternation_summary;
+    metrics["energies"] = energies;
+    if (!layout_diagnostics.is_null()) metrics["layout_diagnostics"] = layout_diagnostics;
+    nlohmann::json stages = nlohmann::json::array();
+    for (const StageTime& st : timer.stages())
+        stages.push_back({{"name", st.name}, {"seconds", st.seconds}});
+    metrics["stages"] = stages;
+    metrics["total_seconds"] = timer.totalSeconds();
+
+    if (fs::exists(out_dir / "floorplan.svg")) {
+        std::ifstream in(out_dir / "floorplan.svg");
+        std::stringstream text;
+        text << in.rdbuf();
+        figures.floorplan_svg = text.str();
+        const size_t start = figures.floorplan_svg.find("<svg");
+        if (start != std::string::npos) figures.floorplan_svg.erase(0, start);
+    }
+    PLUMB_RETURN_IF_ERROR(writeText(out_dir / "metrics.json", metrics.dump(2) + "\n"));
+    PLUMB_RETURN_IF_ERROR(writeText(out_dir / "report.html", renderReportHtml(metrics, figures)));
+    if (!input.config_toml.empty())
+        PLUMB_RETURN_IF_ERROR(writeText(out_dir / "config.toml", input.config_toml));
+    result.metrics = std::move(metrics);
+    return result;
+}
+
+std::string summarize(const PipelineResult& result) {
+    std::ostringstream out;
+    const nlohmann::json& m = result.metrics;
+    out << fmt::format("{} fragments, {} frames; {}\n", m.value("fragments", 0),
+                       m.value("frames", 0), m.value("final_model", std::string()));
+    for (const VariantResult& v : result.variants) {
+        const VariantEvaluation& e = v.evaluation;
+        out << fmt::format("  {:<9}", v.name);
+        if (e.trajectory) out << fmt::format(" ATE RMSE {:.2f} cm", e.trajectory->ate.rmse_m * 100);
+        if (e.recon)
+            out << fmt::format(", recon error mean {:.2f} cm median {:.2f} cm",
+                               e.recon->accuracy.mean_m * 100, e.recon->accuracy.median_m * 100);
+        if (!e.walls.empty()) out << fmt::format(", wall RMS {:.1f} mm", e.mean_wall_rms_m * 1000);
+        if (e.layout)
+            out << fmt::format(", walls {}/{} (angle err {:.2f} deg)", e.layout->walls.size(),
+                               e.layout->num_gt_walls, e.layout->mean_wall_angle_error_deg);
+        if (!e.trajectory && !e.recon) out << " (no ground truth to measure against)";
+        out << "\n";
+    }
+    if (m.contains("total_seconds"))
+        out << fmt::format("  backend time {:.1f} s\n", m["total_seconds"].get<double>());
+    return out.str();
+}
+
+}  // namespace plumb::backend
