@@ -22,4 +22,7 @@ Result<Depth16Image> readDepthPng(const std::filesystem::path& path, int width, 
 /// Writes a 16-bit single-channel PNG (lossless; round trip is exact).
 Status writeDepthPng(const std::filesystem::path& path, const Depth16Image& depth);
 
+/// Writes an 8-bit single-channel PNG (grey images of the simulator).
+Status writeGrayPng(const std::filesystem::path& path, const GrayImage& gray);
+
 }  // namespace plumb::dataset

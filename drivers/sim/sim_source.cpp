@@ -6,8 +6,6 @@
 #include <cstdio>
 #include <fstream>
 #include <nlohmann/json.hpp>
-#include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <system_error>
 
 #include "common/io/ply.hpp"
@@ -173,16 +171,7 @@ Status writeSimDataset(const SimSource& source, const std::filesystem::path& dir
                                                          toRaw(f.view.depth, kDepthScale)));
         }
         if (options.write_gray) {
-            const GrayImage& g = f.frame.gray;
-            const cv::Mat mat(g.height(), g.width(), CV_8UC1, const_cast<uint8_t*>(g.data()));
-            bool ok = false;
-            try {
-                ok = cv::imwrite((dir / "gray" / name).string(), mat);
-            } catch (const cv::Exception& e) {
-                return ioError(fmt::format("{}: {}", (dir / "gray" / name).string(), e.what()));
-            }
-            if (!ok)
-                return ioError(fmt::format("{}: cannot write", (dir / "gray" / name).string()));
+            PLUMB_RETURN_IF_ERROR(dataset::writeGrayPng(dir / "gray" / name, f.frame.gray));
         }
         depth_txt += fmt::format("{:.6f} depth/{}\n", f.frame.timestamp_s, name);
         gt.push_back({f.frame.timestamp_s, *f.frame.T_W_C_gt});

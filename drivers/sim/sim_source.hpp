@@ -86,8 +86,8 @@ struct SimDatasetOptions {
 Status writeSimDataset(const SimSource& source, const std::filesystem::path& dir,
                        const SimDatasetOptions& options = {});
 
-/// Parses a noise setting: "off", "redwood" (table distortion), "parametric" (§1.4.D), "clean"
-/// (Redwood quantisation and noise without distortion). Updates `noise`.
+/// Parses a noise setting: "off", "redwood" or "on" (table distortion), "parametric" (§1.4.D),
+/// "undistorted" (Redwood quantisation and noise without distortion). Updates `noise`.
 Status parseNoiseMode(const std::string& mode, NoiseConfig* noise);
 
 }  // namespace plumb::sim

@@ -9,6 +9,7 @@
 #include <iterator>
 
 #include "common/io/ply.hpp"
+#include "common/io/trajectory.hpp"
 #include "common/layout/layout_json.hpp"
 #include "drivers/dataset/dataset.hpp"
 #include "drivers/sim/sim_source.hpp"
@@ -33,16 +34,26 @@ std::string slurp(const std::filesystem::path& p) {
     return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }
 
-// Warps the valid pixels of frame a into frame b with the GT poses and returns the median and
-// the fraction within `tol` of |z_warped - z_b| over pixels that land on valid depth in b.
-std::pair<double, double> gtWarpError(const Frame& a, const Frame& b, const PinholeCamera& cam,
-                                      double tol) {
+struct WarpCheck {
+    double median_abs_m = 1e9;     ///< median |z_warped - z_b|
+    double median_signed_m = 1e9;  ///< median z_warped - z_b (bias)
+    double within = 0.0;           ///< fraction of compared pixels with |residual| <= tol
+    size_t compared = 0;           ///< pixels that landed on valid depth in b
+    size_t source_valid = 0;       ///< valid pixels of a
+};
+
+// The foundation's GT warp check (tests/drivers/dataset_warp_test.cpp): warps the valid pixels of
+// frame a into frame b with the GT poses, T_b_a = T_W_b^-1 T_W_a, and compares z with b's depth
+// at the nearest pixel.
+WarpCheck gtWarpCheck(const Frame& a, const Frame& b, const PinholeCamera& cam, double tol) {
     const Eigen::Isometry3d T_b_a = b.T_W_C_gt->inverse() * *a.T_W_C_gt;
-    std::vector<double> err;
+    std::vector<double> err, signed_err;
+    WarpCheck out;
     for (int v = 0; v < cam.height; ++v) {
         for (int u = 0; u < cam.width; ++u) {
             const float z = a.depth(u, v);
             if (z <= 0.0F) continue;
+            ++out.source_valid;
             const Eigen::Vector3d p_b = T_b_a * cam.unproject(u, v, z);
             if (p_b.z() <= 0.1) continue;
             const Eigen::Vector2d px = cam.project(p_b);
@@ -50,14 +61,18 @@ std::pair<double, double> gtWarpError(const Frame& a, const Frame& b, const Pinh
             const int vb = static_cast<int>(std::lround(px.y()));
             if (!b.depth.inside(ub, vb) || b.depth(ub, vb) <= 0.0F) continue;
             err.push_back(std::abs(p_b.z() - b.depth(ub, vb)));
+            signed_err.push_back(p_b.z() - b.depth(ub, vb));
         }
     }
-    if (err.empty()) return {1e9, 0.0};
+    out.compared = err.size();
+    if (err.empty()) return out;
     std::sort(err.begin(), err.end());
-    const double within =
-        static_cast<double>(std::upper_bound(err.begin(), err.end(), tol) - err.begin()) /
-        err.size();
-    return {err[err.size() / 2], within};
+    std::sort(signed_err.begin(), signed_err.end());
+    out.within = static_cast<double>(std::upper_bound(err.begin(), err.end(), tol) - err.begin()) /
+                 err.size();
+    out.median_abs_m = err[err.size() / 2];
+    out.median_signed_m = signed_err[signed_err.size() / 2];
+    return out;
 }
 
 TEST(SimSource, StreamsDeterministicFramesWithGroundTruth) {
@@ -85,9 +100,9 @@ TEST(SimSource, StreamsDeterministicFramesWithGroundTruth) {
     ASSERT_TRUE(again.isOk());
     EXPECT_TRUE(again->frame.depth == frames[7].depth);
     // Consecutive frames agree under the GT poses (noisy depth: most pixels within 3 cm).
-    const auto [median, within] = gtWarpError(frames[3], frames[4], (*source)->camera(), 0.03);
-    EXPECT_LT(median, 0.01);
-    EXPECT_GT(within, 0.9);
+    const WarpCheck w = gtWarpCheck(frames[3], frames[4], (*source)->camera(), 0.03);
+    EXPECT_LT(w.median_abs_m, 0.01);
+    EXPECT_GT(w.within, 0.9);
 }
 
 TEST(SimSource, OpensThroughTheSourceUri) {
@@ -178,13 +193,19 @@ TEST(SimDataset, ReloadsThroughDatasetDriverAndPassesGtWarpCheck) {
         EXPECT_LT((f->T_W_C_gt->matrix() - sim->frame.T_W_C_gt->matrix()).norm(), 1e-6);
         loaded.push_back(std::move(f).value());
     }
-    // The foundation's GT warp check: pairs (k, k+5), median |residual| at sensor-noise level.
+    // The foundation's GT warp check: pairs (k, k+5), median |residual| at sensor-noise level
+    // (< 2 cm), unbiased (|signed median| < 5 mm), over more than half of the valid pixels.
     for (size_t k = 0; k + 5 < loaded.size(); ++k) {
-        const auto [median, within] = gtWarpError(loaded[k], loaded[k + 5], info->camera, 0.03);
-        EXPECT_LT(median, 0.02) << "frames " << k << "->" << k + 5;
-        EXPECT_GT(within, 0.85) << "frames " << k << "->" << k + 5;
-        std::printf("[sim dataset] warp %zu->%zu: median |dz| %.4f m, %.1f%% within 3 cm\n", k,
-                    k + 5, median, 100.0 * within);
+        const WarpCheck w = gtWarpCheck(loaded[k], loaded[k + 5], info->camera, 0.03);
+        EXPECT_LT(w.median_abs_m, 0.02) << "frames " << k << "->" << k + 5;
+        EXPECT_LT(std::abs(w.median_signed_m), 0.005) << "frames " << k << "->" << k + 5;
+        EXPECT_GT(w.compared, w.source_valid / 2) << "frames " << k << "->" << k + 5;
+        EXPECT_GT(w.within, 0.85) << "frames " << k << "->" << k + 5;
+        std::printf(
+            "[sim dataset] warp %zu->%zu: median |dz| %.4f m (signed %+.4f m), %.1f%% within "
+            "3 cm, %zu of %zu pixels compared\n",
+            k, k + 5, w.median_abs_m, w.median_signed_m, 100.0 * w.within, w.compared,
+            w.source_valid);
     }
     // GT layout and points read back.
     auto layout = io::readLayoutJson(dir / "layout.json");
@@ -194,6 +215,45 @@ TEST(SimDataset, ReloadsThroughDatasetDriverAndPassesGtWarpCheck) {
     auto points = io::readPointCloud(dir / "gt_points.ply");
     ASSERT_TRUE(points.isOk()) << points.status().toString();
     EXPECT_EQ(points->size(), sampleSurfaces((*source)->scene(), 0.1).size());
+}
+
+TEST(SimSource, FollowsATrajectoryFileAndRejectsPosesOutsideTheRoom) {
+    // Write a generated no-loop path as TUM, then render from the file: same poses, same frames.
+    SimConfig generated = smallConfig();
+    generated.trajectory.loop = false;
+    auto reference = SimSource::create(generated);
+    ASSERT_TRUE(reference.isOk());
+    const auto dir = testing::freshTempDir("sim_trajectory_file");
+    ASSERT_TRUE(io::writeTumTrajectory(dir / "path.txt", (*reference)->trajectory()).isOk());
+
+    SimConfig from_file = smallConfig();
+    from_file.trajectory_file = (dir / "path.txt").string();
+    from_file.trajectory.num_frames = 8;  // truncates the file's 12 poses
+    auto source = SimSource::create(from_file);
+    ASSERT_TRUE(source.isOk()) << source.status().toString();
+    ASSERT_EQ((*source)->size(), 8U);
+    for (size_t k = 0; k < 8; ++k) {
+        const auto& a = (*source)->trajectory()[k];
+        const auto& b = (*reference)->trajectory()[k];
+        EXPECT_NEAR(a.timestamp_s, b.timestamp_s, 1e-9);
+        EXPECT_LT((a.T_W_C.matrix() - b.T_W_C.matrix()).norm(), 1e-9) << k;
+    }
+    auto a = (*source)->render(5);
+    auto b = (*reference)->render(5);
+    ASSERT_TRUE(a.isOk() && b.isOk());
+    EXPECT_TRUE(a->view.label == b->view.label);
+    EXPECT_NE((*source)->description().find("path.txt"), std::string::npos);
+
+    // A pose outside the room is an error that names the file and the pose.
+    std::ofstream(dir / "outside.txt") << "0 1 1 1.4 0 0 0 1\n0.033 1 1 9.0 0 0 0 1\n";
+    from_file.trajectory_file = (dir / "outside.txt").string();
+    auto outside = SimSource::create(from_file);
+    ASSERT_FALSE(outside.isOk());
+    EXPECT_NE(outside.status().message().find("pose 1"), std::string::npos)
+        << outside.status().message();
+    EXPECT_NE(outside.status().message().find("outside.txt"), std::string::npos);
+    from_file.trajectory_file = (dir / "missing.txt").string();
+    EXPECT_FALSE(SimSource::create(from_file).isOk());
 }
 
 }  // namespace
