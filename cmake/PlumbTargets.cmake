@@ -21,8 +21,12 @@ function(plumb_add_library name)
     plumb_set_warnings(plumb_${name})
 endfunction()
 
+# Labels added to every test of this build tree (the aarch64 cross build adds "aarch64").
+set(PLUMB_EXTRA_TEST_LABELS "" CACHE STRING "Extra ctest labels for every test of this build")
+
 # plumb_add_test(<name> SOURCES ... LIBS ... LABELS ... [TIMEOUT s])
-# One GoogleTest executable per module; every test case is registered with ctest and labelled.
+# One GoogleTest executable per module; every test case is registered with ctest and labelled
+# (LABELS plus PLUMB_EXTRA_TEST_LABELS).
 function(plumb_add_test name)
     cmake_parse_arguments(ARG "" "TIMEOUT" "SOURCES;LIBS;LABELS" ${ARGN})
     add_executable(${name} ${ARG_SOURCES})
@@ -31,8 +35,9 @@ function(plumb_add_test name)
     if(NOT ARG_TIMEOUT)
         set(ARG_TIMEOUT 600)
     endif()
+    set(labels ${ARG_LABELS} ${PLUMB_EXTRA_TEST_LABELS})
     gtest_discover_tests(${name}
         WORKING_DIRECTORY ${PROJECT_SOURCE_DIR}
-        PROPERTIES LABELS "${ARG_LABELS}" TIMEOUT ${ARG_TIMEOUT}
+        PROPERTIES LABELS "${labels}" TIMEOUT ${ARG_TIMEOUT}
         DISCOVERY_TIMEOUT 60)
 endfunction()

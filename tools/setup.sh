@@ -4,6 +4,12 @@
 # idempotent: when everything is present it only checks (a second or two) and installs nothing.
 set -euo pipefail
 
+# `setup.sh --cross-aarch64`: the aarch64 cross compiler, qemu and the arm64 device libraries
+# (`make cross-device`, see tools/setup_aarch64.sh). Not needed for `make test` or `make demo`.
+if [ "${1:-}" = "--cross-aarch64" ]; then
+    exec bash "$(dirname "$0")/setup_aarch64.sh"
+fi
+
 packages=(
     # toolchain
     build-essential cmake ninja-build pkg-config git clang clang-format clang-tidy
