@@ -161,8 +161,8 @@ int main(int argc, char** argv) {
         r.total_fps = frames / t_total;
         r.total_cpu_ms = 1000.0 * cpu_total / frames;
         r.valid_fraction = static_cast<double>(valid) / (frames * 640.0 * 480.0);
-        std::printf("%-16s %12.1f %12.1f %12.1f %7.1f%%\n", name.c_str(), r.render_fps, r.noise_fps,
-                    r.total_fps, 100.0 * r.valid_fraction);
+        std::printf("%-16s %12.1f %12.1f %12.1f %14.1f %7.1f%%\n", name.c_str(), r.render_fps,
+                    r.noise_fps, r.total_fps, r.total_cpu_ms, 100.0 * r.valid_fraction);
         results.push_back(r);
     }
     double min_total = 1e30, max_cpu_ms = 0.0;
