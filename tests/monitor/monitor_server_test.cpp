@@ -3,7 +3,6 @@
 // events.
 
 #include <gtest/gtest.h>
-#include <httplib.h>
 
 #include <atomic>
 #include <chrono>
@@ -14,6 +13,9 @@
 #include "tests/monitor/monitor_fixtures.hpp"
 #include "tools/monitor/server.hpp"
 #include "tools/monitor/web_assets.hpp"
+
+// After Eigen: httplib pulls in <resolv.h>, whose _res macro breaks Eigen's headers.
+#include <httplib.h>
 
 namespace plumb::monitor {
 namespace {

@@ -102,7 +102,12 @@ class MonitorState {
     /// Wakes every waitForChange (used when shutting down).
     void notifyAll() const;
 
-    /// The whole state as JSON (see docs in tools/monitor/README.md), and its version.
+    /// The whole state as JSON, "format": "plumb-monitor-state-1", and its version. Keys: source,
+    /// view (frame, T_V_W), fragments[] (id, session, segment, end, frames [first, last],
+    /// num_points, pose = current T_W_F, pose_source, position_V, outline_V, ack, ...), edges[]
+    /// (source, target, kind, line_process, kept, reason, overlap, inlier_rmse_m, provisional),
+    /// layout (layout.json content + room_polygon_V, walls_V; null), device (heartbeat; null),
+    /// link (reassembly counters; null), trajectory_V, coverage (grid, fraction, gaps), errors.
     nlohmann::json toJson(uint64_t* version = nullptr) const;
     /// toJson() serialised compactly (one line), cached per version.
     std::string toJsonText(uint64_t* version = nullptr) const;

@@ -4,6 +4,7 @@
 #include <arpa/inet.h>
 #include <fmt/format.h>
 #include <httplib.h>
+#include <sys/socket.h>
 
 #include <atomic>
 #include <chrono>
@@ -173,6 +174,12 @@ Result<std::unique_ptr<MonitorServer>> MonitorServer::start(const ServerConfig& 
     impl->config = config;
     impl->state = &state;
     impl->install();
+    // httplib's default also sets SO_REUSEPORT, which lets a second server bind the same port
+    // and silently share its connections; a busy port must be an error instead.
+    impl->server.set_socket_options([](int sock) {
+        int yes = 1;
+        setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof(yes));
+    });
     if (config.port == 0) {
         impl->port = impl->server.bind_to_any_port(config.bind);
         if (impl->port <= 0) {
