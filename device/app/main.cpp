@@ -1,0 +1,197 @@
+// SPDX-License-Identifier: Apache-2.0
+// plumb-device: capture -> tracking/fusion -> fragments over LCM (device/stream/device_runner.hpp).
+
+#include <csignal>
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+#include <vector>
+
+#include "common/config/config.hpp"
+#include "common/core/logging.hpp"
+#include "device/stream/device_runner.hpp"
+#include "drivers/device_list.hpp"
+#include "drivers/source.hpp"
+#include "messages/lcm_link.hpp"
+
+namespace {
+
+constexpr const char* kUsage =
+    "usage: plumb-device --source URI [options]\n"
+    "\n"
+    "Captures depth frames, tracks and fuses them into fragments and sends every fragment to\n"
+    "plumb-backend over LCM until it is acknowledged. Exits 0 when the source ended and every\n"
+    "fragment was acknowledged; 1 when fragments remain unacknowledged (they stay in the spool\n"
+    "directory and are sent first by the next run); 2 for a bad command line.\n"
+    "\n"
+    "  --source URI         sim:<scene> | dataset:<dir> | any source drivers/source.hpp opens\n"
+    "  --list-devices       print the depth cameras found (OpenNI2, V4L2, USB) and exit\n"
+    "  --config FILE        device configuration (TOML; `plumb config doc device`)\n"
+    "  --set KEY=VALUE      override one configuration key (repeatable)\n"
+    "  --frames N           stop the source after N frames (default: all)\n"
+    "  --intrinsics X       camera preset or intrinsics file (sets capture.intrinsics)\n"
+    "  --realtime           pace recorded sources like a live sensor (capture.realtime)\n"
+    "  --lcm-url URL        LCM URL (default udpm://239.255.76.67:7667?ttl=0, stays on host)\n"
+    "  --allow-remote       allow an LCM URL that can leave this machine\n"
+    "  --key-file FILE      shared key (hex) for HMAC-SHA256 authentication of every message\n"
+    "  --key-id N           identifier of the key (default 1)\n"
+    "  --spool-dir DIR      keep unacknowledged fragments here across runs (default: memory)\n"
+    "  --dump-dir DIR       also write every encoded fragment here as sent\n"
+    "  --session-id N       session id (default: start time in microseconds)\n"
+    "  --log-level L        trace|debug|info|warn|error (default info)\n";
+
+std::atomic<int> g_stop_requests{0};
+
+extern "C" void onSignal(int) { g_stop_requests.fetch_add(1); }
+
+int usageError(const std::string& message) {
+    std::fprintf(stderr, "plumb-device: %s\n\n%s", message.c_str(), kUsage);
+    return 2;
+}
+
+bool parseInt64(const std::string& text, int64_t* out) {
+    if (text.empty()) return false;
+    char* end = nullptr;
+    const long long v = std::strtoll(text.c_str(), &end, 10);
+    if (*end != '\0') return false;
+    *out = v;
+    return true;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    using namespace plumb;
+    std::vector<std::string> args(argv + 1, argv + argc);
+    auto config_args = config::extractConfigArgs(args);
+    if (!config_args.isOk()) return usageError(config_args.status().message());
+
+    std::string source_uri, spool_dir, dump_dir, intrinsics;
+    messages::LinkOptions link_options;
+    int64_t frames = 0, session_id = 0, key_id = 1;
+    bool realtime = false;
+    log::Level level = log::Level::kInfo;
+    for (size_t i = 0; i < args.size(); ++i) {
+        const std::string& a = args[i];
+        auto value = [&](std::string* v) {
+            if (i + 1 >= args.size()) return false;
+            *v = args[++i];
+            return true;
+        };
+        std::string v;
+        if (a == "--help" || a == "-h") {
+            std::fputs(kUsage, stdout);
+            return 0;
+        } else if (a == "--list-devices") {
+            std::fputs(formatDeviceList(listDepthDevices()).c_str(), stdout);
+            return 0;
+        } else if (a == "--source") {
+            if (!value(&source_uri)) return usageError("--source needs a value");
+        } else if (a == "--frames") {
+            if (!value(&v) || !parseInt64(v, &frames) || frames < 0)
+                return usageError("--frames needs a count >= 0");
+        } else if (a == "--intrinsics") {
+            if (!value(&intrinsics)) return usageError("--intrinsics needs a value");
+        } else if (a == "--realtime") {
+            realtime = true;
+        } else if (a == "--lcm-url") {
+            if (!value(&link_options.url)) return usageError("--lcm-url needs a value");
+        } else if (a == "--allow-remote") {
+            link_options.allow_remote = true;
+        } else if (a == "--key-file") {
+            if (!value(&v)) return usageError("--key-file needs a value");
+            link_options.key_file = v;
+        } else if (a == "--key-id") {
+            if (!value(&v) || !parseInt64(v, &key_id) || key_id < 0 || key_id > INT32_MAX)
+                return usageError("--key-id needs a non-negative 32-bit integer");
+            link_options.key_id = static_cast<int32_t>(key_id);
+        } else if (a == "--spool-dir") {
+            if (!value(&spool_dir)) return usageError("--spool-dir needs a value");
+        } else if (a == "--dump-dir") {
+            if (!value(&dump_dir)) return usageError("--dump-dir needs a value");
+        } else if (a == "--session-id") {
+            if (!value(&v) || !parseInt64(v, &session_id) || session_id <= 0)
+                return usageError("--session-id needs a positive integer");
+        } else if (a == "--log-level") {
+            if (!value(&v) || !log::parseLevel(v, &level))
+                return usageError("--log-level needs trace|debug|info|warn|error|off");
+        } else {
+            return usageError("unknown argument '" + a + "'");
+        }
+    }
+    if (source_uri.empty()) return usageError("--source is required");
+    log::setupLogging("plumb-device", level);
+
+    device::DeviceRunOptions options;
+    if (Status s = config::load(*config_args, options.config); !s.isOk()) {
+        std::fprintf(stderr, "plumb-device: %s\n", s.toString().c_str());
+        return 2;
+    }
+    if (!intrinsics.empty()) options.config.capture.intrinsics = intrinsics;
+    if (realtime) options.config.capture.realtime = true;
+    options.config_toml = config::toToml(options.config, "plumb-device configuration (effective)");
+    options.spool_dir = spool_dir;
+    options.dump_dir = dump_dir;
+    options.session_id = session_id > 0 ? session_id
+                                        : std::chrono::duration_cast<std::chrono::microseconds>(
+                                              std::chrono::system_clock::now().time_since_epoch())
+                                              .count();
+
+    SourceOptions source_options;
+    source_options.intrinsics = options.config.capture.intrinsics;
+    source_options.max_frames = static_cast<size_t>(frames);
+    source_options.seed = options.config.capture.seed;
+    auto source = openFrameSource(source_uri, source_options);
+    if (!source.isOk()) {
+        log::error("cannot open source '{}': {}", source_uri, source.status().toString());
+        return 1;
+    }
+    auto link = messages::LcmLink::open(link_options);
+    if (!link.isOk()) {
+        log::error("{}", link.status().toString());
+        return 1;
+    }
+    log::info("source {}; LCM {}{}; session {}", (*source)->description(), (*link)->url(),
+              (*link)->authenticated() ? " (authenticated)" : "", options.session_id);
+
+    struct sigaction sa {};
+    sa.sa_handler = onSignal;
+    sigemptyset(&sa.sa_mask);
+    sigaction(SIGINT, &sa, nullptr);
+    sigaction(SIGTERM, &sa, nullptr);
+
+    messages::LcmLink& l = **link;
+    device::DeviceLink device_link{&l.transport(), [&l](int ms) { return l.pump(ms); }};
+    auto report = device::runDevice(**source, options, device_link, g_stop_requests);
+    if (!report.isOk()) {
+        log::error("{}", report.status().toString());
+        return 1;
+    }
+    const device::DeviceRunReport& r = *report;
+    log::info("frames: {} captured, {} processed, {} dropped; fragments: {} cut, {} acknowledged",
+              r.frames_captured, r.frames_processed, r.frames_dropped, r.fragments_cut,
+              r.fragments_acked);
+    if (l.authenticated() && l.authStats().rejected() > 0) {
+        log::warn("rejected {} unauthenticated message(s)", l.authStats().rejected());
+    }
+    int code = 0;
+    if (r.source_error) {
+        log::error("the source failed: {}", r.source_message);
+        code = 1;
+    }
+    if (!r.unacknowledged.empty()) {
+        if (spool_dir.empty()) {
+            log::error(
+                "{} fragment(s) were not acknowledged by a backend and are lost with this "
+                "process (run with --spool-dir to keep them)",
+                r.unacknowledged.size());
+        } else {
+            log::error(
+                "{} fragment(s) were not acknowledged by a backend; they stay in {} and "
+                "are sent first by the next run",
+                r.unacknowledged.size(), spool_dir);
+        }
+        code = 1;
+    }
+    return code;
+}

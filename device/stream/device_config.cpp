@@ -1,0 +1,75 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "device/stream/device_config.hpp"
+
+#include "common/config/schema.hpp"
+
+namespace plumb::device {
+
+void describe(config::Schema& s, CaptureConfig& c) {
+    s.field("queue_frames", c.queue_frames,
+            "frames waiting between capture and fusion (a full queue drops frames on live "
+            "sensors)",
+            "frames")
+        .range(1, 1024);
+    s.field("realtime", c.realtime,
+            "pace recorded/simulated sources at their timestamps and drop frames fusion cannot "
+            "keep up with");
+    s.field("intrinsics", c.intrinsics,
+            "intrinsics preset or file for the source (empty: default)");
+    s.field("seed", c.seed, "seed of sources with randomness (simulator)");
+}
+
+void describe(config::Schema& s, FusionOptions& c) {
+    s.field("frames_per_fragment", c.frames_per_fragment, "frames fused into one fragment",
+            "frames")
+        .min(1);
+    s.field("voxel_size_m", c.voxel_size_m, "TSDF voxel edge length", "m").positive().max(1.0);
+    s.field("truncation_m", c.truncation_m, "TSDF truncation distance", "m").positive().max(1.0);
+    s.field("max_depth_m", c.max_depth_m, "depth beyond this is ignored", "m").positive();
+}
+
+void describe(config::Schema& s, StreamConfig& c) {
+    s.field("chunk_payload_bytes", c.chunk_payload_bytes, "payload bytes per fragment chunk",
+            "bytes")
+        .range(256, 65000);
+    s.field("retransmit_timeout_s", c.retransmit_timeout_s,
+            "first re-announcement of an unacknowledged fragment", "s")
+        .positive();
+    s.field("max_retransmit_timeout_s", c.max_retransmit_timeout_s,
+            "longest interval between re-announcements (back-off)", "s")
+        .positive();
+    s.field("max_in_flight", c.max_in_flight, "fragments on the wire at once", "fragments")
+        .range(1, 1024);
+    s.field("spool_memory_bytes", c.spool_memory_bytes,
+            "unacknowledged fragments kept in memory before going to disk", "bytes")
+        .min(0);
+    s.field("spool_disk_bytes", c.spool_disk_bytes, "bytes allowed in the disk spool", "bytes")
+        .min(0);
+    s.field("status_period_s", c.status_period_s, "interval of the status heartbeat", "s")
+        .positive();
+    s.field("config_period_s", c.config_period_s,
+            "interval at which camera info and the configuration are repeated", "s")
+        .positive();
+    s.field("ack_wait_s", c.ack_wait_s,
+            "at the end of a finite source, wait this long for the last acknowledgements", "s")
+        .min(0);
+    s.field("include_colors", c.include_colors, "keep per-point colours in encoded fragments");
+}
+
+void describe(config::Schema& s, DeviceConfig& c) {
+    s.section("capture", c.capture, "frame capture");
+    s.section("fusion", c.fusion, "tracking and fusion into fragments");
+    s.section("stream", c.stream, "fragment transfer over LCM");
+}
+
+FusionConfig toFusionConfig(const FusionOptions& options) {
+    FusionConfig c;
+    c.frames_per_fragment = options.frames_per_fragment;
+    c.tsdf.voxel_size_m = static_cast<float>(options.voxel_size_m);
+    c.tsdf.truncation_m = static_cast<float>(options.truncation_m);
+    c.tsdf.max_depth_m = static_cast<float>(options.max_depth_m);
+    c.preprocess.max_depth_m = static_cast<float>(options.max_depth_m);
+    return c;
+}
+
+}  // namespace plumb::device

@@ -1,0 +1,83 @@
+// SPDX-License-Identifier: Apache-2.0
+#pragma once
+
+// The configuration of plumb-device (`--config device.toml`, `--set key=value`): capture, the
+// fusion parameters a deployment tunes, and the fragment stream (chunking, retransmission,
+// spool, heartbeat). The device publishes the effective configuration on PLUMB_CONFIG so LCM logs
+// carry it.
+
+#include <cstdint>
+#include <string>
+
+#include "device/fusion/fragment_builder.hpp"
+
+namespace plumb::config {
+class Schema;
+}
+
+namespace plumb::device {
+
+struct CaptureConfig {
+    /// Frames waiting between capture and fusion. Capture never blocks on a live sensor: a frame
+    /// that finds the queue full is dropped and counted.
+    int queue_frames = 4;
+    /// Pace recorded and simulated sources at their frame timestamps like a live sensor (frames
+    /// fusion cannot keep up with are then dropped). false: recorded sources wait for fusion and
+    /// lose nothing. Live sensors always drop.
+    bool realtime = false;
+    /// Intrinsics preset or file for the source (see `plumb sim --intrinsics`); empty = default.
+    std::string intrinsics;
+    /// Seed of sources with randomness (the simulator).
+    uint64_t seed = 1;
+};
+
+/// The fusion parameters exposed to users (the rest keep FusionConfig's defaults).
+struct FusionOptions {
+    /// Frames per fragment (paper: 50).
+    int frames_per_fragment = 50;
+    /// TSDF voxel edge length, metres.
+    double voxel_size_m = 3.0 / 512.0;
+    /// TSDF truncation distance, metres.
+    double truncation_m = 0.04;
+    /// Depth beyond this is ignored, metres.
+    double max_depth_m = 4.0;
+};
+
+struct StreamConfig {
+    /// Payload bytes per chunk (every LCM message stays below 64 KiB).
+    int chunk_payload_bytes = 60000;
+    /// First re-announcement of an unacknowledged fragment, seconds.
+    double retransmit_timeout_s = 0.5;
+    /// Longest interval between re-announcements (exponential back-off), seconds.
+    double max_retransmit_timeout_s = 4.0;
+    /// Fragments on the wire at once; the rest wait in the spool.
+    int max_in_flight = 8;
+    /// Encoded fragments kept in memory until acknowledged, bytes; beyond it they go to disk.
+    int64_t spool_memory_bytes = int64_t{64} << 20;
+    /// Bytes allowed in the disk spool; when full, fusion waits (and capture drops frames).
+    int64_t spool_disk_bytes = int64_t{4} << 30;
+    /// Interval of the device_status_t heartbeat, seconds.
+    double status_period_s = 1.0;
+    /// Interval at which camera info and the configuration snapshot are repeated, seconds.
+    double config_period_s = 5.0;
+    /// At the end of a finite source, how long to wait for the last acknowledgements, seconds.
+    double ack_wait_s = 30.0;
+    /// Keep per-point colours in encoded fragments when the cloud has them.
+    bool include_colors = true;
+};
+
+struct DeviceConfig {
+    CaptureConfig capture;
+    FusionOptions fusion;
+    StreamConfig stream;
+};
+
+void describe(config::Schema& s, CaptureConfig& c);
+void describe(config::Schema& s, FusionOptions& c);
+void describe(config::Schema& s, StreamConfig& c);
+void describe(config::Schema& s, DeviceConfig& c);
+
+/// FusionConfig defaults with the user-facing options applied.
+FusionConfig toFusionConfig(const FusionOptions& options);
+
+}  // namespace plumb::device

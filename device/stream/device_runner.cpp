@@ -1,0 +1,332 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "device/stream/device_runner.hpp"
+
+#include <fmt/format.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <deque>
+#include <fstream>
+#include <mutex>
+#include <thread>
+
+#include "common/core/logging.hpp"
+#include "device/stream/bounded_queue.hpp"
+#include "device/stream/fragment_publisher.hpp"
+#include "messages/channels.hpp"
+#include "messages/conversions.hpp"
+#include "messages/files.hpp"
+#include "messages/fragment_codec.hpp"
+#include "messages/wire.hpp"
+
+namespace plumb::device {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double wallSeconds() {
+    return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch())
+        .count();
+}
+
+struct EncodedFragment {
+    uint32_t id = 0;
+    std::vector<uint8_t> bytes;
+};
+
+// Counters shared by the threads.
+struct Shared {
+    std::atomic<int64_t> captured{0};
+    std::atomic<int64_t> processed{0};
+    std::atomic<int64_t> dropped{0};
+    std::atomic<int64_t> cut{0};
+    std::atomic<int> tracking{static_cast<int>(messages::TrackingState::kInitializing)};
+    std::atomic<bool> fusion_done{false};
+    std::atomic<bool> camera_gone{false};  ///< the source reports kUnavailable (unplugged)
+    std::mutex error_mutex;
+    std::string source_error;
+    std::string fusion_error;
+};
+
+void captureLoop(FrameSource& source, const CaptureConfig& config, BoundedQueue<Frame>& frames,
+                 Shared& shared, const std::atomic<int>& stop) {
+    const bool live = !source.size().has_value();
+    const bool drop_when_full = live || config.realtime;
+    const auto start = Clock::now();
+    std::optional<double> first_timestamp;
+    while (stop.load() == 0) {
+        auto frame = source.next();
+        if (!frame.isOk()) {
+            if (frame.status().code() == StatusCode::kOutOfRange) break;
+            if (frame.status().code() == StatusCode::kUnavailable) {
+                // The camera vanished (drivers reconnect on later next() calls): close the open
+                // fragment once per outage; an empty frame tells the fusion thread to do so.
+                if (!shared.camera_gone.exchange(true)) {
+                    log::warn("capture: {}; closing the open fragment until it returns",
+                              frame.status().message());
+                    (void)frames.push(Frame{});
+                }
+                continue;
+            }
+            if (source.canSkipErrors()) {
+                log::warn("capture: skipping a frame: {}", frame.status().toString());
+                continue;
+            }
+            std::lock_guard<std::mutex> lock(shared.error_mutex);
+            shared.source_error = frame.status().toString();
+            break;
+        }
+        if (shared.camera_gone.exchange(false)) log::info("capture: the camera is back");
+        ++shared.captured;
+        if (config.realtime && !live) {
+            // Emulate a sensor: frame k is available at its timestamp after the first one.
+            if (!first_timestamp) first_timestamp = frame->timestamp_s;
+            const double offset = std::max(0.0, frame->timestamp_s - *first_timestamp);
+            std::this_thread::sleep_until(start + std::chrono::duration_cast<Clock::duration>(
+                                                      std::chrono::duration<double>(offset)));
+        }
+        if (drop_when_full) {
+            Frame f = std::move(frame).value();
+            if (!frames.tryPush(f)) ++shared.dropped;
+        } else if (!frames.push(std::move(frame).value())) {
+            break;
+        }
+    }
+    frames.close();
+}
+
+void fusionLoop(const PinholeCamera& camera, const DeviceConfig& config,
+                BoundedQueue<Frame>& frames, BoundedQueue<EncodedFragment>& out, Shared& shared) {
+    FragmentBuilder builder(camera, toFusionConfig(config.fusion));
+    messages::FragmentCodecConfig codec;
+    codec.include_colors = config.stream.include_colors;
+    auto emit = [&](const Fragment& fragment) {
+        auto bytes = messages::encodeFragment(fragment, codec);
+        if (!bytes.isOk()) {
+            // A fragment the codec refuses (e.g. NaN points) is a fusion bug; say so loudly.
+            log::error("fusion: fragment {} cannot be encoded: {}", fragment.id,
+                       bytes.status().toString());
+            std::lock_guard<std::mutex> lock(shared.error_mutex);
+            shared.fusion_error = bytes.status().toString();
+            return;
+        }
+        ++shared.cut;
+        (void)out.push(EncodedFragment{fragment.id, std::move(bytes).value()});
+    };
+    while (true) {
+        auto frame = frames.pop(std::chrono::milliseconds(50));
+        if (!frame) {
+            if (frames.drained()) break;
+            continue;
+        }
+        if (frame->depth.empty()) {  // capture's marker: the camera vanished
+            if (auto closed = builder.finish()) emit(*closed);
+            shared.tracking = static_cast<int>(messages::TrackingState::kLost);
+            continue;
+        }
+        auto report = builder.process(*frame);
+        ++shared.processed;
+        if (!report.isOk()) {
+            log::warn("fusion: frame {}: {}", frame->index, report.status().toString());
+            continue;
+        }
+        shared.tracking = static_cast<int>(report->tracked ? messages::TrackingState::kOk
+                                                           : messages::TrackingState::kLost);
+        if (!report->message.empty())
+            log::debug("fusion: frame {}: {}", frame->index, report->message);
+        for (const Fragment& f : report->closed) emit(f);
+    }
+    if (auto last = builder.finish()) emit(*last);
+    shared.fusion_done = true;
+    out.close();
+}
+
+}  // namespace
+
+int64_t residentMemoryBytes() {
+    std::ifstream statm("/proc/self/statm");
+    int64_t size = 0, resident = 0;
+    if (!(statm >> size >> resident)) return 0;
+    return resident * static_cast<int64_t>(sysconf(_SC_PAGESIZE));
+}
+
+Result<DeviceRunReport> runDevice(FrameSource& source, const DeviceRunOptions& options,
+                                  DeviceLink link, const std::atomic<int>& stop_requests) {
+    if (link.transport == nullptr || !link.pump) return invalidArgument("device: no transport");
+    PLUMB_RETURN_IF_ERROR(toFusionConfig(options.config.fusion).validate());
+    const StreamConfig& sc = options.config.stream;
+    messages::Transport& transport = *link.transport;
+
+    PublisherConfig pc;
+    pc.session_id = options.session_id;
+    pc.sender.chunk_payload_bytes = sc.chunk_payload_bytes;
+    pc.sender.retransmit_timeout_s = sc.retransmit_timeout_s;
+    pc.sender.max_retransmit_timeout_s = sc.max_retransmit_timeout_s;
+    pc.max_in_flight = sc.max_in_flight;
+    pc.spool.memory_budget_bytes = sc.spool_memory_bytes;
+    pc.spool.disk_budget_bytes = sc.spool_disk_bytes;
+    pc.spool.disk_dir = options.spool_dir;
+    auto created = FragmentPublisher::create(pc, transport);
+    if (!created.isOk()) return created.status();
+    std::unique_ptr<FragmentPublisher> publisher = std::move(created).value();
+    if (publisher->unacknowledged() > 0) {
+        log::info("device: {} unacknowledged fragment(s) of earlier runs found in {}; resending",
+                  publisher->unacknowledged(), options.spool_dir.string());
+    }
+    if (!options.dump_dir.empty()) {
+        std::error_code ec;
+        std::filesystem::create_directories(options.dump_dir, ec);
+        if (ec) {
+            return ioError(fmt::format("device: cannot create dump dir {}: {}",
+                                       options.dump_dir.string(), ec.message()));
+        }
+    }
+
+    for (const char* channel : {messages::kChannelFragmentAck, messages::kChannelRetransmit}) {
+        PLUMB_RETURN_IF_ERROR(transport.subscribe(
+            channel, [&](const std::string& ch, std::span<const uint8_t> bytes) {
+                publisher->onMessage(ch, bytes, wallSeconds());
+            }));
+    }
+
+    int64_t seq = 0;
+    auto publish = [&](const char* channel, const messages::Bytes& bytes) {
+        const Status s = transport.publish(channel, bytes);
+        if (!s.isOk()) log::warn("device: {}", s.toString());
+    };
+    messages::CameraInfo info;
+    info.camera = source.camera();
+    info.depth_scale = 1000.0;
+    info.source = source.description();
+    auto publishConfig = [&](double now) {
+        const int64_t utime = messages::toUtime(now);
+        publish(messages::kChannelCameraInfo,
+                messages::encodeMessage(messages::toMessage(info, utime, ++seq)));
+        publish(messages::kChannelConfig,
+                messages::encodeMessage(messages::toMessage("plumb-device", options.version,
+                                                            options.config_toml, utime, ++seq)));
+    };
+
+    Shared shared;
+    BoundedQueue<Frame> frames(static_cast<size_t>(options.config.capture.queue_frames));
+    BoundedQueue<EncodedFragment> fragments(4);
+    std::atomic<int> capture_stop{0};
+    std::thread capture(
+        [&] { captureLoop(source, options.config.capture, frames, shared, capture_stop); });
+    std::thread fusion(
+        [&] { fusionLoop(source.camera(), options.config, frames, fragments, shared); });
+
+    DeviceRunReport report;
+    std::deque<EncodedFragment> pending;  // cut, not yet in the spool (spool full)
+    int64_t last_processed = 0;
+    double last_status = -1e300, last_config = -1e300, last_fps_time = wallSeconds();
+    double fps = 0.0;
+    double wait_start = -1.0;
+    bool stop_seen = false;
+    Status failure;
+    auto publishStatus = [&](double now, bool stopped) {
+        const int64_t processed = shared.processed.load();
+        if (now > last_fps_time) fps = (processed - last_processed) / (now - last_fps_time);
+        last_processed = processed;
+        last_fps_time = now;
+        messages::DeviceStatus st;
+        st.session_id = options.session_id;
+        st.fps = fps;
+        st.tracking = stopped ? messages::TrackingState::kStopped
+                              : static_cast<messages::TrackingState>(shared.tracking.load());
+        st.frames_processed = processed;
+        st.frames_dropped = shared.dropped.load();
+        st.fragments_cut = static_cast<int32_t>(shared.cut.load());
+        st.fragments_acked = static_cast<int32_t>(publisher->stats().fragments_acked);
+        st.spool_fragments = static_cast<int32_t>(publisher->unacknowledged() + pending.size());
+        st.spool_bytes = publisher->spoolBytes();
+        st.memory_bytes = residentMemoryBytes();
+        publish(messages::kChannelStatus,
+                messages::encodeMessage(messages::toMessage(st, messages::toUtime(now), ++seq)));
+        last_status = now;
+    };
+
+    while (true) {
+        const Status pumped = link.pump(10);
+        if (!pumped.isOk()) {
+            failure = pumped;
+            break;
+        }
+        const double now = wallSeconds();
+        if (stop_requests.load() > 0 && !stop_seen) {
+            stop_seen = true;
+            report.stopped_by_signal = true;
+            log::info("device: stop requested; closing the open fragment and flushing");
+            capture_stop = 1;
+        }
+        while (auto f = fragments.tryPop()) {
+            if (!options.dump_dir.empty()) {
+                const auto path =
+                    options.dump_dir / messages::fragmentFileName(options.session_id, f->id);
+                const Status s = messages::writeFileAtomic(path, f->bytes);
+                if (!s.isOk()) log::warn("device: dump: {}", s.toString());
+            }
+            pending.push_back(std::move(*f));
+        }
+        while (!pending.empty()) {
+            const Status s = publisher->submit(pending.front().id, pending.front().bytes, now);
+            if (s.code() == StatusCode::kIoError) break;  // spool full: retry later
+            if (!s.isOk()) log::error("device: fragment {}: {}", pending.front().id, s.toString());
+            pending.pop_front();
+        }
+        publisher->poll(now);
+        const bool fusion_done = shared.fusion_done.load() && fragments.drained();
+        if (now - last_config >= sc.config_period_s) {
+            publishConfig(now);
+            last_config = now;
+        }
+        if (now - last_status >= sc.status_period_s) publishStatus(now, fusion_done);
+        if (fusion_done && pending.empty()) {
+            if (wait_start < 0) {
+                wait_start = now;
+                publishStatus(now, true);  // end of scan: the final fragment count
+                log::info(
+                    "device: capture finished ({} frames, {} dropped, {} fragments); "
+                    "waiting up to {} s for {} acknowledgement(s)",
+                    shared.processed.load(), shared.dropped.load(), shared.cut.load(),
+                    sc.ack_wait_s, publisher->unacknowledged());
+            }
+            if (publisher->unacknowledged() == 0) break;
+            if (now - wait_start >= sc.ack_wait_s) break;
+            if (stop_requests.load() > 1) break;
+        }
+    }
+    capture_stop = 1;
+    frames.close();
+    capture.join();
+    fusion.join();
+    // Anything fusion emitted after the loop ended still goes to the spool.
+    while (auto f = fragments.tryPop()) pending.push_back(std::move(*f));
+    for (auto& f : pending) (void)publisher->submit(f.id, std::move(f.bytes), wallSeconds());
+    if (!failure.isOk()) return failure;
+
+    report.frames_captured = shared.captured.load();
+    report.frames_processed = shared.processed.load();
+    report.frames_dropped = shared.dropped.load();
+    report.fragments_cut = shared.cut.load();
+    report.fragments_acked = static_cast<int64_t>(publisher->stats().fragments_acked);
+    report.unacknowledged = publisher->unacknowledgedKeys();
+    {
+        std::lock_guard<std::mutex> lock(shared.error_mutex);
+        report.source_error = !shared.source_error.empty();
+        report.source_message = shared.source_error;
+        if (!shared.fusion_error.empty()) {
+            report.source_error = true;
+            report.source_message = "fusion: " + shared.fusion_error;
+        }
+    }
+    if (!report.unacknowledged.empty()) {
+        auto written = publisher->persistToDisk();
+        if (!written.isOk()) return written.status();
+        report.written_to_spool_dir = *written;
+    }
+    return report;
+}
+
+}  // namespace plumb::device

@@ -1,0 +1,75 @@
+// SPDX-License-Identifier: Apache-2.0
+#pragma once
+
+// The plumb-device pipeline with its threads: capture -> (bounded frame queue) -> tracking and
+// fusion (device/fusion/fragment_builder.hpp) -> (bounded fragment queue) -> the network thread
+// (the caller's), which spools, chunks, sends and retransmits fragments
+// (device/stream/fragment_publisher.hpp), publishes the status heartbeat, camera info and the
+// configuration snapshot, and dispatches acknowledgements. LCM is used from the network thread
+// only.
+//
+// Capture never blocks on a live sensor (or with capture.realtime): when fusion lags, frames are
+// dropped, counted and reported in the heartbeat. At the end of the source, or on a stop request
+// (SIGINT/SIGTERM), the open fragment is closed and sent, a final heartbeat says
+// TRACKING_STOPPED with the final fragment count (the backend's end-of-scan signal), and the
+// device waits up to stream.ack_wait_s for the remaining acknowledgements. A second stop request
+// ends the wait at once. Unacknowledged fragments are left in the spool directory.
+
+#include <atomic>
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "device/stream/device_config.hpp"
+#include "drivers/frame_source.hpp"
+#include "messages/spool.hpp"
+#include "messages/transport.hpp"
+
+namespace plumb::device {
+
+struct DeviceRunOptions {
+    DeviceConfig config;
+    /// The effective configuration as TOML (published on PLUMB_CONFIG).
+    std::string config_toml;
+    /// Program version for the configuration snapshot.
+    std::string version = "0";
+    /// Identifies this run; fragment ids restart per session.
+    int64_t session_id = 0;
+    /// Disk spool of unacknowledged fragments (kept across runs); empty = memory only.
+    std::filesystem::path spool_dir;
+    /// When set, every encoded fragment is also written here as sent (the device's own record).
+    std::filesystem::path dump_dir;
+};
+
+/// The network seam: where to publish and subscribe, and how to dispatch received messages.
+struct DeviceLink {
+    messages::Transport* transport = nullptr;
+    /// Dispatches received messages for up to `timeout_ms`; errors end the run.
+    std::function<Status(int timeout_ms)> pump;
+};
+
+struct DeviceRunReport {
+    int64_t frames_captured = 0;
+    int64_t frames_processed = 0;
+    int64_t frames_dropped = 0;
+    int64_t fragments_cut = 0;
+    int64_t fragments_acked = 0;
+    bool stopped_by_signal = false;
+    bool source_error = false;   ///< the source failed (not a normal end)
+    std::string source_message;  ///< its error
+    /// Fragments still unacknowledged at exit (left in the spool directory when there is one).
+    std::vector<messages::SpoolKey> unacknowledged;
+    size_t written_to_spool_dir = 0;  ///< of these, written to disk at exit
+};
+
+/// Runs the pipeline until the source ends or `stop_requests` becomes non-zero, then flushes.
+/// Errors: unusable configuration, spool or transport failures.
+Result<DeviceRunReport> runDevice(FrameSource& source, const DeviceRunOptions& options,
+                                  DeviceLink link, const std::atomic<int>& stop_requests);
+
+/// Resident memory of this process in bytes (0 when unknown).
+int64_t residentMemoryBytes();
+
+}  // namespace plumb::device

@@ -1,0 +1,90 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "messages/lcm_link.hpp"
+
+#include <fmt/format.h>
+
+#include <chrono>
+#include <random>
+
+#include "messages/files.hpp"
+
+namespace plumb::messages {
+
+Result<std::vector<uint8_t>> readKeyFile(const std::filesystem::path& path) {
+    auto bytes = readFile(path, 1 << 16);
+    if (!bytes.isOk()) return bytes.status();
+    std::vector<uint8_t> key;
+    int high = -1;
+    for (uint8_t c : *bytes) {
+        if (c == ' ' || c == '\n' || c == '\r' || c == '\t') continue;
+        const int d = c >= '0' && c <= '9'   ? c - '0'
+                      : c >= 'a' && c <= 'f' ? c - 'a' + 10
+                      : c >= 'A' && c <= 'F' ? c - 'A' + 10
+                                             : -1;
+        if (d < 0) {
+            return invalidArgument(fmt::format(
+                "key file {}: expected hexadecimal text, found byte 0x{:02x}", path.string(), c));
+        }
+        if (high < 0) {
+            high = d;
+        } else {
+            key.push_back(static_cast<uint8_t>(high * 16 + d));
+            high = -1;
+        }
+    }
+    if (high >= 0) {
+        return invalidArgument(fmt::format("key file {}: odd number of hex digits", path.string()));
+    }
+    if (key.size() < 16) {
+        return invalidArgument(fmt::format(
+            "key file {}: {} bytes, need at least 16 (32 hex digits)", path.string(), key.size()));
+    }
+    return key;
+}
+
+int64_t randomSenderId() {
+    std::random_device rd;
+    const uint64_t t =
+        static_cast<uint64_t>(std::chrono::steady_clock::now().time_since_epoch().count());
+    const uint64_t r = (static_cast<uint64_t>(rd()) << 32) ^ rd() ^ (t * 0x9E3779B97F4A7C15ull);
+    const int64_t id = static_cast<int64_t>(r >> 1);
+    return id == 0 ? 1 : id;
+}
+
+Result<std::unique_ptr<LcmLink>> LcmLink::open(const LinkOptions& options) {
+    if (!options.allow_remote && !keepsTrafficOnHost(options.url)) {
+        return failedPrecondition(fmt::format(
+            "LCM URL '{}' can send packets off this machine; use a udpm:// URL with ttl=0 (the "
+            "default {}) or memq://, or allow it explicitly",
+            options.url, kDefaultLcmUrl));
+    }
+    AuthConfig auth;
+    if (!options.key_file.empty()) {
+        auto key = readKeyFile(options.key_file);
+        if (!key.isOk()) return key.status();
+        auth.key = std::move(key).value();
+    }
+    auth.key_id = options.key_id;
+    auth.sender_id = randomSenderId();
+    std::unique_ptr<LcmLink> link(new LcmLink());
+    auto lcm = LcmTransport::create(options.url);
+    if (!lcm.isOk()) return lcm.status();
+    link->lcm_ = std::move(lcm).value();
+    link->auth_ = std::make_unique<AuthenticatedTransport>(*link->lcm_, std::move(auth));
+    return link;
+}
+
+Status LcmLink::pump(int timeout_ms) {
+    const auto now = std::chrono::system_clock::now().time_since_epoch();
+    auth_->setTime(std::chrono::duration_cast<std::chrono::microseconds>(now).count());
+    auto r = lcm_->handle(timeout_ms);
+    if (!r.isOk()) return r.status();
+    // Then whatever else is already waiting (bounded, so timers still run under a flood).
+    for (int i = 0; i < 256 && *r; ++i) {
+        r = lcm_->handle(0);
+        if (!r.isOk()) return r.status();
+    }
+    return Status::ok();
+}
+
+}  // namespace plumb::messages

@@ -1,0 +1,61 @@
+// SPDX-License-Identifier: Apache-2.0
+#pragma once
+
+// What plumb-device and plumb-backend need to talk: an LCM transport at a URL that by default
+// must keep traffic on this host (ttl=0 or memq), wrapped in message authentication when a shared
+// key file is given. Not thread-safe: use from one thread.
+//
+// Key file: the shared secret as hexadecimal text (at least 32 hex digits = 16 bytes; whitespace
+// ignored), e.g. made with `head -c 32 /dev/urandom | xxd -p -c 64 > plumb.key; chmod 600
+// plumb.key`.
+
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "messages/auth.hpp"
+#include "messages/channels.hpp"
+#include "messages/lcm_transport.hpp"
+
+namespace plumb::messages {
+
+struct LinkOptions {
+    /// LCM URL (default: multicast that stays on this host).
+    std::string url = kDefaultLcmUrl;
+    /// Shared key file; empty = no authentication.
+    std::filesystem::path key_file;
+    /// Identifier of the key (both ends must agree).
+    int32_t key_id = 1;
+    /// Allow a URL that can send packets off this machine (udpm with ttl > 0, udp, tcpq).
+    bool allow_remote = false;
+};
+
+/// Reads a key file (hex text). InvalidArgument for non-hex content or fewer than 16 bytes,
+/// NotFound/IoError for an unreadable file.
+Result<std::vector<uint8_t>> readKeyFile(const std::filesystem::path& path);
+
+/// A fresh sender id for this process (random, non-zero).
+int64_t randomSenderId();
+
+class LcmLink {
+  public:
+    /// Opens LCM (and authentication). FailedPrecondition for a URL that can leave the host
+    /// without allow_remote.
+    static Result<std::unique_ptr<LcmLink>> open(const LinkOptions& options);
+
+    /// Publish and subscribe here (authenticated when a key is configured).
+    Transport& transport() { return *auth_; }
+    /// Dispatches received messages for up to `timeout_ms`.
+    Status pump(int timeout_ms);
+    bool authenticated() const { return auth_->enabled(); }
+    const AuthStats& authStats() const { return auth_->stats(); }
+    const std::string& url() const { return lcm_->url(); }
+
+  private:
+    LcmLink() = default;
+    std::unique_ptr<LcmTransport> lcm_;
+    std::unique_ptr<AuthenticatedTransport> auth_;
+};
+
+}  // namespace plumb::messages
