@@ -35,9 +35,18 @@ function(plumb_add_test name)
     if(NOT ARG_TIMEOUT)
         set(ARG_TIMEOUT 600)
     endif()
-    set(labels ${ARG_LABELS} ${PLUMB_EXTRA_TEST_LABELS})
     gtest_discover_tests(${name}
         WORKING_DIRECTORY ${PROJECT_SOURCE_DIR}
-        PROPERTIES LABELS "${labels}" TIMEOUT ${ARG_TIMEOUT}
+        PROPERTIES LABELS "${ARG_LABELS}" TIMEOUT ${ARG_TIMEOUT}
         DISCOVERY_TIMEOUT 60)
+    if(PLUMB_EXTRA_TEST_LABELS)
+        # gtest_discover_tests flattens PROPERTIES, so one label list cannot pass through it: a
+        # ctest include file, run after the discovered tests', relabels them.
+        set(all_labels ${ARG_LABELS} ${PLUMB_EXTRA_TEST_LABELS})
+        set(extra "${CMAKE_CURRENT_BINARY_DIR}/${name}_extra_labels.cmake")
+        file(WRITE "${extra}" "foreach(t IN LISTS ${name}_TESTS)\n"
+            "  set_tests_properties(\"\${t}\" PROPERTIES LABELS \"${all_labels}\")\n"
+            "endforeach()\n")
+        set_property(DIRECTORY APPEND PROPERTY TEST_INCLUDE_FILES "${extra}")
+    endif()
 endfunction()
