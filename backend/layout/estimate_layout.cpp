@@ -53,6 +53,12 @@ void describe(config::Schema& s, LayoutConfig& c) {
     s.field("min_wall_area_m2", c.min_wall_area_m2, "walls with less occupied area are dropped",
             "m^2")
         .min(0.0);
+    s.field("wall_top_margin_m", c.wall_top_margin_m, "walls must reach within this of the ceiling",
+            "m")
+        .positive();
+    s.field("min_wall_height_m", c.min_wall_height_m,
+            "without a ceiling, walls must span this height", "m")
+        .positive();
     s.field("wall_merge_angle_deg", c.wall_merge_angle_deg, "wall merge: maximum angle", "deg")
         .range(0.0, 90.0);
     s.field("wall_merge_offset_m", c.wall_merge_offset_m, "wall merge: maximum offset", "m")
@@ -419,8 +425,41 @@ Result<LayoutEstimate> estimateLayout(const std::vector<Fragment>& fragments,
     const double cos_opp = std::cos(config.opposite_max_angle_deg * kDeg);
     std::vector<int> wall_ids;
     int opposite = -1;
+    auto heightAboveBase = [&](const Eigen::Vector3d& x) { return n_b.dot(x) + bp.d; };
+    for (size_t k = 0; k < dominant.size(); ++k) {  // the opposite plane first (largest)
+        const SupportedPlane& p = dominant[k];
+        if (static_cast<int>(k) == base || std::abs(p.n.dot(n_b)) < cos_opp) continue;
+        PlaneMoments m;
+        for (const Eigen::Vector3d* x : p.capped) m.add(*x);
+        if (heightAboveBase(m.mean()) >= config.min_room_height_m) {
+            opposite = static_cast<int>(k);
+            break;
+        }
+    }
+    double room_height = 0.0;
+    if (opposite >= 0) {
+        PlaneMoments m;
+        for (const Eigen::Vector3d* x : dominant[opposite].capped) m.add(*x);
+        room_height = heightAboveBase(m.mean());
+    }
     for (size_t k = 0; k < dominant.size(); ++k) {
         const SupportedPlane& p = dominant[k];
+        // Layout walls span floor to ceiling: their points must reach the ceiling (the side
+        // furniture never reaches), or, without a ceiling, span min_wall_height_m.
+        double reach_gap = 0.0;
+        {
+            std::vector<double> h;
+            for (const Eigen::Vector3d* x : p.capped) h.push_back(heightAboveBase(*x));
+            std::sort(h.begin(), h.end());
+            if (!h.empty()) {
+                const double lo = h[h.size() / 100], hi = h[h.size() - 1 - h.size() / 100];
+                if (opposite >= 0) {
+                    reach_gap = base_is_floor ? room_height - hi : lo;
+                } else {
+                    reach_gap = config.min_wall_height_m - (hi - lo);
+                }
+            }
+        }
         WallDecision wd;
         wd.plane_id = p.id;
         wd.abs_dot_base = std::abs(p.n.dot(n_b));
@@ -433,20 +472,13 @@ Result<LayoutEstimate> estimateLayout(const std::vector<Fragment>& fragments,
         for (const Eigen::Vector3d* x : p.capped) g += dist.at<float>(toCell(*x));
         wd.boundary_distance_m = p.capped.empty() ? 1e9 : g / p.capped.size() * cell;
         if (wd.abs_dot_base >= config.tau1) {
-            wd.reason = "not vertical";
-            if (wd.abs_dot_base >= cos_opp) {
-                PlaneMoments m;
-                for (const Eigen::Vector3d* x : p.capped) m.add(*x);
-                const double height = n_b.dot(m.mean()) + bp.d;
-                if (height >= config.min_room_height_m && opposite < 0) {
-                    opposite = static_cast<int>(k);  // largest first
-                    wd.reason = "opposite plane";
-                }
-            }
+            wd.reason = static_cast<int>(k) == opposite ? "opposite plane" : "not vertical";
         } else if (wd.boundary_distance_m >= config.tau2_m) {
             wd.reason = "far from boundary";
         } else if (p.area < config.min_wall_area_m2) {
             wd.reason = "too small";
+        } else if (reach_gap > config.wall_top_margin_m) {
+            wd.reason = opposite >= 0 ? "does not reach the ceiling" : "too low";
         } else {
             // Merge into an already kept, near-coplanar wall.
             int merged = -1;

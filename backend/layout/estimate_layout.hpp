@@ -76,6 +76,11 @@ struct LayoutConfig {
     double tau2_m = 0.25;
     /// Walls with less occupied area are dropped, m^2.
     double min_wall_area_m2 = 0.3;
+    /// Walls span floor to ceiling: with a ceiling, a wall's points (99th percentile) must come
+    /// within this distance of it, metres (furniture fronts and shelves never do) ...
+    double wall_top_margin_m = 0.3;
+    /// ... and without one, they must span at least this height, metres.
+    double min_wall_height_m = 1.2;
     /// Walls closer than this in angle (degrees) and offset (metres) are merged.
     double wall_merge_angle_deg = 5.0;
     double wall_merge_offset_m = 0.05;
@@ -112,7 +117,8 @@ struct WallDecision {
     double abs_dot_base = 0.0;         ///< |n . n_base| (Eq. 6)
     double boundary_distance_m = 0.0;  ///< g(dO, pi) (Eq. 7)
     std::string reason;  ///< "wall", "base plane", "not vertical", "far from boundary",
-                         ///< "too small", "merged into N", "opposite plane"
+                         ///< "too small", "does not reach the ceiling",
+                         ///< "too low", "merged into N", "opposite plane"
 };
 
 /// What the weak-Manhattan step did to one wall.

@@ -42,8 +42,11 @@ inline Result<FusedFragments> fuseWithGroundTruth(const std::function<Result<Fra
         if (in_fragment == 0) return;
         current.points_F = tsdf::extractSurfacePoints(*volume, sc);
         current.voxel_size_m = voxel_m;
-        out.T_W_F.push_back(current.T_W_F);
-        out.fragments.push_back(std::move(current));
+        if (!current.points_F.empty()) {  // a short tail run may have no twice-seen voxels
+            current.id = static_cast<uint32_t>(out.fragments.size());
+            out.T_W_F.push_back(current.T_W_F);
+            out.fragments.push_back(std::move(current));
+        }
         current = Fragment();
         in_fragment = 0;
     };

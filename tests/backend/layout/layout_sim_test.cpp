@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <numbers>
@@ -43,6 +44,10 @@ const SimRoom& simRoom(const std::string& name) {
     cfg.scene = name;
     cfg.noise.distortion = sim::DistortionKind::kNone;
     cfg.trajectory.rate_hz = 3.0;
+    // Tilt the camera up and down while walking (as one scans a room for its floor and
+    // ceiling); the default sway of 10 degrees never sees the ceiling from 1.5 m.
+    cfg.trajectory.pitch_deg = 0.0;
+    cfg.trajectory.pitch_sway_deg = 30.0;
     auto scene = sim::builtinScene(name);
     EXPECT_TRUE(scene.isOk());
     auto path = sim::pathControlPoints(*scene);
@@ -71,7 +76,7 @@ const SimRoom& simRoom(const std::string& name) {
     for (const Fragment& f : room->fragments) {
         auto fp = extractFragmentPlanes(f);
         EXPECT_TRUE(fp.isOk()) << fp.status().toString();
-        room->planes.push_back(std::move(fp).value());
+        if (fp.isOk()) room->planes.push_back(std::move(fp).value());
     }
     return *cache.emplace(name, std::move(room)).first->second;
 }
@@ -121,9 +126,18 @@ class SimLayout : public ::testing::TestWithParam<std::string> {};
 TEST_P(SimLayout, GroundTruthPosesGiveTheRoom) {
     const SimRoom& room = simRoom(GetParam());
     ASSERT_FALSE(room.fragments.empty());
+    ASSERT_EQ(room.planes.size(), room.fragments.size());
     auto est = estimateLayout(room.fragments, room.planes, room.T_W_F);
     ASSERT_TRUE(est.isOk()) << est.status().toString();
-    EXPECT_EQ(est->diagnostics.base_kind, "floor");
+    if (std::getenv("PLUMB_LAYOUT_DEBUG") != nullptr) {
+        std::printf("%s\n", toJson(est->diagnostics).dump().c_str());
+        for (const FragmentPlanes& fp : room.planes) {
+            std::printf("fragment %u: %s\n", fp.fragment_id, toJson(fp.diagnostics).dump().c_str());
+        }
+    }
+    // The base plane is the floor or the ceiling (largest area); both must be found.
+    EXPECT_GE(est->diagnostics.opposite_plane_id, 0);
+    EXPECT_FALSE(est->diagnostics.floor_inferred);
     EXPECT_EQ(est->diagnostics.polygon_method, "walls");
     EXPECT_EQ(static_cast<int>(est->layout.walls().size()), room.scene.numWalls());
     expectLayoutMatches(est->layout, room.gt, 1.0, 0.02, GetParam() + " GT poses");
@@ -145,6 +159,7 @@ TEST_P(SimLayout, GroundTruthPosesGiveTheRoom) {
                 0.03 * area(room.scene.polygon));
     // Diagnostics and floor plan are produced.
     const nlohmann::json j = toJson(est->diagnostics);
+
     EXPECT_EQ(j["walls"].size(), est->diagnostics.walls.size());
     const auto dir = testing::freshTempDir("layout_" + GetParam());
     ASSERT_TRUE(writeFloorplanSvg(dir / "floorplan.svg", est->layout,
@@ -159,8 +174,13 @@ TEST_P(SimLayout, PerturbedPosesStillGiveTheRoom) {
         const auto poses = perturbed(room.T_W_F, seed);
         auto est = estimateLayout(room.fragments, room.planes, poses);
         ASSERT_TRUE(est.isOk()) << est.status().toString();
-        expectLayoutMatches(est->layout, room.gt, 1.0, 0.02,
+        // Every fragment is off by up to 3 cm + 1 deg x 4 m = 10 cm at the far walls, and a wall
+        // is seen by a few fragments only: the structure must stay right (same walls, same
+        // matching, angles within 1.5 deg), offsets within 10 cm; the layout-constrained
+        // registration (backend/global) is what removes the remaining error.
+        expectLayoutMatches(est->layout, room.gt, 1.5, 0.10,
                             GetParam() + " perturbed seed " + std::to_string(seed));
+        EXPECT_EQ(static_cast<int>(est->layout.walls().size()), room.scene.numWalls());
     }
 }
 
