@@ -53,7 +53,7 @@ inline Result<FusedFragments> fuseWithGroundTruth(const std::function<Result<Fra
     for (size_t k = 0; k < num_frames; k += step) {
         Result<Frame> f = frame(k);
         if (!f.isOk()) return f.status();
-        if (!f->T_W_C_gt) return invalidArgument("frame without ground truth");
+        if (!f->T_W_C_gt) continue;  // e.g. TUM frames before the motion capture starts
         if (in_fragment == 0) {
             volume = std::make_unique<tsdf::TsdfVolume>(tc);
             current.id = static_cast<uint32_t>(out.fragments.size());

@@ -56,8 +56,8 @@ RealRun fuseDataset(const std::filesystem::path& dir, size_t step, int frames_pe
 }
 
 TEST(RealLayout, IclNuimOfficeFloorCeilingAndRightAngledWalls) {
-    PLUMB_REQUIRE_SHARED_DATA(dir, "icl-nuim-office-kt0");
-    const RealRun run = fuseDataset(dir, 1, 25, 5.0f);
+    PLUMB_REQUIRE_SHARED_DATA(path, "icl-nuim-office-kt0");
+    const RealRun run = fuseDataset(path, 1, 25, 5.0f);
     ASSERT_EQ(run.planes.size(), run.fragments.size());
     LayoutConfig cfg;
     cfg.camera_up_C = Eigen::Vector3d(0.0, 1.0, 0.0);  // ICL-NUIM's y-flipped camera (fy < 0)
@@ -93,8 +93,8 @@ TEST(RealLayout, IclNuimOfficeFloorCeilingAndRightAngledWalls) {
 }
 
 TEST(RealLayout, TumStructureNotextureFarFloorIsTheBasePlane) {
-    PLUMB_REQUIRE_SHARED_DATA(dir, "tum-fr3-structure-notexture-far");
-    const RealRun run = fuseDataset(dir, 3, 21, 4.5f);
+    PLUMB_REQUIRE_SHARED_DATA(path, "tum-fr3-structure-notexture-far");
+    const RealRun run = fuseDataset(path, 3, 21, 4.5f);
     ASSERT_EQ(run.planes.size(), run.fragments.size());
     auto est = estimateLayout(run.fragments, run.planes, run.T_W_F);
     ASSERT_TRUE(est.isOk()) << est.status().toString();
