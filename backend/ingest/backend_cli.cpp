@@ -1,0 +1,232 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "backend/ingest/backend_cli.hpp"
+
+#include <csignal>
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+#include <vector>
+
+#include "backend/ingest/ingest_run.hpp"
+#include "common/camera/pinhole.hpp"
+#include "common/config/config.hpp"
+#include "common/core/logging.hpp"
+#include "messages/lcm_link.hpp"
+
+#if __has_include("backend/pipeline/pipeline.hpp")
+#include "backend/pipeline/pipeline.hpp"
+#define PLUMB_BACKEND_HAS_PIPELINE 1
+#endif
+
+namespace plumb::backend {
+namespace {
+
+constexpr const char* kUsage =
+    " (--live | --log LOG | --fragments DIR) --out DIR [options]\n"
+    "\n"
+    "  --live               receive fragments from plumb-device over LCM, persist and acknowledge\n"
+    "  --log LOG            process an lcm-logger log deterministically at full speed\n"
+    "  --fragments DIR      the fragment store (default <out>/fragments); alone: reconstruct\n"
+    "                       from an existing store\n"
+    "  --out DIR            output directory (metrics.json, camera_info.json, ...)\n"
+    "  --until-end          live: stop when the device announces the end of the scan and every\n"
+    "                       fragment is stored\n"
+    "  --expect N           live: stop once N fragments are in the store\n"
+    "  --timeout S          live: give up after S seconds (exit 1)\n"
+    "  --linger S           live: keep acknowledging for S seconds after the end (default 1)\n"
+    "  --no-finalise        stop after ingest (no reconstruction)\n"
+    "  --lcm-url URL        LCM URL (default udpm://239.255.76.67:7667?ttl=0, stays on host)\n"
+    "  --allow-remote       allow an LCM URL that can leave this machine\n"
+    "  --key-file FILE      shared key (hex): only authenticated messages are accepted\n"
+    "  --key-id N           identifier of the key (default 1)\n"
+    "  --config FILE        pipeline configuration (TOML); --set KEY=VALUE overrides\n"
+    "  --log-level L        trace|debug|info|warn|error (default info)\n";
+
+std::atomic<int> g_stop_requests{0};
+extern "C" void onSignal(int) { g_stop_requests.fetch_add(1); }
+
+const char* g_program = "plumb-backend";
+
+int usageError(const std::string& message) {
+    std::fprintf(stderr, "%s: %s\n\n", g_program, message.c_str());
+    std::fprintf(stderr, "usage: %s%s", g_program, kUsage);
+    return 2;
+}
+
+bool parseDouble(const std::string& text, double* out) {
+    char* end = nullptr;
+    const double v = std::strtod(text.c_str(), &end);
+    if (text.empty() || *end != '\0' || !(v >= 0.0)) return false;
+    *out = v;
+    return true;
+}
+
+}  // namespace
+
+int runBackendCommand(std::vector<std::string> args, const char* program) {
+    g_program = program;
+    auto config_args = config::extractConfigArgs(args);
+    if (!config_args.isOk()) return usageError(config_args.status().message());
+
+    bool live = false, finalise = true;
+    std::string log_path, fragments_dir, out_dir;
+    backend::IngestRunOptions options;
+    messages::LinkOptions link_options;
+    log::Level level = log::Level::kInfo;
+    for (size_t i = 0; i < args.size(); ++i) {
+        const std::string& a = args[i];
+        auto value = [&](std::string* v) {
+            if (i + 1 >= args.size()) return false;
+            *v = args[++i];
+            return true;
+        };
+        std::string v;
+        double d = 0.0;
+        if (a == "--help" || a == "-h") {
+            std::printf("usage: %s%s", g_program, kUsage);
+            return 0;
+        } else if (a == "--live") {
+            live = true;
+        } else if (a == "--log") {
+            if (!value(&log_path)) return usageError("--log needs a file");
+        } else if (a == "--fragments") {
+            if (!value(&fragments_dir)) return usageError("--fragments needs a directory");
+        } else if (a == "--out") {
+            if (!value(&out_dir)) return usageError("--out needs a directory");
+        } else if (a == "--until-end") {
+            options.until_end = true;
+        } else if (a == "--expect") {
+            if (!value(&v) || !parseDouble(v, &d) || d < 1 || d != static_cast<int64_t>(d))
+                return usageError("--expect needs a positive integer");
+            options.expect = static_cast<int64_t>(d);
+        } else if (a == "--timeout") {
+            if (!value(&v) || !parseDouble(v, &options.timeout_s))
+                return usageError("--timeout needs seconds >= 0");
+        } else if (a == "--linger") {
+            if (!value(&v) || !parseDouble(v, &options.linger_s))
+                return usageError("--linger needs seconds >= 0");
+        } else if (a == "--no-finalise" || a == "--no-finalize") {
+            finalise = false;
+        } else if (a == "--lcm-url") {
+            if (!value(&link_options.url)) return usageError("--lcm-url needs a value");
+        } else if (a == "--allow-remote") {
+            link_options.allow_remote = true;
+        } else if (a == "--key-file") {
+            if (!value(&v)) return usageError("--key-file needs a value");
+            link_options.key_file = v;
+        } else if (a == "--key-id") {
+            if (!value(&v) || !parseDouble(v, &d) || d > INT32_MAX)
+                return usageError("--key-id needs a non-negative 32-bit integer");
+            link_options.key_id = static_cast<int32_t>(d);
+        } else if (a == "--log-level") {
+            if (!value(&v) || !log::parseLevel(v, &level))
+                return usageError("--log-level needs trace|debug|info|warn|error|off");
+        } else {
+            return usageError("unknown argument '" + a + "'");
+        }
+    }
+    const int modes = (live ? 1 : 0) + (log_path.empty() ? 0 : 1);
+    if (modes > 1) return usageError("--live and --log exclude each other");
+    if (modes == 0 && fragments_dir.empty())
+        return usageError("one of --live, --log LOG or --fragments DIR is required");
+    if (out_dir.empty()) return usageError("--out is required");
+    if (live && !options.until_end && options.expect == 0 && options.timeout_s == 0) {
+        log::info("no --until-end, --expect or --timeout: receiving until SIGINT/SIGTERM");
+    }
+    log::setupLogging(g_program, level);
+    options.out_dir = out_dir;
+    options.fragments_dir = fragments_dir.empty() ? std::filesystem::path(out_dir) / "fragments"
+                                                  : std::filesystem::path(fragments_dir);
+
+    struct sigaction sa {};
+    sa.sa_handler = onSignal;
+    sigemptyset(&sa.sa_mask);
+    sigaction(SIGINT, &sa, nullptr);
+    sigaction(SIGTERM, &sa, nullptr);
+
+    int code = 0;
+    if (modes == 1) {
+        Result<backend::IngestRunResult> result = Status(StatusCode::kInternal, "not run");
+        if (live) {
+            auto link = messages::LcmLink::open(link_options);
+            if (!link.isOk()) {
+                log::error("{}", link.status().toString());
+                return 1;
+            }
+            log::info("listening on {}{}; store {}", (*link)->url(),
+                      (*link)->authenticated() ? " (authenticated)" : "",
+                      options.fragments_dir.string());
+            result = backend::runLiveIngest(**link, options, g_stop_requests);
+        } else {
+            messages::AuthConfig auth;
+            if (!link_options.key_file.empty()) {
+                auto key = messages::readKeyFile(link_options.key_file);
+                if (!key.isOk()) {
+                    log::error("{}", key.status().toString());
+                    return 1;
+                }
+                auth.key = std::move(key).value();
+                auth.key_id = link_options.key_id;
+            }
+            result = backend::runLogIngest(log_path, options, auth);
+        }
+        if (!result.isOk()) {
+            log::error("{}", result.status().toString());
+            return 1;
+        }
+        const nlohmann::json& m = result->metrics;
+        log::info(
+            "ingest: {} fragment(s) in store, {} received, {} duplicate, {} rejected; "
+            "chunks lost {} recovered {}; messages rejected {}",
+            result->fragments_in_store, m["fragments_received"].get<uint64_t>(),
+            m["fragments_duplicate"].get<uint64_t>(), m["fragments_rejected"].get<uint64_t>(),
+            m["chunks_lost"].get<uint64_t>(), m["chunks_recovered"].get<uint64_t>(),
+            m["messages_rejected"].dump());
+        if (result->timed_out) {
+            log::error("timed out before the scan was complete");
+            code = 1;
+        }
+    }
+    if (!finalise || code != 0) return code;
+#ifdef PLUMB_BACKEND_HAS_PIPELINE
+    backend::PipelineConfig pipeline_config;
+    if (Status s = config::load(*config_args, pipeline_config); !s.isOk()) {
+        log::error("{}", s.toString());
+        return 2;
+    }
+    auto store = messages::FragmentStore::open(options.fragments_dir);
+    if (!store.isOk()) {
+        log::error("{}", store.status().toString());
+        return 1;
+    }
+    auto fragments = backend::loadStoredFragments(**store);
+    if (!fragments.isOk()) {
+        log::error("{}", fragments.status().toString());
+        return 1;
+    }
+    backend::PipelineInput input;
+    input.fragments = std::move(fragments).value();
+    input.description = options.fragments_dir.string();
+    input.config_toml = config::toToml(pipeline_config, "plumb-backend configuration");
+    auto camera =
+        backend::readCameraInfo({std::filesystem::path(out_dir) / "camera_info.json",
+                                 options.fragments_dir.parent_path() / "camera_info.json"});
+    if (camera.isOk()) {
+        input.camera = *camera;
+    } else {
+        log::warn("{}; assuming the primesense intrinsics", camera.status().toString());
+        input.camera = *cameraPreset("primesense");
+    }
+    auto ran = backend::runPipeline(input, pipeline_config, out_dir, true);
+    if (!ran.isOk()) {
+        log::error("{}", ran.status().toString());
+        return 1;
+    }
+    std::fputs(backend::summarize(*ran).c_str(), stdout);
+#else
+    log::info("no reconstruction pipeline in this build; stopping after ingest");
+#endif
+    return code;
+}
+
+}  // namespace plumb::backend

@@ -1,0 +1,160 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "backend/ingest/ingest_run.hpp"
+
+#include <fmt/format.h>
+
+#include <chrono>
+#include <lcm/lcm-cpp.hpp>
+#include <map>
+#include <vector>
+
+#include "common/core/logging.hpp"
+#include "messages/files.hpp"
+
+namespace plumb::backend {
+namespace {
+
+double wallSeconds() {
+    return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch())
+        .count();
+}
+
+Status writeMetrics(const std::filesystem::path& out_dir, const nlohmann::json& metrics) {
+    if (out_dir.empty()) return Status::ok();
+    const std::string text = metrics.dump(2) + "\n";
+    return messages::writeFileAtomic(
+        out_dir / "metrics.json",
+        std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(text.data()), text.size()));
+}
+
+Status makeDirs(const IngestRunOptions& options) {
+    for (const auto& dir : {options.out_dir, options.fragments_dir}) {
+        if (dir.empty()) continue;
+        std::error_code ec;
+        std::filesystem::create_directories(dir, ec);
+        if (ec) return ioError(fmt::format("cannot create {}: {}", dir.string(), ec.message()));
+    }
+    return Status::ok();
+}
+
+// Publishes nowhere (a log cannot answer) and dispatches what the log holds.
+class LogFeed final : public messages::Transport {
+  public:
+    Status publish(const std::string&, std::span<const uint8_t>) override { return Status::ok(); }
+    Status subscribe(const std::string& channel, Handler handler) override {
+        handlers_[channel].push_back(std::move(handler));
+        return Status::ok();
+    }
+    void feed(const std::string& channel, std::span<const uint8_t> bytes) {
+        auto it = handlers_.find(channel);
+        if (it == handlers_.end()) return;
+        for (auto& h : it->second) h(channel, bytes);
+    }
+
+  private:
+    std::map<std::string, std::vector<Handler>> handlers_;
+};
+
+}  // namespace
+
+Result<IngestRunResult> runLiveIngest(messages::LcmLink& link, const IngestRunOptions& options,
+                                      const std::atomic<int>& stop_requests) {
+    PLUMB_RETURN_IF_ERROR(makeDirs(options));
+    auto opened =
+        Ingestor::open(options.fragments_dir, options.out_dir, options.ingest, link.transport());
+    if (!opened.isOk()) return opened.status();
+    Ingestor& ingestor = **opened;
+    double now = wallSeconds();
+    for (const std::string& channel : Ingestor::channels()) {
+        PLUMB_RETURN_IF_ERROR(link.transport().subscribe(
+            channel, [&](const std::string& ch, std::span<const uint8_t> bytes) {
+                ingestor.onMessage(ch, bytes, now);
+            }));
+    }
+    if (ingestor.counters().fragments_resumed > 0) {
+        log::info("resuming: {} fragment(s) already in {}", ingestor.counters().fragments_resumed,
+                  options.fragments_dir.string());
+    }
+    IngestRunResult result;
+    const double start = now;
+    double done_at = -1.0, last_metrics = now;
+    uint64_t last_received = 0;
+    while (true) {
+        PLUMB_RETURN_IF_ERROR(link.pump(20));
+        now = wallSeconds();
+        ingestor.poll(now);
+        if (ingestor.counters().fragments_received != last_received) {
+            last_received = ingestor.counters().fragments_received;
+            log::info("fragments: {} in store ({} received now)", ingestor.fragmentsInStore(),
+                      last_received);
+        }
+        if (now - last_metrics > 2.0) {
+            const Status s = writeMetrics(options.out_dir, ingestor.metrics(link.authStats()));
+            if (!s.isOk()) log::warn("{}", s.toString());
+            last_metrics = now;
+        }
+        if (stop_requests.load() > 0) break;
+        const bool done = (options.until_end && ingestor.scanComplete()) ||
+                          (options.expect > 0 &&
+                           static_cast<int64_t>(ingestor.fragmentsInStore()) >= options.expect);
+        if (done && done_at < 0) {
+            done_at = now;
+            result.complete = true;
+            log::info("scan complete: {} fragment(s) in store", ingestor.fragmentsInStore());
+        }
+        if (done_at >= 0 && now - done_at >= options.linger_s) break;
+        if (done_at < 0 && options.timeout_s > 0 && now - start >= options.timeout_s) {
+            result.timed_out = true;
+            break;
+        }
+    }
+    result.metrics = ingestor.metrics(link.authStats());
+    result.fragments_in_store = ingestor.fragmentsInStore();
+    PLUMB_RETURN_IF_ERROR(writeMetrics(options.out_dir, result.metrics));
+    return result;
+}
+
+Result<IngestRunResult> runLogIngest(const std::filesystem::path& log_path,
+                                     const IngestRunOptions& options,
+                                     const messages::AuthConfig& auth) {
+    if (!std::filesystem::is_regular_file(log_path)) {
+        return notFound(fmt::format("LCM log {} does not exist", log_path.string()));
+    }
+    lcm::LogFile log_file(log_path.string(), "r");
+    if (!log_file.good()) {
+        return ioError(fmt::format("cannot read LCM log {}", log_path.string()));
+    }
+    PLUMB_RETURN_IF_ERROR(makeDirs(options));
+    LogFeed feed;
+    messages::AuthenticatedTransport transport(feed, auth);
+    auto opened = Ingestor::open(options.fragments_dir, options.out_dir, options.ingest, transport);
+    if (!opened.isOk()) return opened.status();
+    Ingestor& ingestor = **opened;
+    double now = 0.0;
+    for (const std::string& channel : Ingestor::channels()) {
+        PLUMB_RETURN_IF_ERROR(transport.subscribe(
+            channel, [&](const std::string& ch, std::span<const uint8_t> bytes) {
+                ingestor.onMessage(ch, bytes, now);
+            }));
+    }
+    uint64_t events = 0;
+    while (const lcm::LogEvent* event = log_file.readNextEvent()) {
+        ++events;
+        now = static_cast<double>(event->timestamp) * 1e-6;
+        transport.setTime(event->timestamp);
+        if (event->datalen < 0) continue;
+        feed.feed(event->channel, std::span<const uint8_t>(static_cast<const uint8_t*>(event->data),
+                                                           static_cast<size_t>(event->datalen)));
+        ingestor.poll(now);
+    }
+    ingestor.poll(now);
+    IngestRunResult result;
+    result.complete = true;
+    result.metrics = ingestor.metrics(transport.stats());
+    result.metrics["log_events"] = events;
+    result.fragments_in_store = ingestor.fragmentsInStore();
+    PLUMB_RETURN_IF_ERROR(writeMetrics(options.out_dir, result.metrics));
+    return result;
+}
+
+}  // namespace plumb::backend

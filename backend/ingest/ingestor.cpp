@@ -1,0 +1,311 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "backend/ingest/ingestor.hpp"
+
+#include <fmt/format.h>
+
+#include "common/core/logging.hpp"
+#include "messages/channels.hpp"
+#include "messages/files.hpp"
+#include "messages/fragment_codec.hpp"
+#include "messages/wire.hpp"
+
+namespace plumb::backend {
+
+using Key = std::pair<int64_t, uint32_t>;
+
+// Forwards the assembler's messages and remembers which chunks it asked for again, so the
+// metrics can say how many chunks were lost and how many of those were recovered.
+class Ingestor::CountingTransport final : public messages::Transport {
+  public:
+    CountingTransport(messages::Transport& inner, Ingestor& owner) : inner_(inner), owner_(owner) {}
+    Status publish(const std::string& channel, std::span<const uint8_t> bytes) override {
+        if (channel == messages::kChannelRetransmit) {
+            auto req = messages::decodeMessage<plumb::retransmit_request_t>(bytes);
+            if (req.isOk() && req->fragment_id >= 0) {
+                owner_.noteRequest({req->session_id, static_cast<uint32_t>(req->fragment_id)},
+                                   req->missing_chunks);
+            }
+        }
+        return inner_.publish(channel, bytes);
+    }
+    Status subscribe(const std::string& channel, Handler handler) override {
+        return inner_.subscribe(channel, std::move(handler));
+    }
+
+  private:
+    messages::Transport& inner_;
+    Ingestor& owner_;
+};
+
+Result<std::unique_ptr<Ingestor>> Ingestor::open(const std::filesystem::path& fragments_dir,
+                                                 const std::filesystem::path& sidecar_dir,
+                                                 IngestConfig config,
+                                                 messages::Transport& transport) {
+    std::unique_ptr<Ingestor> in(new Ingestor());
+    in->config_ = config;
+    in->sidecar_dir_ = sidecar_dir;
+    auto store = messages::FragmentStore::open(fragments_dir);
+    if (!store.isOk()) return store.status();
+    in->store_ = std::move(store).value();
+    for (const auto& q : in->store_->quarantined()) {
+        log::warn("ingest: damaged file moved aside: {}", q.string());
+    }
+    in->out_ = std::make_unique<CountingTransport>(transport, *in);
+    in->assembler_ = std::make_unique<messages::FragmentAssembler>(config.assembler, *in->out_);
+    for (const messages::StoredFragment& f : in->store_->fragments()) {
+        in->assembler_->markPersisted(f.session_id, f.fragment_id, f.crc32);
+        ++in->counters_.fragments_resumed;
+    }
+    return in;
+}
+
+Ingestor::~Ingestor() = default;
+
+std::vector<std::string> Ingestor::channels() {
+    return {messages::kChannelFragmentHeader, messages::kChannelFragmentChunk,
+            messages::kChannelStatus, messages::kChannelCameraInfo, messages::kChannelConfig};
+}
+
+void Ingestor::noteRequest(const Key& key, const std::vector<int32_t>& chunks) {
+    auto& set = requested_[key];
+    for (int32_t c : chunks) {
+        if (set.insert(c).second) ++counters_.chunks_lost;
+    }
+}
+
+void Ingestor::onMessage(const std::string& channel, std::span<const uint8_t> bytes, double now_s) {
+    if (channel == messages::kChannelFragmentChunk) {
+        onChunk(bytes, now_s);
+    } else if (channel == messages::kChannelFragmentHeader) {
+        (void)assembler_->onMessage(channel, bytes, now_s);
+    } else if (channel == messages::kChannelStatus) {
+        onStatus(bytes);
+    } else if (channel == messages::kChannelCameraInfo) {
+        onCameraInfo(bytes);
+    } else if (channel == messages::kChannelConfig) {
+        onConfig(bytes);
+    }
+    poll(now_s);
+}
+
+void Ingestor::onChunk(std::span<const uint8_t> bytes, double now_s) {
+    const uint64_t before = assembler_->stats().chunks_received;
+    (void)assembler_->onMessage(messages::kChannelFragmentChunk, bytes, now_s);
+    if (assembler_->stats().chunks_received == before || requested_.empty()) return;
+    // A new valid chunk: was it one we had asked for?
+    auto chunk = messages::decodeMessage<plumb::fragment_chunk_t>(bytes);
+    if (!chunk.isOk() || chunk->fragment_id < 0) return;
+    auto it = requested_.find({chunk->session_id, static_cast<uint32_t>(chunk->fragment_id)});
+    if (it != requested_.end() && it->second.erase(chunk->chunk_index) > 0) {
+        ++counters_.chunks_recovered;
+    }
+}
+
+void Ingestor::onStatus(std::span<const uint8_t> bytes) {
+    auto msg = messages::decodeMessage<plumb::device_status_t>(bytes);
+    if (!msg.isOk()) {
+        ++counters_.malformed_other;
+        return;
+    }
+    auto status = messages::fromMessage(*msg);
+    if (!status.isOk()) {
+        ++counters_.malformed_other;
+        return;
+    }
+    ++counters_.status_messages;
+    status_[status->session_id] = *status;
+    if (status->tracking == messages::TrackingState::kStopped) {
+        end_of_scan_[status->session_id] = status->fragments_cut;
+    }
+}
+
+void Ingestor::onCameraInfo(std::span<const uint8_t> bytes) {
+    auto msg = messages::decodeMessage<plumb::camera_info_t>(bytes);
+    if (!msg.isOk()) {
+        ++counters_.malformed_other;
+        return;
+    }
+    auto info = messages::fromMessage(*msg);
+    if (!info.isOk()) {
+        ++counters_.malformed_other;
+        return;
+    }
+    const bool changed = !camera_ || camera_->source != info->source ||
+                         camera_->camera.toString() != info->camera.toString() ||
+                         camera_->depth_scale != info->depth_scale;
+    camera_ = *info;
+    if (changed && !sidecar_dir_.empty()) {
+        const PinholeCamera& c = info->camera;
+        nlohmann::json j = {{"width", c.width},
+                            {"height", c.height},
+                            {"fx", c.fx},
+                            {"fy", c.fy},
+                            {"cx", c.cx},
+                            {"cy", c.cy},
+                            {"depth_scale", info->depth_scale},
+                            {"source", info->source}};
+        const std::string text = j.dump(2) + "\n";
+        const Status s = messages::writeFileAtomic(
+            sidecar_dir_ / "camera_info.json",
+            std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(text.data()), text.size()));
+        if (!s.isOk()) log::warn("ingest: {}", s.toString());
+    }
+}
+
+void Ingestor::onConfig(std::span<const uint8_t> bytes) {
+    auto msg = messages::decodeMessage<plumb::config_snapshot_t>(bytes);
+    if (!msg.isOk()) {
+        ++counters_.malformed_other;
+        return;
+    }
+    if (msg->program != "plumb-device" || msg->toml == device_config_) return;
+    device_config_ = msg->toml;
+    if (!sidecar_dir_.empty()) {
+        const Status s = messages::writeFileAtomic(
+            sidecar_dir_ / "device_config.toml",
+            std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(device_config_.data()),
+                                     device_config_.size()));
+        if (!s.isOk()) log::warn("ingest: {}", s.toString());
+    }
+}
+
+void Ingestor::poll(double now_s) {
+    assembler_->poll(now_s);
+    for (messages::CompletedFragment& c : assembler_->takeCompleted()) {
+        const Key key{c.session_id, c.fragment_id};
+        requested_.erase(key);
+        if (config_.verify_decode) {
+            auto decoded = messages::decodeFragment(c.bytes);
+            if (!decoded.isOk()) {
+                log::warn("ingest: fragment {} of session {} rejected: {}", c.fragment_id,
+                          c.session_id, decoded.status().toString());
+                ++counters_.fragments_rejected;
+                rejected_.insert(key);
+                assembler_->reject(c.session_id, c.fragment_id, now_s);
+                continue;
+            }
+        }
+        auto put = store_->put(c.session_id, c.fragment_id, c.bytes);
+        if (!put.isOk()) {
+            if (put.status().code() == StatusCode::kIoError) {
+                log::error("ingest: cannot persist fragment {}: {}", c.fragment_id,
+                           put.status().toString());
+                ++counters_.persist_errors;
+                assembler_->release(c.session_id, c.fragment_id);
+            } else {
+                log::warn("ingest: fragment {} of session {} rejected: {}", c.fragment_id,
+                          c.session_id, put.status().toString());
+                ++counters_.fragments_rejected;
+                rejected_.insert(key);
+                assembler_->reject(c.session_id, c.fragment_id, now_s);
+            }
+            continue;
+        }
+        if (*put) {
+            ++counters_.fragments_received;
+            log::debug("ingest: fragment {} of session {} stored ({} bytes)", c.fragment_id,
+                       c.session_id, c.bytes.size());
+        } else {
+            ++counters_.fragments_duplicate;
+        }
+        assembler_->acknowledge(c.session_id, c.fragment_id, now_s);
+    }
+}
+
+bool Ingestor::scanComplete() const {
+    for (const auto& [session, count] : end_of_scan_) {
+        bool all = true;
+        for (int32_t id = 0; id < count && all; ++id) {
+            const Key key{session, static_cast<uint32_t>(id)};
+            all = store_->contains(session, key.second) || rejected_.count(key) > 0;
+        }
+        if (all) return true;
+    }
+    return false;
+}
+
+nlohmann::json Ingestor::metrics(const messages::AuthStats& auth) const {
+    const messages::FragmentAssemblerStats& a = assembler_->stats();
+    int64_t sent = 0;
+    nlohmann::json devices = nlohmann::json::array();
+    for (const auto& [session, s] : status_) {
+        sent += s.fragments_cut;
+        devices.push_back({{"session_id", session},
+                           {"frames_processed", s.frames_processed},
+                           {"frames_dropped", s.frames_dropped},
+                           {"fragments_cut", s.fragments_cut},
+                           {"fragments_acked", s.fragments_acked},
+                           {"spool_fragments", s.spool_fragments},
+                           {"spool_bytes", s.spool_bytes},
+                           {"scan_complete", end_of_scan_.count(session) > 0}});
+    }
+    nlohmann::json j;
+    j["fragments_sent"] = sent;  // as reported by the devices' heartbeats
+    j["fragments_received"] = counters_.fragments_received;
+    j["fragments_resumed"] = counters_.fragments_resumed;
+    j["fragments_in_store"] = store_->fragments().size();
+    j["fragments_duplicate"] = counters_.fragments_duplicate;
+    j["fragments_rejected"] = counters_.fragments_rejected;
+    j["fragments_incomplete"] = assembler_->numPartial();
+    j["persist_errors"] = counters_.persist_errors;
+    j["chunks_received"] = a.chunks_received;
+    j["chunks_duplicate"] = a.duplicate_chunks;
+    j["chunks_lost"] = counters_.chunks_lost;
+    j["chunks_recovered"] = counters_.chunks_recovered;
+    j["retransmit_requests"] = a.requests_sent;
+    j["acks_sent"] = a.acks_sent;
+    j["messages_accepted"] = auth.accepted;
+    j["messages_rejected"] = {
+        {"unsigned", auth.rejected_unsigned},
+        {"wrong_key", auth.rejected_wrong_key},
+        {"forged", auth.rejected_forged},
+        {"replayed", auth.rejected_replayed},
+        {"malformed", a.malformed_messages + counters_.malformed_other},
+        {"chunk_crc", a.chunk_crc_failures},
+        {"fragment_crc", a.fragment_crc_failures},
+        {"inconsistent", a.inconsistent_chunks},
+    };
+    j["devices"] = devices;
+    return j;
+}
+
+Result<std::vector<Fragment>> loadStoredFragments(const messages::FragmentStore& store,
+                                                  std::optional<int64_t> session_id) {
+    const auto all = store.fragments();
+    if (all.empty()) return notFound("no fragments in " + store.dir().string());
+    const int64_t session = session_id ? *session_id : all.back().session_id;
+    std::vector<Fragment> out;
+    for (const messages::StoredFragment& f : all) {
+        if (f.session_id != session) continue;
+        auto bytes = store.get(f.session_id, f.fragment_id);
+        if (!bytes.isOk()) return bytes.status();
+        auto fragment = messages::decodeFragment(*bytes);
+        if (!fragment.isOk()) {
+            return corrupt(fmt::format("{}: {}", f.path.string(), fragment.status().message()));
+        }
+        out.push_back(std::move(fragment).value());
+    }
+    if (out.empty()) return notFound(fmt::format("no fragments of session {}", session));
+    return out;
+}
+
+Result<PinholeCamera> readCameraInfo(const std::vector<std::filesystem::path>& candidates) {
+    for (const auto& path : candidates) {
+        if (!std::filesystem::is_regular_file(path)) continue;
+        auto bytes = messages::readFile(path, 1 << 20);
+        if (!bytes.isOk()) return bytes.status();
+        try {
+            const auto j = nlohmann::json::parse(bytes->begin(), bytes->end());
+            PinholeCamera c{j.at("width").get<int>(), j.at("height").get<int>(),
+                            j.at("fx").get<double>(), j.at("fy").get<double>(),
+                            j.at("cx").get<double>(), j.at("cy").get<double>()};
+            PLUMB_RETURN_IF_ERROR(c.validate());
+            return c;
+        } catch (const std::exception& e) {
+            return corrupt(fmt::format("{}: {}", path.string(), e.what()));
+        }
+    }
+    return notFound("no camera_info.json (the device's camera info) was found");
+}
+
+}  // namespace plumb::backend

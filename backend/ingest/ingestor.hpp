@@ -1,0 +1,124 @@
+// SPDX-License-Identifier: Apache-2.0
+#pragma once
+
+// The backend's receiving end of the fragment stream, shared by `plumb-backend --live`,
+// `plumb-backend --log` and `plumb replay`: reassembles fragments from their chunks
+// (messages/fragment_assembler.hpp), verifies them (chunk and fragment CRC-32, then a full
+// decode), persists each one atomically into the fragment store (messages/fragment_store.hpp)
+// and only then acknowledges it. On open() it resumes from the store: fragments already there are
+// acknowledged again when announced and never stored twice. It also keeps the device's latest
+// heartbeat, camera info and configuration snapshot, and notices the end of a scan (a heartbeat
+// with TRACKING_STOPPED carries the final fragment count).
+//
+// Pure apart from the store: no threads, no clock (time is passed in, seconds), no LCM; the owner
+// routes messages (already authenticated) to onMessage() and calls poll(). Not thread-safe.
+
+#include <cstdint>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <optional>
+#include <set>
+#include <span>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "common/fragment/fragment.hpp"
+#include "messages/auth.hpp"
+#include "messages/conversions.hpp"
+#include "messages/fragment_assembler.hpp"
+#include "messages/fragment_store.hpp"
+#include "messages/transport.hpp"
+
+namespace plumb::backend {
+
+struct IngestConfig {
+    /// Reassembly limits and the retransmission request interval.
+    messages::FragmentAssemblerConfig assembler;
+    /// Decode every reassembled fragment before persisting it (rejects undecodable ones).
+    bool verify_decode = true;
+};
+
+struct IngestCounters {
+    uint64_t fragments_received = 0;   ///< new fragments persisted by this process
+    uint64_t fragments_resumed = 0;    ///< already in the store at open()
+    uint64_t fragments_duplicate = 0;  ///< reassembled again although stored (ignored)
+    uint64_t fragments_rejected = 0;   ///< reassembled but undecodable or conflicting
+    uint64_t persist_errors = 0;       ///< disk errors (the fragment is received again)
+    uint64_t chunks_lost = 0;          ///< distinct chunks requested again (lost or late)
+    uint64_t chunks_recovered = 0;     ///< of these, received afterwards
+    uint64_t status_messages = 0;      ///< device heartbeats
+    uint64_t malformed_other = 0;      ///< undecodable status, camera info or config messages
+};
+
+class Ingestor {
+  public:
+    /// Opens (creating) the store in `fragments_dir`; sidecar files (camera_info.json,
+    /// device_config.toml) go to `sidecar_dir` when not empty. Acks and retransmission requests
+    /// are published on `transport`, which must outlive the ingestor.
+    static Result<std::unique_ptr<Ingestor>> open(const std::filesystem::path& fragments_dir,
+                                                  const std::filesystem::path& sidecar_dir,
+                                                  IngestConfig config,
+                                                  messages::Transport& transport);
+
+    ~Ingestor();
+
+    /// The channels onMessage() wants.
+    static std::vector<std::string> channels();
+
+    /// Handles one (authenticated) message; bad messages are counted, never fatal.
+    void onMessage(const std::string& channel, std::span<const uint8_t> bytes, double now_s);
+    /// Persists and acknowledges completed fragments, requests stalled chunks.
+    void poll(double now_s);
+
+    /// True when some session announced its end (TRACKING_STOPPED) and every one of its
+    /// fragments is stored (or was rejected for good).
+    bool scanComplete() const;
+    /// Fragments in the store.
+    size_t fragmentsInStore() const { return store_->fragments().size(); }
+    const messages::FragmentStore& store() const { return *store_; }
+    const IngestCounters& counters() const { return counters_; }
+    const messages::FragmentAssemblerStats& assemblerStats() const { return assembler_->stats(); }
+    const std::optional<messages::CameraInfo>& cameraInfo() const { return camera_; }
+    const std::string& deviceConfigToml() const { return device_config_; }
+    /// Latest heartbeat per device session.
+    const std::map<int64_t, messages::DeviceStatus>& deviceStatus() const { return status_; }
+
+    /// The metrics.json document (deterministic for a given message sequence).
+    nlohmann::json metrics(const messages::AuthStats& auth) const;
+
+  private:
+    class CountingTransport;
+    Ingestor() = default;
+    void onChunk(std::span<const uint8_t> bytes, double now_s);
+    void onStatus(std::span<const uint8_t> bytes);
+    void onCameraInfo(std::span<const uint8_t> bytes);
+    void onConfig(std::span<const uint8_t> bytes);
+    void noteRequest(const std::pair<int64_t, uint32_t>& key, const std::vector<int32_t>& chunks);
+
+    IngestConfig config_;
+    std::filesystem::path sidecar_dir_;
+    std::unique_ptr<messages::FragmentStore> store_;
+    std::unique_ptr<CountingTransport> out_;
+    std::unique_ptr<messages::FragmentAssembler> assembler_;
+    IngestCounters counters_;
+    std::map<std::pair<int64_t, uint32_t>, std::set<int32_t>> requested_;
+    std::set<std::pair<int64_t, uint32_t>> rejected_;
+    std::map<int64_t, messages::DeviceStatus> status_;
+    std::map<int64_t, int32_t> end_of_scan_;  ///< session -> final fragment count
+    std::optional<messages::CameraInfo> camera_;
+    std::string device_config_;
+};
+
+/// Loads every fragment of one session from a store (the newest session, or `session_id` when
+/// set), decoded, in id order. NotFound for an empty store, Corrupt for a damaged fragment.
+Result<std::vector<Fragment>> loadStoredFragments(const messages::FragmentStore& store,
+                                                  std::optional<int64_t> session_id = {});
+
+/// The intrinsics from the first readable camera_info.json among `candidates` (written by the
+/// ingest from the device's camera info). NotFound when none exists, Corrupt when unreadable.
+Result<PinholeCamera> readCameraInfo(const std::vector<std::filesystem::path>& candidates);
+
+}  // namespace plumb::backend
