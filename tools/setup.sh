@@ -14,7 +14,6 @@ packages=(
     # toolchain
     build-essential cmake ninja-build pkg-config git clang clang-format clang-tidy
     libclang-rt-14-dev  # libFuzzer runtime for the optional fuzz_decoders test
-    libclang-rt-14-dev  # libFuzzer runtime for the optional fuzz_decoders test
     # common/ and the device side
     libeigen3-dev libtbb-dev libfmt-dev libspdlog-dev libtomlplusplus-dev nlohmann-json3-dev
     libnanoflann-dev
