@@ -105,6 +105,7 @@ int main(int argc, char** argv) {
             if (!volume.integrate(fr->frame.depth, src.camera(), T_F_C).isOk()) return 1;
         }
         f.points_F = tsdf::extractSurfacePoints(volume);
+        if (f.points_F.empty()) continue;  // a one-frame tail has no twice-seen voxels
         poses.push_back(f.T_W_F);
         fragments.push_back(std::move(f));
     }
