@@ -35,6 +35,8 @@ constexpr const char* kUsage =
     "  --timeout S          live: give up after S seconds (exit 1)\n"
     "  --linger S           live: keep acknowledging for S seconds after the end (default 1)\n"
     "  --no-finalise        stop after ingest (no reconstruction)\n"
+    "  --gt DIR             ground truth to score against (groundtruth.txt or trajectory.log,\n"
+    "                       gt_points.ply, layout.json)\n"
     "  --lcm-url URL        LCM URL (default udpm://239.255.76.67:7667?ttl=0, stays on host)\n"
     "  --allow-remote       allow an LCM URL that can leave this machine\n"
     "  --key-file FILE      shared key (hex): only authenticated messages are accepted\n"
@@ -69,7 +71,7 @@ int runBackendCommand(std::vector<std::string> args, const char* program) {
     if (!config_args.isOk()) return usageError(config_args.status().message());
 
     bool live = false, finalise = true;
-    std::string log_path, fragments_dir, out_dir;
+    std::string log_path, fragments_dir, out_dir, gt_dir;
     backend::IngestRunOptions options;
     messages::LinkOptions link_options;
     log::Level level = log::Level::kInfo;
@@ -105,6 +107,8 @@ int runBackendCommand(std::vector<std::string> args, const char* program) {
         } else if (a == "--linger") {
             if (!value(&v) || !parseDouble(v, &options.linger_s))
                 return usageError("--linger needs seconds >= 0");
+        } else if (a == "--gt") {
+            if (!value(&gt_dir)) return usageError("--gt needs a directory");
         } else if (a == "--no-finalise" || a == "--no-finalize") {
             finalise = false;
         } else if (a == "--lcm-url") {
@@ -208,6 +212,14 @@ int runBackendCommand(std::vector<std::string> args, const char* program) {
     input.fragments = std::move(fragments).value();
     input.description = options.fragments_dir.string();
     input.config_toml = config::toToml(pipeline_config, "plumb-backend configuration");
+    if (!gt_dir.empty()) {
+        auto gt = backend::loadGroundTruth(gt_dir);
+        if (!gt.isOk()) {
+            log::error("{}", gt.status().toString());
+            return 1;
+        }
+        input.ground_truth = std::move(gt).value();
+    }
     auto camera =
         backend::readCameraInfo({std::filesystem::path(out_dir) / "camera_info.json",
                                  options.fragments_dir.parent_path() / "camera_info.json"});
