@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <vector>
 
 #include "common/tsdf/parallel.hpp"
 
@@ -23,6 +24,104 @@ float blockExit(const Eigen::Vector3f& o, const Eigen::Vector3f& r, const Eigen:
     return t_exit;
 }
 
+/// Per-tile camera z-range of the allocated blocks (InfiniTAM's "range image"): rays only march
+/// where some block projects, from the nearest to the farthest block corner of their tile. The
+/// bounds are conservative (block corners, whole tiles), so no crossing is missed; min/max are
+/// order-independent, so the result does not depend on the thread count.
+struct RangeImage {
+    static constexpr int kTile = 8;  ///< tile edge, pixels
+    int tiles_x = 0, tiles_y = 0;
+    std::vector<float> z_min, z_max;  ///< per tile; z_min > z_max = no block
+
+    bool bounds(int u, int v, float* lo, float* hi) const {
+        const size_t i = static_cast<size_t>((v / kTile) * tiles_x + u / kTile);
+        *lo = z_min[i];
+        *hi = z_max[i];
+        return *lo <= *hi;
+    }
+};
+
+RangeImage blockRanges(const TsdfVolume& volume, const PinholeCamera& camera,
+                       const Eigen::Isometry3d& T_V_C, const RaycastConfig& config) {
+    RangeImage r;
+    r.tiles_x = (camera.width + RangeImage::kTile - 1) / RangeImage::kTile;
+    r.tiles_y = (camera.height + RangeImage::kTile - 1) / RangeImage::kTile;
+    const size_t num_tiles = static_cast<size_t>(r.tiles_x) * static_cast<size_t>(r.tiles_y);
+    constexpr float kInf = std::numeric_limits<float>::infinity();
+    const Eigen::Isometry3d T_C_V = T_V_C.inverse();
+    const Eigen::Matrix3f R = T_C_V.linear().cast<float>();
+    const Eigen::Vector3f t = T_C_V.translation().cast<float>();
+    const float bs = volume.blockSize();
+    const float fx = static_cast<float>(camera.fx), fy = static_cast<float>(camera.fy);
+    const float cx = static_cast<float>(camera.cx), cy = static_cast<float>(camera.cy);
+    const float z_near = std::max(config.min_depth_m, 1e-3f);
+    const std::vector<BlockKey>& keys = volume.blockKeys();
+    constexpr int kBlocksPerChunk = 2048;
+    const int num_chunks = static_cast<int>((keys.size() + kBlocksPerChunk - 1) / kBlocksPerChunk);
+    std::vector<std::vector<float>> lo(static_cast<size_t>(num_chunks));
+    std::vector<std::vector<float>> hi(static_cast<size_t>(num_chunks));
+    parallelFor(config.num_threads, num_chunks, [&](int c) {
+        std::vector<float>& zl = lo[static_cast<size_t>(c)];
+        std::vector<float>& zh = hi[static_cast<size_t>(c)];
+        zl.assign(num_tiles, kInf);
+        zh.assign(num_tiles, -kInf);
+        const size_t end = std::min(keys.size(), static_cast<size_t>(c + 1) * kBlocksPerChunk);
+        for (size_t b = static_cast<size_t>(c) * kBlocksPerChunk; b < end; ++b) {
+            const Eigen::Vector3f origin = R * (keys[b].cast<float>() * bs) + t;
+            float zmin = kInf, zmax = -kInf;
+            float umin = kInf, umax = -kInf, vmin = kInf, vmax = -kInf;
+            bool straddles = false;
+            for (int k = 0; k < 8; ++k) {
+                const Eigen::Vector3f p = origin + R.col(0) * (bs * static_cast<float>(k & 1)) +
+                                          R.col(1) * (bs * static_cast<float>((k >> 1) & 1)) +
+                                          R.col(2) * (bs * static_cast<float>((k >> 2) & 1));
+                zmin = std::min(zmin, p.z());
+                zmax = std::max(zmax, p.z());
+                if (p.z() < z_near) {
+                    straddles = true;
+                    continue;
+                }
+                const float u = fx * p.x() / p.z() + cx, v = fy * p.y() / p.z() + cy;
+                umin = std::min(umin, u);
+                umax = std::max(umax, u);
+                vmin = std::min(vmin, v);
+                vmax = std::max(vmax, v);
+            }
+            if (zmax < z_near || zmin > config.max_depth_m) continue;
+            int tu0 = 0, tu1 = r.tiles_x - 1, tv0 = 0, tv1 = r.tiles_y - 1;
+            if (!straddles) {
+                // Pixel (u, v) covers [u - 0.5, u + 0.5]; one pixel of margin for rounding.
+                if (umax < -1.0f || vmax < -1.0f || umin > static_cast<float>(camera.width) ||
+                    vmin > static_cast<float>(camera.height)) {
+                    continue;
+                }
+                tu0 = std::max(0, static_cast<int>(std::floor(umin - 1.0f)) / RangeImage::kTile);
+                tv0 = std::max(0, static_cast<int>(std::floor(vmin - 1.0f)) / RangeImage::kTile);
+                tu1 = std::min(r.tiles_x - 1,
+                               static_cast<int>(std::floor(umax + 1.0f)) / RangeImage::kTile);
+                tv1 = std::min(r.tiles_y - 1,
+                               static_cast<int>(std::floor(vmax + 1.0f)) / RangeImage::kTile);
+            }
+            for (int tv = tv0; tv <= tv1; ++tv) {
+                for (int tu = tu0; tu <= tu1; ++tu) {
+                    const size_t i = static_cast<size_t>(tv * r.tiles_x + tu);
+                    zl[i] = std::min(zl[i], zmin);
+                    zh[i] = std::max(zh[i], zmax);
+                }
+            }
+        }
+    });
+    r.z_min.assign(num_tiles, kInf);
+    r.z_max.assign(num_tiles, -kInf);
+    for (int c = 0; c < num_chunks; ++c) {
+        for (size_t i = 0; i < num_tiles; ++i) {
+            r.z_min[i] = std::min(r.z_min[i], lo[static_cast<size_t>(c)][i]);
+            r.z_max[i] = std::max(r.z_max[i], hi[static_cast<size_t>(c)][i]);
+        }
+    }
+    return r;
+}
+
 }  // namespace
 
 RaycastResult raycast(const TsdfVolume& volume, const PinholeCamera& camera,
@@ -37,6 +136,7 @@ RaycastResult raycast(const TsdfVolume& volume, const PinholeCamera& camera,
     const float bs = volume.blockSize();
     const float mu = volume.config().truncation_m;
     const float w_min = config.min_weight;
+    const RangeImage ranges = blockRanges(volume, camera, T_V_C, config);
 
     parallelFor(config.num_threads, camera.height, [&](int v) {
         for (int u = 0; u < camera.width; ++u) {
@@ -44,10 +144,13 @@ RaycastResult raycast(const TsdfVolume& volume, const PinholeCamera& camera,
             const Eigen::Vector3f r = R * camera.ray(u, v).cast<float>();
             const float inv_len = 1.0f / r.norm();
             const float voxel_dt = vs * inv_len;
-            float t = config.min_depth_m;
+            float z_lo = 0.0f, z_hi = 0.0f;
+            if (!ranges.bounds(u, v, &z_lo, &z_hi)) continue;  // no block along this ray
+            float t = std::max(config.min_depth_m, z_lo - voxel_dt);
+            const float t_end = std::min(config.max_depth_m, z_hi + voxel_dt);
             float t_prev = 0.0f, f_prev = 0.0f;
             bool prev_valid = false;
-            while (t < config.max_depth_m) {
+            while (t < t_end) {
                 const Eigen::Vector3f p = o + t * r;
                 float f = 0.0f;
                 if (volume.findBlock(blockOf((p / vs).array().floor().cast<int>())) ==
@@ -58,7 +161,10 @@ RaycastResult raycast(const TsdfVolume& volume, const PinholeCamera& camera,
                     continue;
                 }
                 if (!volume.interpolate(p, w_min, &f)) {
-                    t += voxel_dt;
+                    // Unobserved voxels (behind surfaces or never in view): an observed band is
+                    // at least 2 mu thick along the viewing rays that made it, so mu / 2 steps
+                    // cannot jump over one.
+                    t += std::max(voxel_dt, 0.5f * mu * inv_len);
                     prev_valid = false;
                     continue;
                 }

@@ -2,6 +2,9 @@
 #include "common/tsdf/tsdf_volume.hpp"
 
 #include <algorithm>
+#include <array>
+#include <atomic>
+#include <climits>
 #include <cmath>
 #include <limits>
 #include <string>
@@ -28,10 +31,10 @@ Eigen::Vector3i floorVec(const Eigen::Vector3f& p) {
             static_cast<int>(std::floor(p.z()))};
 }
 
-/// Appends the keys of every block cell the segment a -> b (in block units) passes through
-/// (Amanatides & Woo 3-D DDA), skipping a key equal to the last one appended.
-void traverseSegment(const Eigen::Vector3f& a, const Eigen::Vector3f& b,
-                     std::vector<BlockKey>* keys) {
+/// Calls visit(cell) for every block cell the segment a -> b (in block units) passes through
+/// (Amanatides & Woo 3-D DDA), in order from a to b.
+template <typename Visit>
+void traverseSegment(const Eigen::Vector3f& a, const Eigen::Vector3f& b, Visit&& visit) {
     const Eigen::Vector3f dir = b - a;
     Eigen::Vector3i cell = floorVec(a);
     const Eigen::Vector3i last = floorVec(b);
@@ -56,7 +59,7 @@ void traverseSegment(const Eigen::Vector3f& a, const Eigen::Vector3f& b,
     }
     const int max_steps = (last - cell).cwiseAbs().sum() + 1;
     for (int s = 0; s <= max_steps; ++s) {
-        if (keys->empty() || keys->back() != cell) keys->push_back(cell);
+        visit(cell);
         if (cell == last) break;
         int axis = 0;
         if (t_max[1] < t_max[axis]) axis = 1;
@@ -66,6 +69,24 @@ void traverseSegment(const Eigen::Vector3f& a, const Eigen::Vector3f& b,
         t_max[axis] += t_delta[axis];
     }
 }
+
+/// A small direct-mapped cache of recently seen block keys: neighbouring pixels cross the same
+/// blocks, so most cells are filtered here before a hash-map lookup.
+class RecentKeys {
+  public:
+    RecentKeys() { slots_.fill(Eigen::Vector3i(INT32_MIN, INT32_MIN, INT32_MIN)); }
+    /// True when `k` was seen recently; otherwise remembers it and returns false.
+    bool seen(const BlockKey& k) {
+        Eigen::Vector3i& slot = slots_[hashBlockKey(k.x(), k.y(), k.z()) & (kSlots - 1)];
+        if (slot == k) return true;
+        slot = k;
+        return false;
+    }
+
+  private:
+    static constexpr uint32_t kSlots = 256;
+    std::array<Eigen::Vector3i, kSlots> slots_;
+};
 
 }  // namespace
 
@@ -98,11 +119,13 @@ void TsdfVolume::clear() {
     hash_.clear();
     block_keys_.clear();
     voxels_.clear();
+    stamps_.clear();
 }
 
-std::vector<BlockKey> TsdfVolume::visibleBlocks(const DepthImage& depth,
+std::vector<BlockKey> TsdfVolume::collectBlocks(const DepthImage& depth,
                                                 const PinholeCamera& camera,
-                                                const Eigen::Isometry3d& T_V_C) const {
+                                                const Eigen::Isometry3d& T_V_C,
+                                                uint32_t stamp) const {
     const int height = depth.height();
     const int width = depth.width();
     const int stride = config_.allocation_stride_px;
@@ -115,7 +138,19 @@ std::vector<BlockKey> TsdfVolume::visibleBlocks(const DepthImage& depth,
     const int num_chunks = (height + kRowsPerChunk - 1) / kRowsPerChunk;
     std::vector<std::vector<BlockKey>> chunk_keys(static_cast<size_t>(num_chunks));
     parallelFor(config_.num_threads, num_chunks, [&](int c) {
-        std::vector<BlockKey>& keys = chunk_keys[static_cast<size_t>(c)];
+        std::vector<BlockKey>& fresh = chunk_keys[static_cast<size_t>(c)];
+        RecentKeys recent;
+        auto visit = [&](const BlockKey& key) {
+            if (recent.seen(key)) return;
+            const int32_t index = hash_.find(key);
+            if (index == BlockHashMap::kNotFound) {
+                fresh.push_back(key);
+            } else if (stamp != 0) {
+                // Every writer stores the same value: the outcome is order-independent.
+                std::atomic_ref<uint32_t>(stamps_[static_cast<size_t>(index)])
+                    .store(stamp, std::memory_order_relaxed);
+            }
+        };
         const int v_end = std::min(height, (c + 1) * kRowsPerChunk);
         for (int v = c * kRowsPerChunk; v < v_end; ++v) {
             if (v % stride != 0) continue;
@@ -126,10 +161,10 @@ std::vector<BlockKey> TsdfVolume::visibleBlocks(const DepthImage& depth,
                 const float z0 = std::max(d - mu, 0.5f * config_.min_depth_m);
                 const Eigen::Vector3f a = (R * (ray * z0) + t) * inv_block;
                 const Eigen::Vector3f b = (R * (ray * (d + mu)) + t) * inv_block;
-                traverseSegment(a, b, &keys);
+                traverseSegment(a, b, visit);
             }
         }
-        sortUnique(&keys);
+        sortUnique(&fresh);
     });
     std::vector<BlockKey> all;
     size_t total = 0;
@@ -142,11 +177,7 @@ std::vector<BlockKey> TsdfVolume::visibleBlocks(const DepthImage& depth,
 
 size_t TsdfVolume::countNewBlocks(const DepthImage& depth, const PinholeCamera& camera,
                                   const Eigen::Isometry3d& T_V_C) const {
-    size_t n = 0;
-    for (const BlockKey& k : visibleBlocks(depth, camera, T_V_C)) {
-        if (hash_.find(k) == BlockHashMap::kNotFound) ++n;
-    }
-    return n;
+    return collectBlocks(depth, camera, T_V_C, 0).size();
 }
 
 Result<IntegrationStats> TsdfVolume::integrate(const DepthImage& depth, const PinholeCamera& camera,
@@ -159,32 +190,36 @@ Result<IntegrationStats> TsdfVolume::integrate(const DepthImage& depth, const Pi
     if (!lie::isValidPose(T_V_C, 1e-4)) {
         return invalidArgument("tsdf integrate: camera pose is not a finite rigid transform");
     }
-    const std::vector<BlockKey> keys = visibleBlocks(depth, camera, T_V_C);
-    std::vector<int32_t> indices(keys.size());
-    size_t num_new = 0;
-    for (size_t i = 0; i < keys.size(); ++i) {
-        indices[i] = hash_.find(keys[i]);
-        if (indices[i] == BlockHashMap::kNotFound) ++num_new;
+    // Stamp the existing blocks the frame's truncation band crosses; collect the new ones.
+    ++frame_stamp_;
+    if (frame_stamp_ == 0) {  // wrapped: clear old stamps so none can match by accident
+        std::fill(stamps_.begin(), stamps_.end(), 0u);
+        frame_stamp_ = 1;
     }
+    const std::vector<BlockKey> fresh = collectBlocks(depth, camera, T_V_C, frame_stamp_);
+    const size_t num_new = fresh.size();
     if (config_.max_blocks > 0 && block_keys_.size() + num_new > config_.max_blocks) {
         return failedPrecondition("tsdf integrate: block budget of " +
                                   std::to_string(config_.max_blocks) + " blocks reached (" +
                                   std::to_string(block_keys_.size()) + " allocated, frame needs " +
                                   std::to_string(num_new) + " more)");
     }
-    IntegrationStats stats;
-    stats.blocks_visible = keys.size();
-    stats.blocks_allocated = num_new;
     const size_t needed = voxels_.size() + num_new * kBlockVoxels;
     if (needed > voxels_.capacity()) voxels_.reserve(std::max(needed, 2 * voxels_.capacity()));
-    for (size_t i = 0; i < keys.size(); ++i) {
-        if (indices[i] != BlockHashMap::kNotFound) continue;
-        indices[i] = static_cast<int32_t>(block_keys_.size());
-        hash_.insert(keys[i], indices[i]);
-        block_keys_.push_back(keys[i]);
-        voxels_.resize(voxels_.size() + kBlockVoxels);
+    for (const BlockKey& key : fresh) {
+        const int32_t index = allocateBlock(key);
+        stamps_[static_cast<size_t>(index)] = frame_stamp_;
     }
+    // Visible blocks in allocation order (deterministic).
+    visible_.clear();
+    for (size_t i = 0; i < stamps_.size(); ++i) {
+        if (stamps_[i] == frame_stamp_) visible_.push_back(static_cast<int32_t>(i));
+    }
+    IntegrationStats stats;
+    stats.blocks_visible = visible_.size();
+    stats.blocks_allocated = num_new;
     stats.blocks_total = block_keys_.size();
+    const std::vector<int32_t>& indices = visible_;
 
     // Camera <- volume transform in float; voxel centres are g * voxel_size.
     const Eigen::Isometry3d T_C_V = T_V_C.inverse();
@@ -202,9 +237,10 @@ Result<IntegrationStats> TsdfVolume::integrate(const DepthImage& depth, const Pi
     const float min_d = config_.min_depth_m, max_d = config_.max_depth_m;
     const float max_w = config_.max_weight;
 
-    parallelFor(config_.num_threads, static_cast<int>(keys.size()), [&](int i) {
-        const BlockKey& key = keys[static_cast<size_t>(i)];
-        Voxel* voxels = blockVoxels(indices[static_cast<size_t>(i)]);
+    parallelFor(config_.num_threads, static_cast<int>(indices.size()), [&](int i) {
+        const int32_t index = indices[static_cast<size_t>(i)];
+        const BlockKey& key = block_keys_[static_cast<size_t>(index)];
+        Voxel* voxels = blockVoxels(index);
         const Eigen::Vector3f origin_V = (key * kBlockSide).cast<float>() * vs;
         const Eigen::Vector3f base = R * origin_V + t;
         for (int z = 0; z < kBlockSide; ++z) {
@@ -240,6 +276,7 @@ int32_t TsdfVolume::allocateBlock(const BlockKey& key) {
     const auto index = static_cast<int32_t>(block_keys_.size());
     hash_.insert(key, index);
     block_keys_.push_back(key);
+    stamps_.push_back(0);
     voxels_.resize(voxels_.size() + kBlockVoxels);
     return index;
 }

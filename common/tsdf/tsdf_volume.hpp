@@ -117,14 +117,20 @@ class TsdfVolume {
     bool gradient(const Eigen::Vector3f& p, float min_weight, Eigen::Vector3f* grad) const;
 
   private:
-    /// Sorted, unique keys of the blocks crossed by the frame's truncation band.
-    std::vector<BlockKey> visibleBlocks(const DepthImage& depth, const PinholeCamera& camera,
-                                        const Eigen::Isometry3d& T_V_C) const;
+    /// Walks the blocks crossed by the frame's truncation band: existing blocks get
+    /// stamps_[i] = stamp (unless stamp == 0); returns the sorted, unique keys of missing ones.
+    std::vector<BlockKey> collectBlocks(const DepthImage& depth, const PinholeCamera& camera,
+                                        const Eigen::Isometry3d& T_V_C, uint32_t stamp) const;
 
     TsdfConfig config_;
     BlockHashMap hash_;
     std::vector<BlockKey> block_keys_;  ///< key of block i
     std::vector<Voxel> voxels_;         ///< block i occupies [i * 512, (i + 1) * 512)
+    /// Per block: the integrate() call (frame_stamp_) that last saw it. Written by
+    /// collectBlocks() under integrate()'s exclusive access only.
+    mutable std::vector<uint32_t> stamps_;
+    uint32_t frame_stamp_ = 0;
+    std::vector<int32_t> visible_;  ///< scratch: visible blocks of the current frame
 };
 
 /// Block key holding global voxel g.

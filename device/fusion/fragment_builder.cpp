@@ -1,10 +1,20 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "device/fusion/fragment_builder.hpp"
 
+#include <chrono>
 #include <string>
 #include <utility>
 
 namespace plumb::device {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double msSince(Clock::time_point t0) {
+    return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+}  // namespace
 
 Status FusionConfig::validate() const {
     if (frames_per_fragment < 1) {
@@ -51,18 +61,22 @@ void FragmentBuilder::addFrame(const Frame& frame, const Eigen::Isometry3d& T_F_
     }
 }
 
-Fragment FragmentBuilder::closeFragment(FragmentEnd end) {
+Fragment FragmentBuilder::closeFragment(FragmentEnd end, FrameTiming* timing) {
     Fragment fragment = std::move(*current_);
     current_.reset();
     fragment.end = end;
+    const Clock::time_point t0 = Clock::now();
     fragment.points_F = tsdf::extractSurfacePoints(volume_, config_.surface);
+    if (timing != nullptr) timing->extract_ms += msSince(t0);
     fragment.tracking_quality = quality_count_ > 0 ? quality_sum_ / quality_count_ : 0.0;
     return fragment;
 }
 
 bool FragmentBuilder::integrate(const FramePyramid& pyramid, const Eigen::Isometry3d& T_F_C,
                                 FrameReport* report) {
+    const Clock::time_point t0 = Clock::now();
     Result<tsdf::IntegrationStats> r = volume_.integrate(pyramid.depth, camera_, T_F_C);
+    report->timing.integrate_ms += msSince(t0);
     if (!r.isOk()) {
         report->message += (report->message.empty() ? "" : "; ") + r.status().message();
         return false;
@@ -72,6 +86,14 @@ bool FragmentBuilder::integrate(const FramePyramid& pyramid, const Eigen::Isomet
 }
 
 Result<FrameReport> FragmentBuilder::process(const Frame& frame) {
+    const Clock::time_point t0 = Clock::now();
+    Result<FrameReport> report = processImpl(frame);
+    if (report.isOk()) report->timing.total_ms = msSince(t0);
+    return report;
+}
+
+Result<FrameReport> FragmentBuilder::processImpl(const Frame& frame) {
+    const Clock::time_point t_pre = Clock::now();
     Result<FramePyramid> pyr = preprocess(frame.depth, camera_, config_.preprocess);
     if (!pyr.isOk()) {
         return Status(pyr.status().code(),
@@ -80,13 +102,14 @@ Result<FrameReport> FragmentBuilder::process(const Frame& frame) {
     const FramePyramid& pyramid = pyr.value();
     FrameReport report;
     report.frame_index = frame.index;
+    report.timing.preprocess_ms = msSince(t_pre);
 
     if (first_frame_ || !have_model_) {
         // Start of the stream, or nothing to track against: begin here at the best known pose.
         const bool restart = !first_frame_;
         first_frame_ = false;
         if (current_ && !current_->frames.empty()) {
-            report.closed.push_back(closeFragment(FragmentEnd::kTrackingLost));
+            report.closed.push_back(closeFragment(FragmentEnd::kTrackingLost, &report.timing));
         }
         if (!current_) openFragment(T_W_C_);
         report.tracked = !restart;
@@ -96,12 +119,19 @@ Result<FrameReport> FragmentBuilder::process(const Frame& frame) {
         return report;
     }
 
+    const Clock::time_point t_track = Clock::now();
     const std::vector<ModelLevel> model =
         predictModel(volume_, pyramid, T_M_last_, config_.raycast);
-    report.icp = alignFrameToModel(pyramid, model, T_M_last_, T_M_last_, config_.icp);
+    // Start from a constant-velocity prediction: along directions the geometry leaves free
+    // (solution remapping in the ICP) the camera keeps moving as it did.
+    const Eigen::Isometry3d T_M_pred =
+        config_.constant_velocity && !lost_ ? T_M_last_ * velocity_ : T_M_last_;
+    report.icp = alignFrameToModel(pyramid, model, T_M_last_, T_M_pred, config_.icp);
+    report.timing.track_ms = msSince(t_track);
 
     if (report.icp.ok) {
         const Eigen::Isometry3d T_M_C = report.icp.T_M_C;
+        velocity_ = lost_ ? Eigen::Isometry3d::Identity() : T_M_last_.inverse() * T_M_C;
         T_W_C_ = T_W_M_ * T_M_C;
         report.tracked = true;
         report.relocalised = lost_;
@@ -115,7 +145,7 @@ Result<FrameReport> FragmentBuilder::process(const Frame& frame) {
             } else {
                 // Block budget: close early and start the next fragment with this frame.
                 report.budget_reached = true;
-                report.closed.push_back(closeFragment(FragmentEnd::kBlockBudget));
+                report.closed.push_back(closeFragment(FragmentEnd::kBlockBudget, &report.timing));
                 openFragment(T_W_C_);
                 report.integrated = integrate(pyramid, Eigen::Isometry3d::Identity(), &report);
                 if (report.integrated) addFrame(frame, Eigen::Isometry3d::Identity(), true, 1.0);
@@ -131,10 +161,11 @@ Result<FrameReport> FragmentBuilder::process(const Frame& frame) {
         }
     } else {
         report.message = "tracking failed: " + report.icp.failure;
+        velocity_ = Eigen::Isometry3d::Identity();
         report.T_W_C = T_W_C_;
         if (current_) {
             addFrame(frame, T_M_last_, false, 0.0);
-            report.closed.push_back(closeFragment(FragmentEnd::kTrackingLost));
+            report.closed.push_back(closeFragment(FragmentEnd::kTrackingLost, &report.timing));
             lost_ = true;  // keep volume_ and T_M_last_ for re-localisation
         } else if (lost_) {
             // Re-localisation failed as well: restart tracking in a new segment.
@@ -152,7 +183,7 @@ Result<FrameReport> FragmentBuilder::process(const Frame& frame) {
     report.T_W_C = T_W_C_;
     if (current_ && static_cast<int>(current_->frames.size()) >= config_.frames_per_fragment) {
         // Cut; volume_ stays alive to track the next frame.
-        report.closed.push_back(closeFragment(FragmentEnd::kFrameCount));
+        report.closed.push_back(closeFragment(FragmentEnd::kFrameCount, &report.timing));
     }
     return report;
 }

@@ -25,6 +25,7 @@
 #include "common/tsdf/raycast.hpp"
 #include "common/tsdf/surface.hpp"
 #include "common/tsdf/tsdf_volume.hpp"
+#include "device/fusion/fusion_config.hpp"
 #include "device/preprocess/preprocess.hpp"
 #include "device/tracking/icp.hpp"
 #include "drivers/frame_source.hpp"
@@ -34,6 +35,8 @@ namespace plumb::device {
 struct FusionConfig {
     /// Frames per fragment (paper: 50).
     int frames_per_fragment = 50;
+    /// Start ICP from a constant-velocity prediction (else from the last pose).
+    bool constant_velocity = true;
     /// TSDF volume of each fragment (voxel size, truncation, block budget).
     tsdf::TsdfConfig tsdf;
     /// Model prediction for tracking.
@@ -48,6 +51,15 @@ struct FusionConfig {
     Status validate() const;
 };
 
+/// Wall-clock time spent in each stage of one frame, milliseconds (for status and benchmarks).
+struct FrameTiming {
+    double preprocess_ms = 0.0;  ///< filter, pyramid, vertex and normal maps
+    double track_ms = 0.0;       ///< model raycast and ICP
+    double integrate_ms = 0.0;   ///< TSDF integration (all attempts)
+    double extract_ms = 0.0;     ///< surface points of fragments closed on this frame
+    double total_ms = 0.0;       ///< the whole process() call
+};
+
 /// What happened to one frame.
 struct FrameReport {
     int64_t frame_index = 0;
@@ -60,6 +72,7 @@ struct FrameReport {
     Eigen::Isometry3d T_W_C = Eigen::Isometry3d::Identity();  ///< pose estimate after the frame
     std::string message;           ///< explanation when something was not nominal
     std::vector<Fragment> closed;  ///< fragments completed while processing this frame
+    FrameTiming timing;            ///< where the time went
 };
 
 class FragmentBuilder {
@@ -83,7 +96,8 @@ class FragmentBuilder {
     void openFragment(const Eigen::Isometry3d& T_W_F);
     void addFrame(const Frame& frame, const Eigen::Isometry3d& T_F_C, bool tracking_ok,
                   double quality);
-    Fragment closeFragment(FragmentEnd end);
+    Fragment closeFragment(FragmentEnd end, FrameTiming* timing = nullptr);
+    Result<FrameReport> processImpl(const Frame& frame);
     bool integrate(const FramePyramid& pyramid, const Eigen::Isometry3d& T_F_C,
                    FrameReport* report);
 
@@ -96,6 +110,8 @@ class FragmentBuilder {
     Eigen::Isometry3d T_W_M_ = Eigen::Isometry3d::Identity();     ///< frame of volume_
     Eigen::Isometry3d T_M_last_ = Eigen::Isometry3d::Identity();  ///< last good camera in M
     Eigen::Isometry3d T_W_C_ = Eigen::Isometry3d::Identity();
+    /// Last frame-to-frame motion T_Cprev_C (identity after a loss), for the prediction.
+    Eigen::Isometry3d velocity_ = Eigen::Isometry3d::Identity();
     uint32_t next_id_ = 0;
     uint32_t segment_ = 0;
     double quality_sum_ = 0.0;

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "device/preprocess/preprocess.hpp"
 
+#include <array>
 #include <cmath>
 #include <string>
 
@@ -54,6 +55,15 @@ DepthImage bilateralFilter(const DepthImage& depth, const PreprocessConfig& conf
                 std::exp(-static_cast<float>(dx * dx + dy * dy) * inv_2ss);
         }
     }
+    // Range weights exp(-diff^2 / 2 sigma_r^2) tabulated over |diff| in [0, 3 sigma_r] (nearest
+    // of kRangeBins + 1 samples): no exp() in the inner loop.
+    constexpr int kRangeBins = 256;
+    std::array<float, kRangeBins + 1> range_lut{};
+    for (int i = 0; i <= kRangeBins; ++i) {
+        const float diff = max_diff * static_cast<float>(i) / kRangeBins;
+        range_lut[static_cast<size_t>(i)] = std::exp(-diff * diff * inv_2sr);
+    }
+    const float lut_scale = kRangeBins / max_diff;
     DepthImage out(w, h, 0.0f);
     tsdf::parallelFor(config.num_threads, h, [&](int v) {
         for (int u = 0; u < w; ++u) {
@@ -69,8 +79,9 @@ DepthImage bilateralFilter(const DepthImage& depth, const PreprocessConfig& conf
                     const float d = depth(x, y);
                     const float diff = d - dc;
                     if (d <= 0.0f || std::abs(diff) > max_diff) continue;
-                    const float wt = spatial[static_cast<size_t>((dy + r) * (2 * r + 1) + dx + r)] *
-                                     std::exp(-diff * diff * inv_2sr);
+                    const float wt =
+                        spatial[static_cast<size_t>((dy + r) * (2 * r + 1) + dx + r)] *
+                        range_lut[static_cast<size_t>(std::abs(diff) * lut_scale + 0.5f)];
                     sum += wt * d;
                     wsum += wt;
                 }
@@ -112,17 +123,19 @@ DepthImage downsampleDepth(const DepthImage& depth, float sigma_depth_m) {
 }
 
 void computeVertexNormalMaps(const DepthImage& depth, const PinholeCamera& camera,
-                             float max_depth_jump_m, PointImage* points_C, PointImage* normals_C) {
+                             float max_depth_jump_m, PointImage* points_C, PointImage* normals_C,
+                             int num_threads) {
     const int w = depth.width(), h = depth.height();
     *points_C = PointImage(w, h, tsdf::invalidPoint());
     *normals_C = PointImage(w, h, tsdf::invalidPoint());
-    for (int v = 0; v < h; ++v) {
+    tsdf::parallelFor(num_threads, h, [&](int v) {
         for (int u = 0; u < w; ++u) {
             const float d = depth(u, v);
             if (d > 0.0f) (*points_C)(u, v) = camera.unproject(u, v, d).cast<float>();
         }
-    }
-    for (int v = 1; v + 1 < h; ++v) {
+    });
+    tsdf::parallelFor(num_threads, h, [&](int v) {
+        if (v < 1 || v + 1 >= h) return;
         for (int u = 1; u + 1 < w; ++u) {
             const float d = depth(u, v);
             if (d <= 0.0f) continue;
@@ -142,7 +155,7 @@ void computeVertexNormalMaps(const DepthImage& depth, const PinholeCamera& camer
             if (n.dot((*points_C)(u, v)) > 0.0f) n = -n;  // face the camera
             (*normals_C)(u, v) = n;
         }
-    }
+    });
 }
 
 Result<FramePyramid> preprocess(const DepthImage& depth, const PinholeCamera& camera,
@@ -169,7 +182,7 @@ Result<FramePyramid> preprocess(const DepthImage& depth, const PinholeCamera& ca
             level.camera.height = level.depth.height();
         }
         computeVertexNormalMaps(level.depth, level.camera, config.max_normal_depth_jump_m,
-                                &level.points_C, &level.normals_C);
+                                &level.points_C, &level.normals_C, config.num_threads);
     }
     return pyramid;
 }

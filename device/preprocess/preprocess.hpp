@@ -63,8 +63,10 @@ DepthImage downsampleDepth(const DepthImage& depth, float sigma_depth_m);
 
 /// Vertex and normal maps of a depth image. Normals from central differences,
 /// n = normalize((V(u+1,v) - V(u-1,v)) x (V(u,v+1) - V(u,v-1))), flipped to face the camera.
+/// `num_threads` workers (0 = TBB default); the result does not depend on it.
 void computeVertexNormalMaps(const DepthImage& depth, const PinholeCamera& camera,
-                             float max_depth_jump_m, PointImage* points_C, PointImage* normals_C);
+                             float max_depth_jump_m, PointImage* points_C, PointImage* normals_C,
+                             int num_threads = 0);
 
 /// The whole chain. Fails when the image size does not match the camera.
 Result<FramePyramid> preprocess(const DepthImage& depth, const PinholeCamera& camera,

@@ -4,6 +4,7 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -42,38 +43,54 @@ Accumulator buildSystem(const PyramidLevel& level, const ModelLevel& model,
     std::vector<Accumulator> chunks(static_cast<size_t>(num_chunks));
     tsdf::parallelFor(config.num_threads, num_chunks, [&](int c) {
         Accumulator& acc = chunks[static_cast<size_t>(c)];
-        // Upper-triangular accumulation in double; symmetric fill at the end.
-        Eigen::Matrix<double, 6, 6> A = Eigen::Matrix<double, 6, 6>::Zero();
+        // Per row: the 21 upper-triangular entries of J^T J, the 6 of J^T r and r^2 summed in
+        // float (at most one image row of terms), then added to the chunk's double sums.
+        std::array<double, 28> chunk_sum{};
         const int v_end = std::min(h, (c + 1) * kRowsPerChunk);
         for (int v = c * kRowsPerChunk; v < v_end; ++v) {
+            std::array<float, 28> row{};
+            size_t row_count = 0;
             for (int u = 0; u < w; ++u) {
-                const Eigen::Vector3f& p = level.points_C(u, v);
                 const Eigen::Vector3f& n = level.normals_C(u, v);
                 if (!tsdf::isValid(n)) continue;
+                const Eigen::Vector3f& p = level.points_C(u, v);
                 const Eigen::Vector3f x = R * p + t;  // step 1: x = T V_k(u)
                 const Eigen::Vector3f x_p = R_pm * x + t_pm;
                 if (x_p.z() <= 0.0f) continue;
-                const int mu = static_cast<int>(std::floor(fx * x_p.x() / x_p.z() + cx + 0.5f));
-                const int mv = static_cast<int>(std::floor(fy * x_p.y() / x_p.z() + cy + 0.5f));
+                const float inv_z = 1.0f / x_p.z();
+                const int mu = static_cast<int>(std::floor(fx * x_p.x() * inv_z + cx + 0.5f));
+                const int mv = static_cast<int>(std::floor(fy * x_p.y() * inv_z + cy + 0.5f));
                 if (mu < 0 || mv < 0 || mu >= mw || mv >= mh) continue;
-                const Eigen::Vector3f& vm = model.points_M(mu, mv);
                 const Eigen::Vector3f& nm = model.normals_M(mu, mv);
                 if (!tsdf::isValid(nm)) continue;
-                const Eigen::Vector3f diff = x - vm;  // step 2: gates
+                const Eigen::Vector3f diff = x - model.points_M(mu, mv);  // step 2: gates
                 if (diff.squaredNorm() > max_d2) continue;
                 if ((R * n).dot(nm) < min_cos) continue;
                 // Step 3: r = n^T (x - v), J = [(x x n)^T, n^T].
-                const double r = nm.dot(diff);
-                Vector6d J;
-                J.head<3>() = x.cross(nm).cast<double>();
-                J.tail<3>() = nm.cast<double>();
-                A.selfadjointView<Eigen::Upper>().rankUpdate(J);
-                acc.Jtr += J * r;
-                acc.r2 += r * r;
-                ++acc.count;
+                const float r = nm.dot(diff);
+                const Eigen::Vector3f xn = x.cross(nm);
+                const float J[6] = {xn.x(), xn.y(), xn.z(), nm.x(), nm.y(), nm.z()};
+                int k = 0;
+                for (int i = 0; i < 6; ++i) {
+                    for (int j = i; j < 6; ++j) row[static_cast<size_t>(k++)] += J[i] * J[j];
+                }
+                for (int i = 0; i < 6; ++i) row[static_cast<size_t>(21 + i)] += J[i] * r;
+                row[27] += r * r;
+                ++row_count;
+            }
+            for (size_t i = 0; i < 28; ++i) chunk_sum[i] += static_cast<double>(row[i]);
+            acc.count += row_count;
+        }
+        int k = 0;
+        for (int i = 0; i < 6; ++i) {
+            for (int j = i; j < 6; ++j) {
+                acc.JtJ(i, j) = chunk_sum[static_cast<size_t>(k)];
+                acc.JtJ(j, i) = chunk_sum[static_cast<size_t>(k)];
+                ++k;
             }
         }
-        acc.JtJ = A.selfadjointView<Eigen::Upper>();
+        for (int i = 0; i < 6; ++i) acc.Jtr(i) = chunk_sum[static_cast<size_t>(21 + i)];
+        acc.r2 = chunk_sum[27];
     });
     Accumulator total;
     for (const Accumulator& a : chunks) {
@@ -96,12 +113,45 @@ size_t countValidNormals(const PyramidLevel& level) {
 std::vector<ModelLevel> predictModel(const tsdf::TsdfVolume& volume, const FramePyramid& frame,
                                      const Eigen::Isometry3d& T_M_P,
                                      const tsdf::RaycastConfig& config) {
+    // One raycast at full resolution; coarser levels average the valid points (and normals) of
+    // each 2x2 block of the finer level that lie within 3 cm of its first valid point, as the
+    // frame pyramid does for depth (KinFu's resized vertex and normal maps).
     std::vector<ModelLevel> model(frame.levels.size());
     for (size_t l = 0; l < frame.levels.size(); ++l) {
-        tsdf::RaycastResult r = tsdf::raycast(volume, frame.levels[l].camera, T_M_P, config);
         model[l].camera = frame.levels[l].camera;
-        model[l].points_M = std::move(r.points_V);
-        model[l].normals_M = std::move(r.normals_V);
+        if (l == 0) {
+            tsdf::RaycastResult r = tsdf::raycast(volume, frame.levels[0].camera, T_M_P, config);
+            model[0].points_M = std::move(r.points_V);
+            model[0].normals_M = std::move(r.normals_V);
+            continue;
+        }
+        const ModelLevel& finer = model[l - 1];
+        const int w = model[l].camera.width, h = model[l].camera.height;
+        model[l].points_M = PointImage(w, h, tsdf::invalidPoint());
+        model[l].normals_M = PointImage(w, h, tsdf::invalidPoint());
+        const int fw = finer.points_M.width(), fh = finer.points_M.height();
+        tsdf::parallelFor(config.num_threads, h, [&](int v) {
+            for (int u = 0; u < w; ++u) {
+                Eigen::Vector3f ps = Eigen::Vector3f::Zero(), ns = Eigen::Vector3f::Zero();
+                const Eigen::Vector3f* ref = nullptr;
+                int n = 0;
+                for (int k = 0; k < 4; ++k) {
+                    const int x = 2 * u + (k & 1), y = 2 * v + (k >> 1);
+                    if (x >= fw || y >= fh) continue;
+                    const Eigen::Vector3f& p = finer.points_M(x, y);
+                    const Eigen::Vector3f& nn = finer.normals_M(x, y);
+                    if (!tsdf::isValid(p) || !tsdf::isValid(nn)) continue;
+                    if (ref == nullptr) ref = &p;
+                    if ((p - *ref).squaredNorm() > 0.03f * 0.03f) continue;
+                    ps += p;
+                    ns += nn;
+                    ++n;
+                }
+                if (n == 0 || !(ns.squaredNorm() > 0.0f)) continue;
+                model[l].points_M(u, v) = ps / static_cast<float>(n);
+                model[l].normals_M(u, v) = ns.normalized();
+            }
+        });
     }
     return model;
 }
@@ -137,8 +187,19 @@ IcpResult alignFrameToModel(const FramePyramid& frame, const std::vector<ModelLe
             Accumulator sys = buildSystem(level, model[static_cast<size_t>(l)], T, T_P_M, config);
             if (sys.count < 6) break;
             ++result.iterations;
-            // Step 4: (sum J^T J) xi = -sum J^T r, T <- Exp(xi) T.
-            const Vector6d xi = sys.JtJ.ldlt().solve(-sys.Jtr);
+            // Step 4: (sum J^T J) xi = -sum J^T r, T <- Exp(xi) T, solved in the eigenbasis of
+            // J^T J with solution remapping (Zhang, Kaess, Singh, ICRA 2016): directions whose
+            // eigenvalue per inlier is below min_normalized_eigenvalue (e.g. sliding along the
+            // line where a wall meets the floor) keep the prediction instead of following noise.
+            const Eigen::SelfAdjointEigenSolver<Matrix6d> es(sys.JtJ);
+            const Vector6d b = es.eigenvectors().transpose() * (-sys.Jtr);
+            const double per_inlier = 1.0 / static_cast<double>(sys.count);
+            Vector6d xi = Vector6d::Zero();
+            for (int i = 0; i < 6; ++i) {
+                const double ev = es.eigenvalues()(i);
+                if (!(ev * per_inlier >= config.min_normalized_eigenvalue)) continue;
+                xi += es.eigenvectors().col(i) * (b(i) / ev);
+            }
             if (!xi.allFinite()) break;
             T = lie::orthonormalized(lie::expSE3(xi) * T);
             if (xi.norm() < config.min_update_norm) break;
@@ -159,6 +220,18 @@ IcpResult alignFrameToModel(const FramePyramid& frame, const std::vector<ModelLe
         min_ev > 0.0 ? max_ev / min_ev : std::numeric_limits<double>::infinity();
     result.min_normalized_eigenvalue =
         last.count > 0 ? min_ev / static_cast<double>(last.count) : 0.0;
+    // Translations the geometry leaves free: eigenvalues of sum n n^T / inliers (the translation
+    // block of J^T J) below min_normal_spread. A single plane leaves 2, a wall meeting the floor 1.
+    result.num_degenerate_directions = 0;
+    if (last.count > 0) {
+        const Eigen::Matrix3d nn = last.JtJ.bottomRightCorner<3, 3>() / last.count;
+        const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig_t(nn, Eigen::EigenvaluesOnly);
+        for (int i = 0; i < 3; ++i) {
+            if (!(eig_t.eigenvalues()(i) >= config.min_normal_spread)) {
+                ++result.num_degenerate_directions;
+            }
+        }
+    }
 
     const Eigen::Isometry3d delta = T_M_P.inverse() * T;
     const double moved = delta.translation().norm();
@@ -168,9 +241,11 @@ IcpResult alignFrameToModel(const FramePyramid& frame, const std::vector<ModelLe
     } else if (result.num_valid == 0 || result.inlier_fraction < config.min_inlier_fraction) {
         result.failure = "too few inliers: " + std::to_string(last.count) + " of " +
                          std::to_string(result.num_valid) + " valid pixels";
-    } else if (result.min_normalized_eigenvalue < config.min_normalized_eigenvalue) {
-        result.failure = "degenerate geometry: smallest normalised eigenvalue " +
-                         std::to_string(result.min_normalized_eigenvalue);
+    } else if (result.num_degenerate_directions > config.max_degenerate_directions) {
+        result.failure =
+            "degenerate geometry: " + std::to_string(result.num_degenerate_directions) +
+            " unconstrained directions (smallest normalised eigenvalue " +
+            std::to_string(result.min_normalized_eigenvalue) + ")";
     } else if (moved > config.max_translation_m) {
         result.failure = "implausible motion: moved " + std::to_string(moved) + " m";
     } else if (turned_deg > config.max_rotation_deg) {

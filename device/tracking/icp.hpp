@@ -34,10 +34,17 @@ struct IcpConfig {
     double max_translation_m = 0.10;
     /// Failure: the pose rotated more than this from the model pose, degrees.
     double max_rotation_deg = 10.0;
-    /// Failure: the smallest eigenvalue of J^T J divided by the inlier count is below this. Along
-    /// a constrained translation direction t it is the mean of (n.t)^2 (about 1/3 for a room
-    /// corner); a single plane leaves directions with ~1e-5 (degenerate geometry).
+    /// Eigen-directions of J^T J whose eigenvalue divided by the inlier count is below this are
+    /// not updated. Along a constrained translation t it is the mean of (n.t)^2 (about 1/3 for a
+    /// room corner); free directions of the geometry give ~1e-5.
     double min_normalized_eigenvalue = 1e-3;
+    /// Directions below min_normalized_eigenvalue keep the predicted pose (solution remapping).
+    /// A translation t is unconstrained when mean (n.t)^2 over the inliers (an eigenvalue of
+    /// sum n n^T / inliers) is below min_normal_spread; tracking fails when more than
+    /// max_degenerate_directions translations are (a single plane leaves 2, a wall meeting the
+    /// floor 1, a room corner 0).
+    double min_normal_spread = 0.02;
+    int max_degenerate_directions = 1;
     /// Worker threads (0 = TBB default). Results do not depend on it.
     int num_threads = 0;
 
@@ -51,7 +58,8 @@ struct ModelLevel {
     PointImage normals_M;
 };
 
-/// Raycasts the model at every level of `frame` (same cameras) from pose T_M_P.
+/// The model at every level of `frame` (same cameras) seen from pose T_M_P: a raycast at full
+/// resolution, 2x2-averaged for the coarser levels.
 std::vector<ModelLevel> predictModel(const tsdf::TsdfVolume& volume, const FramePyramid& frame,
                                      const Eigen::Isometry3d& T_M_P,
                                      const tsdf::RaycastConfig& config);
@@ -67,6 +75,7 @@ struct IcpResult {
     double rmse_m = 0.0;                     ///< point-to-plane RMS residual of the inliers, metres
     double condition_number = 0.0;           ///< of the finest level's normal equations
     double min_normalized_eigenvalue = 0.0;  ///< smallest eigenvalue of J^T J / inliers
+    int num_degenerate_directions = 0;       ///< unconstrained translations (see IcpConfig)
     Matrix6d information = Matrix6d::Zero();  ///< J^T J at the finest level (rotation first)
 };
 

@@ -1,0 +1,57 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "common/tsdf/tsdf_config.hpp"
+
+namespace plumb::tsdf {
+
+void describe(config::Schema& s, TsdfConfig& c) {
+    s.field("voxel_size_m", c.voxel_size_m, "voxel edge length (KinFu: 3 m / 512)", "m")
+        .positive()
+        .max(0.5);
+    s.field("truncation_m", c.truncation_m,
+            "truncation distance mu: the band [-mu, +mu] around surfaces that is fused", "m")
+        .positive();
+    s.field("max_depth_m", c.max_depth_m, "depth readings beyond this are not integrated", "m")
+        .positive();
+    s.field("min_depth_m", c.min_depth_m, "depth readings below this are not integrated", "m")
+        .min(0.0);
+    s.field("max_weight", c.max_weight,
+            "voxel weights saturate here so old observations can be overruled (KinFu 128)")
+        .min(1.0);
+    s.field("max_blocks", c.max_blocks,
+            "block budget (8^3 voxels, 4 KiB each); reaching it closes the fragment; 0 = "
+            "unlimited",
+            "blocks");
+    s.field("allocation_stride_px", c.allocation_stride_px,
+            "pixel stride of block allocation (1 = every pixel)", "px")
+        .range(1, 8);
+    s.field("num_threads", c.num_threads, "worker threads (0 = all); results do not depend on it")
+        .min(0);
+}
+
+void describe(config::Schema& s, RaycastConfig& c) {
+    s.field("min_depth_m", c.min_depth_m, "rays start at this camera z-depth", "m").min(0.0);
+    s.field("max_depth_m", c.max_depth_m, "rays stop at this camera z-depth", "m").positive();
+    s.field("step_fraction", c.step_fraction,
+            "free-space step = step_fraction * truncation * |F| (at least one voxel)")
+        .positive()
+        .max(1.0);
+    s.field("min_weight", c.min_weight, "voxels with a smaller weight count as unobserved")
+        .greaterThan(0.0);
+    s.field("num_threads", c.num_threads, "worker threads (0 = all); results do not depend on it")
+        .min(0);
+}
+
+void describe(config::Schema& s, SurfaceConfig& c) {
+    s.field("min_weight", c.min_weight,
+            "voxels with a smaller weight are not surface (2 = seen at least twice)")
+        .greaterThan(0.0);
+    s.field("max_tsdf_jump", c.max_tsdf_jump,
+            "sign changes across an edge whose TSDF values differ by more than this are seams "
+            "behind occluding contours, not surface")
+        .positive()
+        .max(2.0);
+    s.field("num_threads", c.num_threads, "worker threads (0 = all); results do not depend on it")
+        .min(0);
+}
+
+}  // namespace plumb::tsdf

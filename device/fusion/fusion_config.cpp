@@ -1,0 +1,90 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "device/fusion/fusion_config.hpp"
+
+#include "common/config/registry.hpp"
+#include "common/tsdf/tsdf_config.hpp"
+#include "device/fusion/fragment_builder.hpp"
+
+namespace plumb::device {
+
+void describe(config::Schema& s, PreprocessConfig& c) {
+    s.field("min_depth_m", c.min_depth_m, "depth below this is invalid", "m").min(0.0);
+    s.field("max_depth_m", c.max_depth_m, "depth beyond this is invalid", "m").positive();
+    s.field("bilateral", c.bilateral, "apply the masked bilateral filter to the tracking depth");
+    s.field("bilateral_radius_px", c.bilateral_radius_px,
+            "half window of the bilateral filter (3 = 7x7)", "px")
+        .range(0, 10);
+    s.field("bilateral_sigma_space_px", c.bilateral_sigma_space_px,
+            "spatial sigma of the bilateral filter at 640 px width (scaled with the width)", "px")
+        .positive();
+    s.field("bilateral_sigma_depth_m", c.bilateral_sigma_depth_m,
+            "range sigma of the bilateral filter; neighbours beyond 3 sigma are ignored", "m")
+        .positive();
+    s.field("num_levels", c.num_levels, "pyramid levels (each next level half the size)")
+        .range(1, 5);
+    s.field("max_normal_depth_jump_m", c.max_normal_depth_jump_m,
+            "a normal is invalid when a neighbour's depth differs by more than this", "m")
+        .positive();
+    s.field("num_threads", c.num_threads, "worker threads (0 = all); results do not depend on it")
+        .min(0);
+}
+
+void describe(config::Schema& s, IcpConfig& c) {
+    s.field("iterations_fine", c.iterations[0],
+            "Gauss-Newton iterations at full resolution (KinFu 4)")
+        .range(0, 100);
+    s.field("iterations_mid", c.iterations[1], "Gauss-Newton iterations at half resolution")
+        .range(0, 100);
+    s.field("iterations_coarse", c.iterations[2],
+            "Gauss-Newton iterations at quarter resolution (run first)")
+        .range(0, 100);
+    s.field("max_distance_m", c.max_distance_m, "correspondences further apart are rejected", "m")
+        .positive();
+    s.field("max_normal_angle_deg", c.max_normal_angle_deg,
+            "correspondences whose normals differ more are rejected", "deg")
+        .greaterThan(0.0)
+        .max(90.0);
+    s.field("min_update_norm", c.min_update_norm, "a level stops when |xi| falls below this")
+        .min(0.0);
+    s.field("min_inlier_fraction", c.min_inlier_fraction,
+            "tracking fails with fewer inliers than this fraction of the valid pixels")
+        .range(0.0, 1.0);
+    s.field("max_translation_m", c.max_translation_m,
+            "tracking fails when the camera moved further than this in one frame", "m")
+        .positive();
+    s.field("max_rotation_deg", c.max_rotation_deg,
+            "tracking fails when the camera turned more than this in one frame", "deg")
+        .positive();
+    s.field("min_normalized_eigenvalue", c.min_normalized_eigenvalue,
+            "directions whose eigenvalue of J^T J / inliers is below this keep the predicted pose "
+            "(solution remapping)")
+        .min(0.0);
+    s.field("min_normal_spread", c.min_normal_spread,
+            "a translation t is unconstrained when mean (n.t)^2 over the inliers is below this")
+        .min(0.0)
+        .max(1.0);
+    s.field("max_degenerate_directions", c.max_degenerate_directions,
+            "tracking fails when more translations than this are unconstrained (a single plane "
+            "leaves 2, a wall meeting the floor 1)")
+        .range(0, 3);
+    s.field("num_threads", c.num_threads, "worker threads (0 = all); results do not depend on it")
+        .min(0);
+}
+
+void describe(config::Schema& s, FusionConfig& c) {
+    s.field("frames_per_fragment", c.frames_per_fragment,
+            "a fragment is cut every this many frames (paper: 50)", "frames")
+        .min(1);
+    s.field("constant_velocity", c.constant_velocity,
+            "start tracking from a constant-velocity prediction (else from the last pose)");
+    s.section("tsdf", c.tsdf, "the voxel-hashed TSDF volume of each fragment");
+    s.section("raycast", c.raycast, "model prediction (raycast) for tracking");
+    s.section("surface", c.surface, "oriented surface points of a closed fragment");
+    s.section("preprocess", c.preprocess, "per-frame filtering, vertex/normal maps, pyramid");
+    s.section("icp", c.icp, "frame-to-model projective point-to-plane ICP and its failure tests");
+}
+
+PLUMB_PROGRAM_CONFIG(fusion, "fusion", FusionConfig,
+                     "on-device tracking and fusion into fragments (plumb fuse, plumb-device)");
+
+}  // namespace plumb::device

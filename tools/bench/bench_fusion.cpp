@@ -1,0 +1,301 @@
+// SPDX-License-Identifier: Apache-2.0
+// plumb-bench-fusion: the on-device pipeline on simulated 640x480 depth (voxel 3 m / 512,
+// truncation 4 cm, 2 threads): TSDF integration, tracking (raycast + ICP) and the whole per-frame
+// pipeline (preprocessing, tracking, integration, fragment cuts every 50 frames with surface
+// extraction), and Open3D's t::geometry::VoxelBlockGrid integration of the same frames at the same
+// poses in the same process (CPU). Not a test: it prints figures, the last line is one JSON object.
+
+#include <fmt/format.h>
+#include <tbb/global_control.h>
+
+#include <algorithm>
+#include <charconv>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <ctime>
+#include <string>
+#include <vector>
+
+#include "common/tsdf/tsdf_volume.hpp"
+#include "device/fusion/fragment_builder.hpp"
+#include "drivers/sim/sim_source.hpp"
+
+#ifdef PLUMB_HAVE_OPEN3D
+#include <open3d/core/Tensor.h>
+#include <open3d/t/geometry/Image.h>
+#include <open3d/t/geometry/VoxelBlockGrid.h>
+#endif
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double msSince(Clock::time_point t0) {
+    return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+/// CPU time of the whole process (all threads), milliseconds.
+double processCpuMs() {
+    timespec ts{};
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+    return static_cast<double>(ts.tv_sec) * 1e3 + static_cast<double>(ts.tv_nsec) * 1e-6;
+}
+
+double median(std::vector<double> v) {
+    if (v.empty()) return 0.0;
+    std::sort(v.begin(), v.end());
+    const size_t n = v.size();
+    return n % 2 == 1 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+double mean(const std::vector<double>& v) {
+    double s = 0.0;
+    for (double x : v) s += x;
+    return v.empty() ? 0.0 : s / static_cast<double>(v.size());
+}
+
+constexpr const char* kUsage =
+    "usage: plumb-bench-fusion [--frames N] [--threads N] [--scene NAME] [--noise MODE]\n"
+    "                          [--fragment N] [--repeat N]\n"
+    "  --frames N     simulated frames (default 100)\n"
+    "  --threads N    worker threads for ours and Open3D (default 2)\n"
+    "  --scene NAME   simulated room (default living_room)\n"
+    "  --noise MODE   redwood (default), off, parametric, undistorted\n"
+    "  --fragment N   frames per fragment (default 50; the volumes restart every N frames)\n"
+    "  --repeat N     integration passes over the frames for the integration-only figures\n"
+    "                 (default 2; the median over all is reported)\n";
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    size_t num_frames = 100;
+    int threads = 2;
+    int fragment = 50;
+    int repeat = 2;
+    std::string scene = "living_room";
+    std::string noise = "redwood";
+    for (int i = 1; i < argc; ++i) {
+        const std::string a = argv[i];
+        auto num = [&](auto* out) {
+            if (i + 1 >= argc) return false;
+            const std::string v = argv[++i];
+            const auto [p, ec] = std::from_chars(v.data(), v.data() + v.size(), *out);
+            return ec == std::errc() && p == v.data() + v.size();
+        };
+        bool ok = true;
+        if (a == "--frames") {
+            ok = num(&num_frames) && num_frames > 0;
+        } else if (a == "--threads") {
+            ok = num(&threads) && threads > 0;
+        } else if (a == "--fragment") {
+            ok = num(&fragment) && fragment > 0;
+        } else if (a == "--repeat") {
+            ok = num(&repeat) && repeat > 0;
+        } else if (a == "--scene" && i + 1 < argc) {
+            scene = argv[++i];
+        } else if (a == "--noise" && i + 1 < argc) {
+            noise = argv[++i];
+        } else if (a == "-h" || a == "--help") {
+            std::printf("%s", kUsage);
+            return 0;
+        } else {
+            ok = false;
+        }
+        if (!ok) {
+            std::fprintf(stderr, "plumb-bench-fusion: bad argument '%s'\n%s", a.c_str(), kUsage);
+            return 2;
+        }
+    }
+    // Open3D's CPU kernels use OpenMP; read at its first parallel region.
+    setenv("OMP_NUM_THREADS", std::to_string(threads).c_str(), 1);
+    tbb::global_control tbb_threads(tbb::global_control::max_allowed_parallelism,
+                                    static_cast<size_t>(threads));
+
+    plumb::sim::SimConfig sc;
+    sc.scene = scene;
+    sc.trajectory.num_frames = num_frames;
+    if (const plumb::Status s = plumb::sim::parseNoiseMode(noise, &sc.noise); !s.isOk()) {
+        std::fprintf(stderr, "plumb-bench-fusion: %s\n", s.toString().c_str());
+        return 2;
+    }
+    auto source = plumb::sim::SimSource::create(sc);
+    if (!source.isOk()) {
+        std::fprintf(stderr, "plumb-bench-fusion: %s\n", source.status().toString().c_str());
+        return 1;
+    }
+    const plumb::PinholeCamera camera = (*source)->camera();
+    std::printf("plumb-bench-fusion: %s\n", (*source)->description().c_str());
+    std::printf("rendering %zu frames...\n", num_frames);
+    std::fflush(stdout);
+    std::vector<plumb::Frame> frames;
+    frames.reserve(num_frames);
+    for (size_t k = 0; k < num_frames; ++k) {
+        auto f = (*source)->render(k);
+        if (!f.isOk()) {
+            std::fprintf(stderr, "plumb-bench-fusion: %s\n", f.status().toString().c_str());
+            return 1;
+        }
+        frames.push_back(std::move(f->frame));
+    }
+
+    plumb::device::FusionConfig config;
+    config.frames_per_fragment = fragment;
+    config.tsdf.voxel_size_m = 3.0f / 512.0f;
+    config.tsdf.truncation_m = 0.04f;
+    config.tsdf.num_threads = threads;
+    config.raycast.num_threads = threads;
+    config.surface.num_threads = threads;
+    config.preprocess.num_threads = threads;
+    config.icp.num_threads = threads;
+
+    // 1. The whole device pipeline, frame by frame.
+    std::vector<double> frame_ms, track_ms, integrate_pipe_ms, preprocess_ms, extract_ms;
+    size_t tracking_failures = 0;
+    const double cpu_pipeline_start = processCpuMs();
+    {
+        plumb::device::FragmentBuilder builder(camera, config);
+        for (const plumb::Frame& f : frames) {
+            auto r = builder.process(f);
+            if (!r.isOk()) {
+                std::fprintf(stderr, "plumb-bench-fusion: %s\n", r.status().toString().c_str());
+                return 1;
+            }
+            frame_ms.push_back(r->timing.total_ms);
+            preprocess_ms.push_back(r->timing.preprocess_ms);
+            if (r->timing.track_ms > 0.0) track_ms.push_back(r->timing.track_ms);
+            integrate_pipe_ms.push_back(r->timing.integrate_ms);
+            extract_ms.push_back(r->timing.extract_ms);
+            tracking_failures += r->tracked ? 0 : 1;
+        }
+    }
+
+    const double pipeline_cpu_ms =
+        (processCpuMs() - cpu_pipeline_start) / static_cast<double>(frames.size());
+
+    // 2. Integration alone at the ground-truth poses, volumes restarted every `fragment` frames
+    //    (fragment frame = first camera), ours and Open3D on identical input.
+    std::vector<double> ours_ms;
+    size_t blocks = 0;
+    const double cpu_ours_start = processCpuMs();
+    for (int pass = 0; pass < repeat; ++pass) {
+        plumb::tsdf::TsdfVolume volume(config.tsdf);
+        Eigen::Isometry3d T_W_F = Eigen::Isometry3d::Identity();
+        for (size_t k = 0; k < frames.size(); ++k) {
+            if (k % static_cast<size_t>(fragment) == 0) {
+                volume.clear();
+                T_W_F = *frames[k].T_W_C_gt;
+            }
+            const Eigen::Isometry3d T_F_C = T_W_F.inverse() * *frames[k].T_W_C_gt;
+            const Clock::time_point t0 = Clock::now();
+            auto r = volume.integrate(frames[k].depth, camera, T_F_C);
+            ours_ms.push_back(msSince(t0));
+            if (!r.isOk()) {
+                std::fprintf(stderr, "plumb-bench-fusion: %s\n", r.status().toString().c_str());
+                return 1;
+            }
+            blocks = std::max(blocks, r->blocks_total);
+        }
+    }
+
+    const double ours_cpu_ms =
+        (processCpuMs() - cpu_ours_start) / static_cast<double>(ours_ms.size());
+    double o3d_ms = 0.0;
+    double o3d_cpu_ms = 0.0;
+#ifdef PLUMB_HAVE_OPEN3D
+    {
+        namespace o3c = open3d::core;
+        namespace o3g = open3d::t::geometry;
+        const o3c::Device cpu("CPU:0");
+        o3c::Tensor K = o3c::Tensor::Eye(3, o3c::Float64, cpu);
+        K[0][0] = camera.fx;
+        K[1][1] = camera.fy;
+        K[0][2] = camera.cx;
+        K[1][2] = camera.cy;
+        // The same depth as uint16 millimetres (Open3D's efficient input type).
+        std::vector<o3g::Image> depth_mm;
+        for (const plumb::Frame& f : frames) {
+            o3c::Tensor t({camera.height, camera.width, 1}, o3c::UInt16, cpu);
+            auto* p = t.GetDataPtr<uint16_t>();
+            for (int v = 0; v < camera.height; ++v) {
+                for (int u = 0; u < camera.width; ++u) {
+                    const float d = f.depth(u, v);
+                    p[v * camera.width + u] =
+                        d > 0.0f ? static_cast<uint16_t>(std::lround(d * 1000.0f)) : 0;
+                }
+            }
+            depth_mm.emplace_back(t);
+        }
+        const float voxel = config.tsdf.voxel_size_m;
+        const float trunc_mult = config.tsdf.truncation_m / voxel;
+        std::vector<double> o3d_frame_ms;
+        double o3d_cpu = 0.0;
+        for (int pass = 0; pass < repeat; ++pass) {
+            std::unique_ptr<o3g::VoxelBlockGrid> vbg;
+            Eigen::Isometry3d T_W_F = Eigen::Isometry3d::Identity();
+            for (size_t k = 0; k < frames.size(); ++k) {
+                if (k % static_cast<size_t>(fragment) == 0) {
+                    vbg = std::make_unique<o3g::VoxelBlockGrid>(
+                        std::vector<std::string>{"tsdf", "weight"},
+                        std::vector<o3c::Dtype>{o3c::Float32, o3c::Float32},
+                        std::vector<o3c::SizeVector>{{1}, {1}}, voxel, 8,
+                        static_cast<int64_t>(std::max<size_t>(blocks * 2, 20000)), cpu);
+                    T_W_F = *frames[k].T_W_C_gt;
+                }
+                // Open3D's extrinsic maps fragment (world) points into the camera.
+                const Eigen::Matrix4d T_C_F =
+                    (T_W_F.inverse() * *frames[k].T_W_C_gt).inverse().matrix();
+                o3c::Tensor extrinsic({4, 4}, o3c::Float64, cpu);
+                for (int r = 0; r < 4; ++r) {
+                    for (int c = 0; c < 4; ++c) extrinsic[r][c] = T_C_F(r, c);
+                }
+                const double c0 = processCpuMs();
+                const Clock::time_point t0 = Clock::now();
+                const o3c::Tensor coords = vbg->GetUniqueBlockCoordinates(
+                    depth_mm[k], K, extrinsic, 1000.0f, config.tsdf.max_depth_m, trunc_mult);
+                vbg->Integrate(coords, depth_mm[k], K, extrinsic, 1000.0f, config.tsdf.max_depth_m,
+                               trunc_mult);
+                o3d_frame_ms.push_back(msSince(t0));
+                o3d_cpu += processCpuMs() - c0;
+            }
+        }
+        o3d_cpu_ms = o3d_cpu / static_cast<double>(o3d_frame_ms.size());
+        o3d_ms = median(o3d_frame_ms);
+        std::printf("open3d VoxelBlockGrid integrate: median %.2f ms/frame, mean %.2f\n", o3d_ms,
+                    mean(o3d_frame_ms));
+    }
+#else
+    std::printf("open3d: not available at build time (no ratio)\n");
+#endif
+
+    const double integrate = median(ours_ms);
+    const double track = median(track_ms);
+    const double frame = median(frame_ms);
+    std::printf(
+        "frames %zu (%dx%d), threads %d, voxel %.2f mm, truncation %.0f mm, up to %zu "
+        "blocks, tracking failures %zu\n",
+        frames.size(), camera.width, camera.height, threads, config.tsdf.voxel_size_m * 1e3,
+        config.tsdf.truncation_m * 1e3, blocks, tracking_failures);
+    std::printf("ours integrate (GT poses): median %.2f ms/frame, mean %.2f\n", integrate,
+                mean(ours_ms));
+    std::printf(
+        "pipeline: preprocess median %.2f ms, track median %.2f ms (mean %.2f), "
+        "integrate median %.2f ms, extraction mean %.2f ms/frame\n",
+        median(preprocess_ms), track, mean(track_ms), median(integrate_pipe_ms), mean(extract_ms));
+    std::printf(
+        "CPU time per frame (all threads): pipeline %.2f ms, ours integrate %.2f ms, "
+        "open3d integrate %.2f ms\n",
+        pipeline_cpu_ms, ours_cpu_ms, o3d_cpu_ms);
+    std::printf("whole frame: median %.2f ms (mean %.2f, %.0f fps)\n", frame, mean(frame_ms),
+                1e3 / std::max(1e-9, mean(frame_ms)));
+    const double ratio = integrate > 0.0 && o3d_ms > 0.0 ? o3d_ms / integrate : 0.0;
+    if (ratio > 0.0) std::printf("ratio open3d / ours (integrate): %.2f\n", ratio);
+    std::printf(
+        "{\"integrate_ms\":%.3f,\"track_ms\":%.3f,\"frame_ms\":%.3f,\"open3d_integrate_ms\":%.3f,"
+        "\"ratio\":%.3f,\"preprocess_ms\":%.3f,\"frame_mean_ms\":%.3f,\"frames\":%zu,"
+        "\"threads\":%d,\"frame_cpu_ms\":%.3f,\"integrate_cpu_ms\":%.3f,"
+        "\"open3d_integrate_cpu_ms\":%.3f}\n",
+        integrate, track, frame, o3d_ms, ratio, median(preprocess_ms), mean(frame_ms),
+        frames.size(), threads, pipeline_cpu_ms, ours_cpu_ms, o3d_cpu_ms);
+    return 0;
+}
