@@ -170,7 +170,6 @@ Result<PreparedFragment> prepareFragment(const Fragment& fragment, const Prepare
         !(config.normal_radius_m > 0.0) || config.fpfh_max_nn < 2 || config.normal_max_nn < 3) {
         return invalidArgument(name + ": invalid preparation config (voxel, radii, neighbours)");
     }
-    if (fragment.points_F.empty()) return invalidArgument(name + ": no surface points");
     if (!fragment.points_F.isConsistent()) {
         return invalidArgument(name + ": normals or colours do not match the point count");
     }
@@ -182,7 +181,12 @@ Result<PreparedFragment> prepareFragment(const Fragment& fragment, const Prepare
     PreparedFragment out;
     out.id = fragment.id;
     out.points = detail::voxelDownsample(source, config.voxel_size_m);
-    if (out.points.empty()) return invalidArgument(name + ": no finite surface points");
+    if (out.points.empty()) {
+        // A fragment without (finite) points is legitimate (a short tail, tracking lost at once):
+        // it is prepared empty and registration keeps it on its odometry edge.
+        out.points.normals.clear();
+        return out;
+    }
     if (!out.points.hasNormals()) {
         // Orient towards the fragment's mean camera centre (reference §3.1).
         Eigen::Vector3d centre = Eigen::Vector3d::Zero();

@@ -48,8 +48,9 @@ struct PreparedFragment {
     std::vector<Fpfh33> fpfh;  ///< one per point of `points`
 };
 
-/// Downsamples, computes normals (averaged or PCA) and FPFH. Errors: a fragment without points,
-/// with non-finite coordinates only, with inconsistent attribute sizes, or an invalid config.
+/// Downsamples, computes normals (averaged or PCA) and FPFH. A fragment without finite points
+/// gives an empty PreparedFragment (registration then keeps it on its odometry edge).
+/// Errors: inconsistent attribute sizes or an invalid config.
 Result<PreparedFragment> prepareFragment(const Fragment& fragment, const PrepareConfig& config);
 
 /// PCA normals over up to `max_nn` neighbours within `radius_m`, oriented towards `viewpoint`

@@ -1,0 +1,191 @@
+// SPDX-License-Identifier: Apache-2.0
+// Fragment preparation and pairwise registration on a simulated fragment: voxel downsampling,
+// FPFH invariance to rigid motion, ICP and RANSAC recovering known transforms, the information
+// matrix and the overlap test.
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Eigenvalues>
+#include <numbers>
+#include <set>
+
+#include "backend/registration/pair_registration.hpp"
+#include "backend/registration/prepared_fragment.hpp"
+#include "tests/backend/registration/sim_fragments.hpp"
+
+namespace plumb::registration {
+namespace {
+
+constexpr double kDeg = std::numbers::pi / 180.0;
+
+const testing::SimScan& scan() {
+    static const testing::SimScan s = [] {
+        Result<testing::SimScan> r = testing::simLoopScan();
+        PLUMB_CHECK(r.isOk()) << r.status().toString();
+        return std::move(r.value());
+    }();
+    return s;
+}
+
+Fragment movedCopy(const Fragment& f, const Eigen::Isometry3d& T_new_old, uint32_t id) {
+    Fragment g = f;
+    g.id = id;
+    g.points_F = transformed(f.points_F, T_new_old);
+    return g;
+}
+
+TEST(Prepare, DownsamplesWithUnitNormalsAndIsDeterministic) {
+    const Fragment& f = scan().fragments.at(0);
+    PrepareConfig c;
+    Result<PreparedFragment> a = prepareFragment(f, c);
+    ASSERT_TRUE(a.isOk()) << a.status().toString();
+    EXPECT_GT(a->points.size(), 300u);
+    EXPECT_LT(a->points.size(), f.points_F.size() / 4);
+    ASSERT_TRUE(a->points.hasNormals());
+    ASSERT_EQ(a->fpfh.size(), a->points.size());
+    for (const auto& n : a->points.normals) EXPECT_NEAR(n.norm(), 1.0f, 1e-5f);
+    // Every output point is the mean of its own voxel: at most one point per voxel.
+    std::set<std::array<int64_t, 3>> keys;
+    for (const auto& p : a->points.points) {
+        keys.insert({static_cast<int64_t>(std::floor(p.x() / c.voxel_size_m)),
+                     static_cast<int64_t>(std::floor(p.y() / c.voxel_size_m)),
+                     static_cast<int64_t>(std::floor(p.z() / c.voxel_size_m))});
+    }
+    EXPECT_EQ(keys.size(), a->points.size());
+    // 1 thread vs default: identical bits.
+    c.num_threads = 1;
+    Result<PreparedFragment> b = prepareFragment(f, c);
+    ASSERT_TRUE(b.isOk());
+    EXPECT_EQ(a->points.points, b->points.points);
+    EXPECT_EQ(a->fpfh, b->fpfh);
+    // Each FPFH block sums to 200 (normalised neighbour part + the point's own SPFH).
+    size_t full = 0;
+    for (const Fpfh33& h : a->fpfh) {
+        float s0 = 0.0f;
+        for (int i = 0; i < 11; ++i) s0 += h[i];
+        if (std::abs(s0 - 200.0f) < 0.1f) ++full;
+    }
+    EXPECT_GT(full, a->fpfh.size() * 9 / 10);
+}
+
+TEST(Prepare, FpfhIsInvariantToRigidMotion) {
+    const Fragment& f = scan().fragments.at(1);
+    PointCloud cloud = voxelDownsample(f.points_F, 0.05);
+    const Eigen::Isometry3d T =
+        lie::expSE3((Vector6d() << 0.3, -0.5, 0.2, 1.0, -2.0, 0.5).finished());
+    const PointCloud moved = transformed(cloud, T);
+    const auto a = computeFpfh(cloud, 0.25, 100, 0);
+    const auto b = computeFpfh(moved, 0.25, 100, 0);
+    ASSERT_EQ(a.size(), b.size());
+    double max_diff = 0.0, mean_norm = 0.0;
+    for (size_t i = 0; i < a.size(); ++i) {
+        double d = 0.0, n = 0.0;
+        for (int k = 0; k < 33; ++k) {
+            d += (a[i][k] - b[i][k]) * (a[i][k] - b[i][k]);
+            n += a[i][k] * a[i][k];
+        }
+        max_diff = std::max(max_diff, std::sqrt(d));
+        mean_norm += std::sqrt(n) / a.size();
+    }
+    // Float rounding may move a value across a bin edge; such flips are rare and small.
+    EXPECT_LT(max_diff, 0.2 * mean_norm);
+}
+
+TEST(Prepare, BadFragmentsGiveSpecificErrors) {
+    // Empty or all-NaN fragments are prepared empty (kept on their odometry edge later).
+    Fragment empty;
+    empty.id = 4;
+    Result<PreparedFragment> r = prepareFragment(empty, {});
+    ASSERT_TRUE(r.isOk());
+    EXPECT_EQ(r->id, 4u);
+    EXPECT_TRUE(r->points.empty());
+    EXPECT_TRUE(r->fpfh.empty());
+    Fragment nan;
+    nan.points_F.points.assign(10, Eigen::Vector3f::Constant(std::nanf("")));
+    ASSERT_TRUE(prepareFragment(nan, {}).isOk());
+    EXPECT_TRUE(prepareFragment(nan, {})->points.empty());
+    Fragment bad = scan().fragments.at(0);
+    bad.id = 9;
+    bad.points_F.normals.pop_back();
+    Result<PreparedFragment> b = prepareFragment(bad, {});
+    EXPECT_EQ(b.status().code(), StatusCode::kInvalidArgument);
+    EXPECT_NE(b.status().message().find("fragment 9"), std::string::npos);
+    PrepareConfig c;
+    c.voxel_size_m = -1.0;
+    EXPECT_EQ(prepareFragment(scan().fragments.at(0), c).status().code(),
+              StatusCode::kInvalidArgument);
+}
+
+struct Pair {
+    Fragment a, b;
+    PreparedFragment pa, pb;
+    FragmentIndex ia, ib;
+};
+
+/// Fragment 2 and a copy moved by T_b_a (so T_source_target = T_a_b = T_b_a^-1).
+std::unique_ptr<Pair> makePair(const Eigen::Isometry3d& T_b_a) {
+    auto p = std::make_unique<Pair>();
+    p->a = scan().fragments.at(2);
+    p->a.id = 0;
+    p->b = movedCopy(p->a, T_b_a, 1);
+    p->pa = prepareFragment(p->a, {}).value();
+    p->pb = prepareFragment(p->b, {}).value();
+    const IcpConfig icp;
+    p->ia = buildFragmentIndex(p->a, p->pa, icp);
+    p->ib = buildFragmentIndex(p->b, p->pb, icp);
+    return p;
+}
+
+double translationError(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
+    return (a.inverse() * b).translation().norm();
+}
+
+TEST(PairRegistration, IcpRecoversSmallMotion) {
+    const Eigen::Isometry3d T_b_a =
+        lie::expSE3((Vector6d() << 0.02, -0.03, 0.01, 0.04, -0.03, 0.02).finished());
+    auto p = makePair(T_b_a);
+    const Eigen::Isometry3d truth = T_b_a.inverse();
+    const PairResult r = multiScaleIcp(p->ia, p->ib, Eigen::Isometry3d::Identity(), IcpConfig{});
+    ASSERT_TRUE(r.success) << r.reason;
+    EXPECT_LT(translationError(r.T_source_target, truth), 0.002);
+    EXPECT_LT(lie::rotationAngle(r.T_source_target.inverse() * truth), 0.1 * kDeg);
+}
+
+TEST(PairRegistration, RansacRecoversLargeMotionAndOverlapIsFull) {
+    const Eigen::Isometry3d T_b_a =
+        lie::expSE3((Vector6d() << 0.4, 1.2, -0.3, 1.5, -0.7, 2.0).finished());
+    auto p = makePair(T_b_a);
+    const Eigen::Isometry3d truth = T_b_a.inverse();
+    const PairResult r = ransacFeatureMatching(p->ia, p->ib, RansacConfig{}, 42);
+    ASSERT_TRUE(r.success) << r.reason;
+    EXPECT_LT(translationError(r.T_source_target, truth), 0.05);
+    EXPECT_LT(lie::rotationAngle(r.T_source_target.inverse() * truth), 3.0 * kDeg);
+    // Same seed, same answer; evaluation at the truth: full overlap, Λ(5,5) = correspondences.
+    const PairResult again = ransacFeatureMatching(p->ia, p->ib, RansacConfig{}, 42);
+    EXPECT_TRUE(again.T_source_target.matrix() == r.T_source_target.matrix());
+    const PairResult e = evaluateAlignment(p->ia, p->ib, truth, 0.07, 0);
+    EXPECT_GT(e.overlap, 0.99);
+    EXPECT_EQ(e.information(5, 5), e.num_correspondences);
+    EXPECT_LT(e.inlier_rmse_m, 0.03);  // separate 5 cm voxel grids: about voxel / 3
+    // Λ is symmetric positive definite.
+    Eigen::SelfAdjointEigenSolver<Matrix6d> es(e.information);
+    EXPECT_GT(es.eigenvalues().minCoeff(), 0.0);
+    // Far off: no overlap.
+    Eigen::Isometry3d far = truth;
+    far.translation() += Eigen::Vector3d(10, 0, 0);
+    EXPECT_LT(evaluateAlignment(p->ia, p->ib, far, 0.07, 0).overlap, 0.01);
+}
+
+TEST(PairRegistration, FitRigidIsExact) {
+    const Eigen::Isometry3d T =
+        lie::expSE3((Vector6d() << 0.5, -0.2, 1.0, 0.3, 0.1, -2.0).finished());
+    std::vector<Eigen::Vector3d> p, q;
+    for (int i = 0; i < 10; ++i) {
+        q.emplace_back(std::sin(i), std::cos(2.0 * i), 0.1 * i);
+        p.push_back(T * q.back());
+    }
+    EXPECT_LT((fitRigid(p, q).matrix() - T.matrix()).norm(), 1e-10);
+}
+
+}  // namespace
+}  // namespace plumb::registration

@@ -1,0 +1,310 @@
+// SPDX-License-Identifier: Apache-2.0
+// Initial registration on a simulated loop scan of living_room (device FragmentBuilder over the
+// simulator, Redwood noise): loop-closure recall/precision against ground-truth-overlapping pairs
+// before pruning, injected wrong loop closures pruned, ATE after optimisation, output files,
+// determinism (twice; 1 vs 2 threads), the live mode, and bad input.
+
+#include <gtest/gtest.h>
+#include <tbb/global_control.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <sstream>
+
+#include "backend/registration/outputs.hpp"
+#include "backend/registration/register_fragments.hpp"
+#include "common/eval/trajectory_metrics.hpp"
+#include "tests/backend/registration/sim_fragments.hpp"
+
+namespace plumb::registration {
+namespace {
+
+const testing::SimScan& scan() {
+    static const testing::SimScan s = [] {
+        Result<testing::SimScan> r = testing::simLoopScan();
+        PLUMB_CHECK(r.isOk()) << r.status().toString();
+        return std::move(r.value());
+    }();
+    return s;
+}
+
+const std::vector<PreparedFragment>& prepared() {
+    static const std::vector<PreparedFragment> p = [] {
+        std::vector<PreparedFragment> out;
+        for (const Fragment& f : scan().fragments) out.push_back(prepareFragment(f, {}).value());
+        return out;
+    }();
+    return p;
+}
+
+RegistrationConfig config() { return RegistrationConfig{}; }
+
+/// ATE RMSE of the per-frame trajectory of `graph` against ground truth (frame indices match).
+double ateRmse(const PoseGraph& graph) {
+    const io::Trajectory est = frameTrajectory(scan().fragments, graph).value();
+    std::vector<Eigen::Vector3d> pe, pg;
+    for (const Fragment& f : scan().fragments) {
+        for (const FragmentFrame& fr : f.frames) {
+            if (!fr.tracking_ok) continue;
+            pe.push_back((graph.T_W_F[f.id] * fr.T_F_C).translation());
+            pg.push_back(
+                scan().gt_frames.at(static_cast<size_t>(fr.frame_index)).T_W_C.translation());
+        }
+    }
+    EXPECT_EQ(pe.size(), est.size());
+    return eval::computeAte(pe, pg).value().rmse_m;
+}
+
+Eigen::Isometry3d gtRelative(uint32_t s, uint32_t t) {
+    return scan().gt_T_W_F[s].inverse() * scan().gt_T_W_F[t];
+}
+
+/// Redwood benchmark registration error: sqrt(ξ^T Λ ξ / Λ(5,5)), ξ = Log(T*^-1 T), with Λ of the
+/// ground-truth alignment.
+double registrationRmse(const Eigen::Isometry3d& T, const Eigen::Isometry3d& truth,
+                        const Matrix6d& info) {
+    const Vector6d xi = lie::logSE3(truth.inverse() * T);
+    return std::sqrt(std::max(0.0, xi.dot(info * xi)) / std::max(1.0, info(5, 5)));
+}
+
+struct Truth {
+    std::set<std::pair<uint32_t, uint32_t>> overlapping;  ///< non-consecutive, GT overlap ≥ 30 %
+    std::map<std::pair<uint32_t, uint32_t>, Matrix6d> info;
+};
+
+const Truth& truth() {
+    static const Truth t = [] {
+        Truth out;
+        std::vector<FragmentIndex> idx;
+        for (size_t i = 0; i < prepared().size(); ++i) {
+            idx.push_back(buildFragmentIndex(scan().fragments[i], prepared()[i], IcpConfig{}));
+        }
+        for (uint32_t i = 0; i < idx.size(); ++i) {
+            for (uint32_t j = i + 2; j < idx.size(); ++j) {
+                const PairResult e = evaluateAlignment(idx[i], idx[j], gtRelative(i, j), 0.07, 0);
+                out.info[{i, j}] = e.information;
+                if (e.overlap >= 0.3) out.overlapping.insert({i, j});
+            }
+        }
+        return out;
+    }();
+    return t;
+}
+
+TEST(Registration, LoopScanRecallPrecisionPruningAndAte) {
+    ASSERT_GE(scan().fragments.size(), 10u);
+    PairStats stats;
+    Result<PoseGraph> built =
+        buildPoseGraph(scan().fragments, prepared(), config(), nullptr, &stats);
+    ASSERT_TRUE(built.isOk()) << built.status().toString();
+    PoseGraph graph = built.value();
+    ASSERT_EQ(graph.T_W_F.size(), scan().fragments.size());
+
+    // Loop closures before pruning vs ground-truth-overlapping pairs.
+    int accepted = 0, correct = 0, found = 0;
+    for (const PoseGraphEdge& e : graph.edges) {
+        if (e.kind != PoseGraphEdge::Kind::kLoop || !e.kept) continue;
+        ++accepted;
+        const Matrix6d& info = truth().info.at({e.source, e.target});
+        const double err =
+            registrationRmse(e.T_source_target, gtRelative(e.source, e.target), info);
+        const bool ok = err < 0.1;
+        correct += ok ? 1 : 0;
+        if (ok && truth().overlapping.count({e.source, e.target})) ++found;
+        std::printf("loop %u-%u overlap %.3f rmse %.4f err %.4f %s\n", e.source, e.target,
+                    e.overlap, e.inlier_rmse_m, err, ok ? "ok" : "WRONG");
+    }
+    const double recall =
+        truth().overlapping.empty() ? 1.0 : static_cast<double>(found) / truth().overlapping.size();
+    const double precision = accepted == 0 ? 0.0 : static_cast<double>(correct) / accepted;
+    std::printf(
+        "fragments %zu, GT-overlapping pairs %zu, accepted %d, correct %d, recall %.3f, "
+        "precision %.3f (ransac failed %d, overlap rejected %d)\n",
+        scan().fragments.size(), truth().overlapping.size(), accepted, correct, recall, precision,
+        stats.ransac_failed, stats.overlap_rejected);
+    ::testing::Test::RecordProperty("recall", std::to_string(recall));
+    ::testing::Test::RecordProperty("precision", std::to_string(precision));
+    EXPECT_GE(truth().overlapping.size(), 5u);
+    EXPECT_GE(recall, 0.8);
+    EXPECT_GE(precision, 0.9);
+
+    // Odometry edges by ICP are close to ground truth (reference §3.8: < 1 cm / 0.5 deg for GT
+    // fragments; ours carry tracking drift, so 2 cm / 1 deg).
+    for (const PoseGraphEdge& e : graph.edges) {
+        if (e.kind != PoseGraphEdge::Kind::kOdometry) continue;
+        const Eigen::Isometry3d err = gtRelative(e.source, e.target).inverse() * e.T_source_target;
+        EXPECT_LT(err.translation().norm(), 0.02) << e.source;
+        EXPECT_LT(lie::rotationAngle(err), 1.0 * std::numbers::pi / 180) << e.source;
+    }
+
+    // Inject 3 wrong loop closures with the strongest information in the graph.
+    Matrix6d strongest = Matrix6d::Zero();
+    for (const PoseGraphEdge& e : graph.edges) {
+        if (e.kept && e.information(5, 5) > strongest(5, 5)) strongest = e.information;
+    }
+    PoseGraph dirty = graph;
+    std::mt19937_64 rng(11);
+    const uint32_t n = static_cast<uint32_t>(graph.T_W_F.size());
+    const std::vector<std::pair<uint32_t, uint32_t>> wrong = {
+        {1, n / 2}, {2, n - 3}, {n / 3, n - 2}};
+    for (const auto& [s, t] : wrong) {
+        PoseGraphEdge e;
+        e.source = s;
+        e.target = t;
+        e.kind = PoseGraphEdge::Kind::kLoop;
+        std::normal_distribution<double> nd(0.0, 1.0);
+        Vector6d xi;
+        xi << 0.4 * nd(rng), 0.4 * nd(rng), 0.4 * nd(rng), nd(rng), nd(rng), nd(rng);
+        e.T_source_target = gtRelative(s, t) * lie::expSE3(xi);
+        e.information = strongest;
+        e.overlap = 0.5;
+        dirty.edges.push_back(e);
+    }
+    const posegraph::PoseGraphConfig pg = config().pose_graph;
+    Result<posegraph::PoseGraphReport> rc = posegraph::optimisePoseGraph(graph, pg);
+    ASSERT_TRUE(rc.isOk()) << rc.status().toString();
+    Result<posegraph::PoseGraphReport> rd = posegraph::optimisePoseGraph(dirty, pg);
+    ASSERT_TRUE(rd.isOk()) << rd.status().toString();
+    for (size_t k = graph.edges.size(); k < dirty.edges.size(); ++k) {
+        EXPECT_FALSE(dirty.edges[k].kept) << dirty.edges[k].source << "-" << dirty.edges[k].target;
+        EXPECT_LT(dirty.edges[k].line_process, 0.25);
+    }
+    double max_dev = 0.0;
+    for (size_t i = 0; i < n; ++i) {
+        max_dev =
+            std::max(max_dev, (dirty.T_W_F[i].translation() - graph.T_W_F[i].translation()).norm());
+    }
+    EXPECT_LT(max_dev, 0.02);
+
+    // ATE after optimisation (odometry alone for reference).
+    PoseGraph odometry;
+    for (const Fragment& f : scan().fragments) odometry.T_W_F.push_back(f.T_W_F);
+    const double ate_odo = ateRmse(odometry), ate_opt = ateRmse(graph), ate_dirty = ateRmse(dirty);
+    std::printf(
+        "ATE RMSE: odometry %.2f cm, optimised %.2f cm, with injected wrong loops %.2f cm; "
+        "pruned %d of %d loops, mu %.2f\n",
+        ate_odo * 100, ate_opt * 100, ate_dirty * 100, rc->num_pruned, rc->num_loop_edges, rc->mu);
+    ::testing::Test::RecordProperty("ate_cm", std::to_string(ate_opt * 100));
+    EXPECT_LT(ate_opt, 0.05);
+    EXPECT_LT(ate_dirty, 0.05);
+}
+
+std::string readAll(const std::filesystem::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    std::ostringstream s;
+    s << in.rdbuf();
+    return s.str();
+}
+
+/// The full offline stage with outputs written to `dir`; returns the concatenated files.
+std::string runOffline(const std::filesystem::path& dir, int num_threads, double* ate) {
+    RegistrationConfig c = config();
+    c.num_threads = num_threads;
+    Result<RegistrationOutcome> r = registerFragments(scan().fragments, prepared(), c, nullptr);
+    EXPECT_TRUE(r.isOk()) << r.status().toString();
+    if (!r.isOk()) return {};
+    EXPECT_TRUE(writeRegistrationOutputs(dir, scan().fragments, r->graph, r->refined).isOk());
+    if (ate != nullptr) *ate = ateRmse(r->graph);
+    std::string all;
+    for (const char* name : {"pose_graph.json", "trajectory.txt", "trajectory.log",
+                             "registration.log", "registration.info"}) {
+        const std::string text = readAll(dir / name);
+        EXPECT_FALSE(text.empty()) << name;
+        all += std::string("== ") + name + "\n" + text;
+    }
+    return all;
+}
+
+TEST(Registration, OfflineOutputsAreDeterministicAcrossRunsAndThreads) {
+    const auto base = std::filesystem::temp_directory_path() /
+                      ("plumb-registration-det-" +
+                       std::to_string(::testing::UnitTest::GetInstance()->random_seed()) + "-" +
+                       std::to_string(reinterpret_cast<uintptr_t>(&scan())));
+    double ate = 0.0;
+    const std::string a = runOffline(base / "a", 0, &ate);
+    const std::string b = runOffline(base / "b", 0, nullptr);
+    std::string one, two;
+    {
+        tbb::global_control gc(tbb::global_control::max_allowed_parallelism, 1);
+        one = runOffline(base / "one", 1, nullptr);
+    }
+    {
+        tbb::global_control gc(tbb::global_control::max_allowed_parallelism, 2);
+        two = runOffline(base / "two", 2, nullptr);
+    }
+    std::printf("offline with refinement: ATE RMSE %.2f cm, outputs %zu bytes\n", ate * 100,
+                a.size());
+    EXPECT_LT(ate, 0.05);
+    EXPECT_EQ(a, b);
+    EXPECT_EQ(a, one);
+    EXPECT_EQ(a, two);
+    // The registration .log reads back with one entry per kept edge.
+    auto log = io::readRegistrationLog(base / "a" / "registration.log");
+    ASSERT_TRUE(log.isOk()) << log.status().toString();
+    EXPECT_GE(log->size(), scan().fragments.size() - 1);
+    auto traj = io::readTumTrajectory(base / "a" / "trajectory.txt");
+    ASSERT_TRUE(traj.isOk());
+    std::error_code ec;
+    std::filesystem::remove_all(base, ec);
+}
+
+TEST(Registration, LiveModeIsDeterministicAndAccurate) {
+    auto runLive = [](int threads, PoseGraph* graph_out) {
+        RegistrationConfig c = config();
+        c.num_threads = threads;
+        LiveRegistrar live(c);
+        for (const Fragment& f : scan().fragments) {
+            Status s = live.addFragment(f);
+            EXPECT_TRUE(s.isOk()) << s.toString();
+        }
+        Result<RegistrationOutcome> r = live.finish();
+        EXPECT_TRUE(r.isOk()) << r.status().toString();
+        if (graph_out != nullptr && r.isOk()) *graph_out = r->graph;
+        return r.isOk() ? poseGraphJson(r->graph, r->refined) : std::string();
+    };
+    PoseGraph graph;
+    const std::string a = runLive(0, &graph);
+    std::string b;
+    {
+        tbb::global_control gc(tbb::global_control::max_allowed_parallelism, 1);
+        b = runLive(1, nullptr);
+    }
+    EXPECT_EQ(a, b);
+    int loops = 0;
+    for (const PoseGraphEdge& e : graph.edges)
+        loops += e.kind == PoseGraphEdge::Kind::kLoop && e.kept;
+    const double ate = ateRmse(graph);
+    std::printf("live: %d kept loop edges, ATE RMSE %.2f cm\n", loops, ate * 100);
+    EXPECT_GT(loops, 0);
+    EXPECT_LT(ate, 0.05);
+}
+
+TEST(Registration, BadInputGivesSpecificErrors) {
+    EXPECT_EQ(buildPoseGraph({}, {}, config(), nullptr).status().code(),
+              StatusCode::kInvalidArgument);
+    std::vector<Fragment> two(scan().fragments.begin(), scan().fragments.begin() + 2);
+    std::vector<PreparedFragment> one(prepared().begin(), prepared().begin() + 1);
+    EXPECT_EQ(buildPoseGraph(two, one, config(), nullptr).status().code(),
+              StatusCode::kInvalidArgument);
+    std::vector<PreparedFragment> p2(prepared().begin(), prepared().begin() + 2);
+    two[1].id = 5;
+    Result<PoseGraph> r = buildPoseGraph(two, p2, config(), nullptr);
+    EXPECT_EQ(r.status().code(), StatusCode::kInvalidArgument);
+    EXPECT_NE(r.status().message().find("id 5"), std::string::npos);
+    two[1].id = 1;
+    two[1].T_W_F(1, 3) = std::nan("");
+    EXPECT_EQ(buildPoseGraph(two, p2, config(), nullptr).status().code(),
+              StatusCode::kInvalidArgument);
+    LiveRegistrar live(config());
+    EXPECT_EQ(live.addFragment(scan().fragments[1]).code(), StatusCode::kInvalidArgument);
+    EXPECT_EQ(live.finish().status().code(), StatusCode::kFailedPrecondition);
+    PoseGraph g;
+    g.T_W_F.resize(1);
+    EXPECT_EQ(writeRegistrationOutputs("/proc/plumb-no-such-dir/x", scan().fragments, g, {}).code(),
+              StatusCode::kIoError);
+}
+
+}  // namespace
+}  // namespace plumb::registration
