@@ -139,10 +139,17 @@ TEST(SimFusion, LivingRoomRedwoodNoiseSurface) {
 }
 
 // Open (issue 4): the drift acceptance (< 1 cm, < 0.5 deg over 50 frames) is not met on the
-// living room yet: noise off 3.6 cm along the free direction of wall-and-floor views (solution
-// remapping + constant velocity keep it bounded), Redwood noise ~0.95 m, under investigation.
+// living room yet. Measured (320x240): noise off 3.6 cm / 0.007 deg (wall-and-floor views leave
+// one translation free; solution remapping plus the constant-velocity prediction bound it),
+// undistorted Redwood noise 22 cm / 0.09 deg (noise lifts the free direction's eigenvalue above
+// the remapping threshold), Redwood with the distortion table 95 cm / 0.84 deg. Surfaces stay
+// within the acceptance (tests above).
 TEST(SimFusion, DISABLED_LivingRoomNoiseOffDrift) {
     checkSimulatedFragment("living_room", "off", 0.005, true);
+}
+
+TEST(SimFusion, DISABLED_LivingRoomUndistortedNoiseDrift) {
+    checkSimulatedFragment("living_room", "undistorted", 0.01, true);
 }
 
 TEST(SimFusion, DISABLED_LivingRoomRedwoodNoiseDrift) {
