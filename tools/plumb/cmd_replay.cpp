@@ -11,6 +11,10 @@
 #ifdef PLUMB_HAVE_BACKEND
 #include "backend/ingest/backend_cli.hpp"
 #endif
+#ifdef PLUMB_HAVE_DEVICE_STREAM
+#include "common/config/registry.hpp"
+#include "device/stream/device_config.hpp"
+#endif
 
 namespace plumb::tools {
 namespace {
@@ -36,6 +40,12 @@ int runReplay(const std::vector<std::string>& args) {
 }
 
 }  // namespace
+
+#ifdef PLUMB_HAVE_DEVICE_STREAM
+// plumb-device's configuration, documented by `plumb config doc device`.
+PLUMB_PROGRAM_CONFIG(device, "device", plumb::device::DeviceConfig,
+                     "plumb-device: capture, fusion options, fragment stream over LCM");
+#endif
 
 PLUMB_COMMAND(replay, "replay", "process an LCM log of a scan like plumb-backend --log", runReplay);
 
