@@ -2,10 +2,12 @@
 #pragma once
 
 // A scanned room for the monitor's tests: a 4 m x 3 m room (layout frame L, z up, floor z = 0,
-// walls 2.5 m high) seen from its centre by a camera at 1.5 m height turning on the spot.
-// Fragment k looks along yaw k * 45 degrees and holds the floor and wall points within a 60 degree
-// wedge in front of it, so fragments 0..7 together see the whole room and any subset leaves known
-// gaps. The world frame W is the first camera's frame (x right, y down, z forward).
+// walls 2.5 m high) scanned by a camera at 1.5 m height walking a circle of radius 0.5 m around the
+// room centre and looking outwards. Fragment k looks along yaw k * 45 degrees from
+// centre + 0.5 m * (cos yaw, sin yaw) and holds the floor and wall points within a 60 degree wedge
+// in front of it (beyond 0.3 m), so fragments 0..7 together see the room except a patch around
+// the centre, and any subset leaves known gaps. The world frame W is the first camera's frame
+// (x right, y down, z forward).
 
 #include <Eigen/Geometry>
 #include <cmath>
@@ -26,6 +28,7 @@ inline constexpr double kRoomHeight = 2.5;
 inline constexpr double kCameraHeight = 1.5;
 inline constexpr double kYawStepDeg = 45.0;
 inline constexpr double kHalfFovDeg = 30.0;
+inline constexpr double kWalkRadius = 0.5;
 
 /// Camera -> layout pose of fragment k (camera z forward along yaw, y down = -z_L).
 inline Eigen::Isometry3d cameraInLayout(int k) {
@@ -37,7 +40,8 @@ inline Eigen::Isometry3d cameraInLayout(int k) {
     T.linear().col(0) = right;
     T.linear().col(1) = down;
     T.linear().col(2) = forward;
-    T.translation() = Eigen::Vector3d(kRoomX / 2, kRoomY / 2, kCameraHeight);
+    T.translation() = Eigen::Vector3d(kRoomX / 2 + kWalkRadius * forward.x(),
+                                      kRoomY / 2 + kWalkRadius * forward.y(), kCameraHeight);
     return T;
 }
 
@@ -57,7 +61,7 @@ inline Fragment roomFragment(int k, double step_m = 0.05, int frames_per_fragmen
     const Eigen::Isometry3d T_F_L = T_L_F.inverse();
     const double yaw = k * kYawStepDeg * std::numbers::pi / 180.0;
     const double half_fov = kHalfFovDeg * std::numbers::pi / 180.0;
-    const Eigen::Vector2d centre(kRoomX / 2, kRoomY / 2);
+    const Eigen::Vector2d centre = T_L_F.translation().head<2>();  // the camera
     auto inWedge = [&](const Eigen::Vector2d& p) {
         const Eigen::Vector2d d = p - centre;
         if (d.norm() < 0.3) return false;

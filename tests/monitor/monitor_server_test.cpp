@@ -91,10 +91,17 @@ TEST(MonitorServer, TokenIsRequiredWhenSet) {
     config.token = "s3cret-token";
     Served s(config);
     auto c = s.client();
-    for (const char* path : {"/", "/api/state", "/api/events", "/monitor.js"}) {
+    for (const char* path : {"/api/state", "/api/events", "/api/health"}) {
         auto res = c.Get(path);
         ASSERT_TRUE(res) << path;
         EXPECT_EQ(res->status, 401) << path;
+        EXPECT_EQ(res->body.find("\"fragments\""), std::string::npos) << path;
+    }
+    // The page's files carry no data and load without the token (the page passes it on).
+    for (const char* path : {"/", "/monitor.js"}) {
+        auto res = c.Get(path);
+        ASSERT_TRUE(res) << path;
+        EXPECT_EQ(res->status, 200) << path;
     }
     auto res = c.Get("/api/state?token=wrong");
     ASSERT_TRUE(res);

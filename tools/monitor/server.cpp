@@ -95,7 +95,9 @@ struct MonitorServer::Impl {
                 setJsonError(res, 403, "the monitor answers only to loopback host names");
                 return httplib::Server::HandlerResponse::Handled;
             }
-            if (!authorised(req)) {
+            // The page itself (embedded, the same for everyone) is public so that a browser can
+            // load it from a link carrying the token; every /api/ request needs the token.
+            if (req.path.rfind("/api/", 0) == 0 && !authorised(req)) {
                 setJsonError(res, 401,
                              "access token required: add ?token=<token> to the address, or send "
                              "'Authorization: Bearer <token>'");
@@ -196,6 +198,11 @@ Result<std::unique_ptr<MonitorServer>> MonitorServer::start(const ServerConfig& 
     }
     Impl* raw = impl.get();
     raw->thread = std::thread([raw] { raw->server.listen_after_bind(); });
+    // httplib's stop() does nothing until the listen loop runs: wait for it, so that a stop()
+    // right after start() cannot leave the loop running (and join() hanging).
+    for (int i = 0; i < 5000 && !raw->server.is_running(); ++i) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
     return std::unique_ptr<MonitorServer>(new MonitorServer(std::move(impl)));
 }
 

@@ -8,10 +8,11 @@
 //                       and on every change (checked at least every 250 ms), ": keepalive"
 //                       comments in between
 //   GET /api/health     {"ok": true, "version": N}
-// Binds 127.0.0.1 unless told otherwise. With a token set, every request must carry it as
-// `?token=T`, `Authorization: Bearer T` or `X-Plumb-Token: T` (401 otherwise). While bound to a
-// loopback address, requests whose Host header names another host are refused (403), which keeps
-// web pages elsewhere from reaching the monitor through DNS rebinding.
+// Binds 127.0.0.1 unless told otherwise. With a token set, every /api/ request must carry it as
+// `?token=T`, `Authorization: Bearer T` or `X-Plumb-Token: T` (401 otherwise); the page's own
+// files hold no data and are served without it (the page passes its ?token= on to the API). While
+// bound to a loopback address, requests whose Host header names another host are refused (403),
+// which keeps web pages elsewhere from reaching the monitor through DNS rebinding.
 //
 // Thread-safety: start/stop from one thread; requests are served on the server's own threads.
 
