@@ -3,6 +3,7 @@
 
 #include <fmt/format.h>
 
+#include <cerrno>
 #include <chrono>
 #include <random>
 
@@ -77,7 +78,10 @@ Result<std::unique_ptr<LcmLink>> LcmLink::open(const LinkOptions& options) {
 Status LcmLink::pump(int timeout_ms) {
     const auto now = std::chrono::system_clock::now().time_since_epoch();
     auth_->setTime(std::chrono::duration_cast<std::chrono::microseconds>(now).count());
+    errno = 0;
     auto r = lcm_->handle(timeout_ms);
+    // A signal (SIGINT/SIGTERM, handled by the program) interrupts LCM's select(): not an error.
+    if (!r.isOk() && errno == EINTR) return Status::ok();
     if (!r.isOk()) return r.status();
     // Then whatever else is already waiting (bounded, so timers still run under a flood).
     for (int i = 0; i < 256 && *r; ++i) {
