@@ -7,8 +7,9 @@
 //    backend's output for it (DIR/scan/backend: pose_graph.json with loops, layout.json).
 // 2. `plumb monitor --log session.lcm --dir backend --port 0 --token T` replays it in real time.
 // 3. Headless Chromium (/usr/bin/chromium, driven by playwright-core) opens the page and waits
-//    until all fragments, their outlines and the pose-graph edges (odometry and loops) are in the
-//    DOM, having arrived through server-sent events while the page stayed open.
+//    until all fragments, their outlines and provisional odometry edges are in the DOM; then the
+//    test writes the backend's pose_graph.json and the loop edges must appear without a reload
+//    (server-sent events).
 // 4. A screenshot is saved to DIR/monitor.png.
 // Exit 0 on success, 1 on failure, 77 (ctest skip) when Chromium or playwright-core is missing
 // outside CI; under CI=true a missing browser is a failure.
@@ -55,6 +56,11 @@ const scan = path.join(work, "scan");
 const made = spawnSync(fixture, [scan, "--fragments", String(FRAGMENTS), "--interval", "0.4"], { encoding: "utf8" });
 if (made.status !== 0) fail("fixture: " + made.stderr + made.stdout);
 console.log("monitor_browser: " + made.stdout.trim());
+// The backend's pose graph is held back and written while the page is open: its loop edges must
+// then appear without a reload (deterministic proof of the in-place updates).
+const graphFile = path.join(scan, "backend", "pose_graph.json");
+const heldGraph = path.join(scan, "pose_graph.json.held");
+fs.renameSync(graphFile, heldGraph);
 
 const monitor = spawn(plumb, ["monitor", "--log", path.join(scan, "session.lcm"), "--speed", "1",
                               "--dir", path.join(scan, "backend"), "--port", "0", "--token", TOKEN],
@@ -106,15 +112,22 @@ try {
   let navigations = 0;
   page.on("framenavigated", () => { navigations += 1; });
 
-  // Everything must arrive through the open page (server-sent events), within 60 s.
+  // The replayed fragments arrive with provisional odometry edges (no pose graph yet).
   await page.waitForFunction((n) =>
     document.querySelectorAll("#fragment-list tr.fragment").length >= n &&
     document.querySelectorAll("#map polygon.fragment-outline").length >= n &&
     document.querySelectorAll("#map line.edge.odometry").length >= n - 1 &&
-    document.querySelectorAll("#map line.edge.loop").length >= 2 &&
     document.querySelector("#map polygon.room") !== null &&
     document.getElementById("connection").textContent === "live",
     FRAGMENTS, { timeout: 60000, polling: 100 });
+  const before = await page.locator("#map line.edge.loop").count();
+  if (before !== 0) fail("loop edges before the pose graph was written: " + before);
+
+  // The backend writes its pose graph: the loops must appear through the open page.
+  fs.copyFileSync(heldGraph, graphFile + ".tmp");
+  fs.renameSync(graphFile + ".tmp", graphFile);
+  await page.waitForFunction(() => document.querySelectorAll("#map line.edge.loop").length >= 2,
+                             null, { timeout: 30000, polling: 100 });
 
   const counts = await page.evaluate(() => ({
     fragments: document.querySelectorAll("#fragment-list tr.fragment").length,
