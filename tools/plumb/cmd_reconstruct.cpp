@@ -127,8 +127,6 @@ Result<backend::GroundTruth> simGroundTruth(const sim::SimSource& sim) {
     return gt;
 }
 
-}  // namespace
-
 /// Runs the device's tracking and fusion over a whole source. Empty fragments (a tracking loss
 /// on the first frame of a fragment) are dropped and the rest renumbered 0..n-1.
 Result<std::vector<Fragment>> fuseSource(FrameSource& source, const device::FusionConfig& config,
@@ -168,6 +166,8 @@ Result<std::vector<Fragment>> fuseSource(FrameSource& source, const device::Fusi
     if (kept.empty()) return failedPrecondition("the scan produced no fragment with a surface");
     return kept;
 }
+
+}  // namespace
 
 int runReconstruct(const std::vector<std::string>& arguments) {
     std::vector<std::string> args = arguments;
