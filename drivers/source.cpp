@@ -54,6 +54,9 @@ Result<std::unique_ptr<FrameSource>> openFrameSource(const std::string& uri,
             if (!camera.isOk()) return camera.status();
             config.camera = *camera;
         }
+        if (!options.sim_noise.empty()) {
+            PLUMB_RETURN_IF_ERROR(sim::parseNoiseMode(options.sim_noise, &config.noise));
+        }
         auto source = sim::SimSource::create(config);
         if (!source.isOk()) return source.status();
         return std::unique_ptr<FrameSource>(std::move(source).value());

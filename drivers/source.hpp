@@ -24,6 +24,9 @@ struct SourceOptions {
     size_t max_frames = 0;
     /// Seed for sources with randomness (the simulator's noise and hand shake).
     uint64_t seed = 1;
+    /// Simulator depth noise (sim::parseNoiseMode: redwood, undistorted, parametric, off);
+    /// empty = the simulator's default (redwood with the measured distortion table).
+    std::string sim_noise;
     /// Live cameras (openni2, v4l2): depth mode "WxH@fps", e.g. "640x480@30" or "320x240@60".
     std::string depth_mode = "640x480@30";
 };

@@ -30,6 +30,7 @@ constexpr const char* kUsage =
     "  --set KEY=VALUE      override one configuration key (repeatable)\n"
     "  --frames N           stop the source after N frames (default: all)\n"
     "  --intrinsics X       camera preset or intrinsics file (sets capture.intrinsics)\n"
+    "  --noise MODE         sim: sources only: redwood (default), undistorted, parametric, off\n"
     "  --realtime           pace recorded sources like a live sensor (capture.realtime)\n"
     "  --lcm-url URL        LCM URL (default udpm://239.255.76.67:7667?ttl=0, stays on host)\n"
     "  --allow-remote       allow an LCM URL that can leave this machine\n"
@@ -66,7 +67,7 @@ int main(int argc, char** argv) {
     auto config_args = config::extractConfigArgs(args);
     if (!config_args.isOk()) return usageError(config_args.status().message());
 
-    std::string source_uri, spool_dir, dump_dir, intrinsics;
+    std::string source_uri, spool_dir, dump_dir, intrinsics, sim_noise;
     messages::LinkOptions link_options;
     int64_t frames = 0, session_id = 0, key_id = 1;
     bool realtime = false;
@@ -92,6 +93,8 @@ int main(int argc, char** argv) {
                 return usageError("--frames needs a count >= 0");
         } else if (a == "--intrinsics") {
             if (!value(&intrinsics)) return usageError("--intrinsics needs a value");
+        } else if (a == "--noise") {
+            if (!value(&sim_noise)) return usageError("--noise needs a mode");
         } else if (a == "--realtime") {
             realtime = true;
         } else if (a == "--lcm-url") {
@@ -120,6 +123,9 @@ int main(int argc, char** argv) {
         }
     }
     if (source_uri.empty()) return usageError("--source is required");
+    if (!sim_noise.empty() && source_uri.rfind("sim:", 0) != 0) {
+        return usageError("--noise applies to sim: sources only");
+    }
     log::setupLogging("plumb-device", level);
 
     device::DeviceRunOptions options;
@@ -141,6 +147,7 @@ int main(int argc, char** argv) {
     source_options.intrinsics = options.config.capture.intrinsics;
     source_options.max_frames = static_cast<size_t>(frames);
     source_options.seed = options.config.capture.seed;
+    source_options.sim_noise = sim_noise;
     auto source = openFrameSource(source_uri, source_options);
     if (!source.isOk()) {
         log::error("cannot open source '{}': {}", source_uri, source.status().toString());

@@ -51,6 +51,9 @@ constexpr const char* kUsage =
     "  --out DIR        output folder (default out/demo)\n"
     "  --scene NAME     living_room (default), weak_manhattan, l_shape, corridor\n"
     "  --frames N       frames of the scan, one loop around the room (default 300)\n"
+    "  --noise MODE     simulated depth noise: redwood (default; with the measured distortion\n"
+    "                   table, which bends frames by up to several cm at 3 m), undistorted,\n"
+    "                   parametric, off\n"
     "  --port P         LCM UDP port on 239.255.76.67 (default: 7667 + pid % 1000)\n"
     "  -h, --help       this text\n"
     "\n"
@@ -128,6 +131,7 @@ Status writeGroundTruth(const std::string& scene, size_t frames, const fs::path&
 int runDemo(const std::vector<std::string>& args) {
     fs::path out = "out/demo";
     std::string scene = "living_room";
+    std::string noise = "redwood";
     size_t frames = 300;
     int port = 7667 + static_cast<int>(getpid() % 1000);
     for (size_t i = 0; i < args.size(); ++i) {
@@ -145,6 +149,12 @@ int runDemo(const std::vector<std::string>& args) {
             const auto [p, ec] = std::from_chars(v.data(), v.data() + v.size(), frames);
             if (ec != std::errc() || p != v.data() + v.size() || frames < 60)
                 return usageError("--frames needs an integer >= 60");
+        } else if (a == "--noise" && has_value) {
+            noise = args[++i];
+            sim::NoiseConfig parsed;
+            if (Status s = sim::parseNoiseMode(noise, &parsed); !s.isOk()) {
+                return usageError(s.message());
+            }
         } else if (a == "--port" && has_value) {
             const std::string& v = args[++i];
             const auto [p, ec] = std::from_chars(v.data(), v.data() + v.size(), port);
@@ -169,7 +179,8 @@ int runDemo(const std::vector<std::string>& args) {
         return kExitFailure;
     }
     const fs::path gt_dir = out / "ground_truth";
-    std::cout << fmt::format("plumb demo: simulated scan of '{}', {} frames\n", scene, frames);
+    std::cout << fmt::format("plumb demo: simulated scan of '{}', {} frames, noise {}\n", scene,
+                             frames, noise);
     if (Status s = writeGroundTruth(scene, frames, gt_dir); !s.isOk()) {
         std::cerr << "plumb demo: " << s.toString() << "\n";
         return kExitFailure;
@@ -186,8 +197,8 @@ int runDemo(const std::vector<std::string>& args) {
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(500));
     Result<pid_t> device_pid =
-        spawn(*device, {"--source", "sim:" + scene, "--frames", std::to_string(frames), "--lcm-url",
-                        url, "--spool-dir", (out / "device_spool").string()});
+        spawn(*device, {"--source", "sim:" + scene, "--frames", std::to_string(frames), "--noise",
+                        noise, "--lcm-url", url, "--spool-dir", (out / "device_spool").string()});
     if (!device_pid.isOk()) {
         kill(*backend_pid, SIGTERM);
         waitExit(*backend_pid);

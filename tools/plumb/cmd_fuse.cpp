@@ -269,34 +269,16 @@ int runFuse(const std::vector<std::string>& arguments) {
     const std::string uri = (o.source.rfind("sim:", 0) == 0 || o.source.rfind("dataset:", 0) == 0)
                                 ? o.source
                                 : "dataset:" + o.source;
-    std::unique_ptr<FrameSource> source;
-    if (uri.rfind("sim:", 0) == 0) {
-        // The simulator directly, so that the noise mode can be chosen.
-        sim::SimConfig sc;
-        sc.scene = uri.substr(4);
-        sc.seed = o.source_options.seed;
-        sc.trajectory.seed = o.source_options.seed;
-        sc.trajectory.num_frames =
-            o.source_options.max_frames > 0 ? o.source_options.max_frames : 600;
-        if (!o.source_options.intrinsics.empty()) {
-            Result<PinholeCamera> cam = cameraPreset(o.source_options.intrinsics);
-            if (!cam.isOk()) return failure(cam.status());
-            sc.camera = *cam;
-        }
-        if (!o.noise.empty()) {
-            if (Status s = sim::parseNoiseMode(o.noise, &sc.noise); !s.isOk()) {
-                return usageError(s.message());
-            }
-        }
-        Result<std::unique_ptr<sim::SimSource>> s = sim::SimSource::create(sc);
-        if (!s.isOk()) return failure(s.status());
-        source = std::move(s).value();
-    } else {
-        if (!o.noise.empty()) return usageError("--noise applies to sim: sources only");
-        Result<std::unique_ptr<FrameSource>> s = openFrameSource(uri, o.source_options);
-        if (!s.isOk()) return failure(s.status());
-        source = std::move(s).value();
+    if (!o.noise.empty() && uri.rfind("sim:", 0) != 0) {
+        return usageError("--noise applies to sim: sources only");
     }
+    SourceOptions source_options = o.source_options;
+    source_options.sim_noise = o.noise;
+    if (uri.rfind("sim:", 0) == 0 && source_options.max_frames == 0)
+        source_options.max_frames = 600;
+    Result<std::unique_ptr<FrameSource>> opened = openFrameSource(uri, source_options);
+    if (!opened.isOk()) return failure(opened.status());
+    std::unique_ptr<FrameSource> source = std::move(opened).value();
 
     std::error_code ec;
     std::filesystem::create_directories(o.out, ec);

@@ -68,6 +68,8 @@ constexpr const char* kUsage =
     "  --intrinsics X     camera preset or intrinsics file (default: detected)\n"
     "  --depth-scale S    depth units per metre (default: the dataset's)\n"
     "  --seed S           seed of the simulator (default 1)\n"
+    "  --noise MODE       simulator noise: redwood (default; with the measured distortion\n"
+    "                     table), undistorted, parametric, off\n"
     "  --gt DIR           ground truth folder (groundtruth.txt or trajectory.log,\n"
     "                     gt_points.ply, layout.json; default: the dataset folder)\n"
     "  --no-gt            do not evaluate against ground truth\n"
@@ -206,6 +208,8 @@ int runReconstruct(const std::vector<std::string>& arguments) {
         } else if (a == "--seed") {
             if (!value(&v) || !parseNumber(v, &o.source_options.seed))
                 return usageError("--seed needs a non-negative integer");
+        } else if (a == "--noise") {
+            if (!value(&o.source_options.sim_noise)) return usageError("--noise needs a mode");
         } else if (a == "--gt") {
             if (!value(&v)) return usageError("--gt needs a folder");
             o.gt_dir = v;
@@ -238,6 +242,9 @@ int runReconstruct(const std::vector<std::string>& arguments) {
     log::setupLogging("plumb reconstruct");
 
     const std::string uri = normaliseUri(o.source);
+    if (!o.source_options.sim_noise.empty() && uri.rfind("sim:", 0) != 0) {
+        return usageError("--noise applies to sim: sources only");
+    }
     Result<std::unique_ptr<FrameSource>> source = openFrameSource(uri, o.source_options);
     if (!source.isOk()) return failure(source.status());
     log::info("reconstructing {} into {}", (*source)->description(), o.out.string());
