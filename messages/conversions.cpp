@@ -29,7 +29,7 @@ Result<DeviceStatus> fromMessage(const plumb::device_status_t& m) {
         return corrupt(fmt::format("device_status_t: fps {}", m.fps));
     }
     if (m.tracking_state < plumb::device_status_t::TRACKING_INITIALIZING ||
-        m.tracking_state > plumb::device_status_t::TRACKING_STOPPED) {
+        m.tracking_state > plumb::device_status_t::TRACKING_NO_CAMERA) {
         return corrupt(fmt::format("device_status_t: unknown tracking state {}", m.tracking_state));
     }
     if (m.frames_processed < 0 || m.frames_dropped < 0 || m.fragments_cut < 0 ||

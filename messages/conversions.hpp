@@ -19,6 +19,7 @@ enum class TrackingState : int8_t {
     kOk = plumb::device_status_t::TRACKING_OK,
     kLost = plumb::device_status_t::TRACKING_LOST,
     kStopped = plumb::device_status_t::TRACKING_STOPPED,
+    kNoCamera = plumb::device_status_t::TRACKING_NO_CAMERA,
 };
 
 /// The device's heartbeat in plumb terms (see device_status_t.lcm for the field meanings).

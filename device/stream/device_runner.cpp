@@ -233,8 +233,11 @@ Result<DeviceRunReport> runDevice(FrameSource& source, const DeviceRunOptions& o
         messages::DeviceStatus st;
         st.session_id = options.session_id;
         st.fps = fps;
+        // While the camera is gone the heartbeat says so (tracking resumes when it returns).
         st.tracking = stopped ? messages::TrackingState::kStopped
-                              : static_cast<messages::TrackingState>(shared.tracking.load());
+                      : shared.camera_gone.load()
+                          ? messages::TrackingState::kNoCamera
+                          : static_cast<messages::TrackingState>(shared.tracking.load());
         st.frames_processed = processed;
         st.frames_dropped = shared.dropped.load();
         st.fragments_cut = static_cast<int32_t>(shared.cut.load());

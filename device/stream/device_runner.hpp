@@ -9,8 +9,10 @@
 // only.
 //
 // Capture never blocks on a live sensor (or with capture.realtime): when fusion lags, frames are
-// dropped, counted and reported in the heartbeat. At the end of the source, or on a stop request
-// (SIGINT/SIGTERM), the open fragment is closed and sent, a final heartbeat says
+// dropped, counted and reported in the heartbeat. When the camera vanishes (the source reports
+// kUnavailable), the open fragment is closed, the heartbeat says TRACKING_NO_CAMERA, and the scan
+// resumes with the next fragment when the camera returns. At the end of the source, or on a stop
+// request (SIGINT/SIGTERM), the open fragment is closed and sent, a final heartbeat says
 // TRACKING_STOPPED with the final fragment count (the backend's end-of-scan signal), and the
 // device waits up to stream.ack_wait_s for the remaining acknowledgements. A second stop request
 // ends the wait at once. Unacknowledged fragments are left in the spool directory.

@@ -55,6 +55,8 @@ const char* trackingName(messages::TrackingState s) {
             return "lost";
         case messages::TrackingState::kStopped:
             return "stopped";
+        case messages::TrackingState::kNoCamera:
+            return "no camera";
     }
     return "unknown";
 }

@@ -8,17 +8,23 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <chrono>
 #include <filesystem>
 #include <lcm/lcm-cpp.hpp>
+#include <mutex>
 #include <random>
+#include <thread>
 
 #include "backend/ingest/ingest_run.hpp"
 #include "backend/ingest/ingestor.hpp"
 #include "device/stream/device_config.hpp"
+#include "device/stream/device_runner.hpp"
 #include "device/stream/fragment_publisher.hpp"
 #include "drivers/source.hpp"
 #include "messages/auth.hpp"
 #include "messages/channels.hpp"
+#include "messages/conversions.hpp"
 #include "messages/crc32.hpp"
 #include "messages/files.hpp"
 #include "messages/fragment_codec.hpp"
@@ -319,6 +325,102 @@ TEST(StreamingInProcess, RecordedLogReplaysToTheSameStoreTwice) {
     EXPECT_TRUE(readDir(a.out_dir)["metrics.json"] == readDir(b.out_dir)["metrics.json"]);
     EXPECT_TRUE(fa == readDir(dir / "live"));  // the same store the live backend built
     fs::remove_all(dir);
+}
+
+/// A camera that vanishes after `unplug_at` frames for `outage_calls` calls of next() (each
+/// waiting `outage_wait` as a driver's read timeout would), then streams on.
+class UnpluggingSource final : public FrameSource {
+  public:
+    UnpluggingSource(std::unique_ptr<FrameSource> inner, int64_t unplug_at, int outage_calls,
+                     std::chrono::milliseconds outage_wait)
+        : inner_(std::move(inner)),
+          unplug_at_(unplug_at),
+          outage_left_(outage_calls),
+          outage_wait_(outage_wait) {}
+
+    const PinholeCamera& camera() const override { return inner_->camera(); }
+    std::string description() const override { return "unplugging " + inner_->description(); }
+    /// Known length: capture waits for fusion instead of dropping frames like a live sensor.
+    std::optional<size_t> size() const override { return inner_->size(); }
+    Result<Frame> next() override {
+        if (delivered_ == unplug_at_ && outage_left_ > 0) {
+            --outage_left_;
+            std::this_thread::sleep_for(outage_wait_);
+            return Status(StatusCode::kUnavailable, "camera disconnected");
+        }
+        Result<Frame> f = inner_->next();
+        if (f.isOk()) ++delivered_;
+        return f;
+    }
+
+  private:
+    std::unique_ptr<FrameSource> inner_;
+    int64_t unplug_at_;
+    int outage_left_;
+    std::chrono::milliseconds outage_wait_;
+    int64_t delivered_ = 0;
+};
+
+/// Keeps every message the device publishes; nothing is ever delivered back (no backend).
+class RecordingTransport final : public messages::Transport {
+  public:
+    Status publish(const std::string& channel, std::span<const uint8_t> bytes) override {
+        std::lock_guard<std::mutex> lock(mutex);
+        sent.emplace_back(channel, std::vector<uint8_t>(bytes.begin(), bytes.end()));
+        return Status::ok();
+    }
+    Status subscribe(const std::string&, Handler) override { return Status::ok(); }
+
+    std::mutex mutex;
+    std::vector<std::pair<std::string, std::vector<uint8_t>>> sent;
+};
+
+TEST(StreamingInProcess, UnpluggedCameraIsInTheHeartbeatAndTheScanResumes) {
+    SourceOptions so;
+    so.intrinsics = "ci";
+    so.max_frames = 24;
+    auto sim = openFrameSource("sim:living_room", so);
+    ASSERT_TRUE(sim.isOk()) << sim.status().toString();
+    UnpluggingSource source(std::move(sim).value(), 10, 30, std::chrono::milliseconds(20));
+
+    device::DeviceRunOptions options;
+    options.config.fusion.frames_per_fragment = 8;
+    options.config.fusion.voxel_size_m = 0.02;
+    options.config.stream.status_period_s = 0.05;
+    options.config.stream.ack_wait_s = 0.1;
+    options.session_id = 77;
+    RecordingTransport transport;
+    device::DeviceLink link;
+    link.transport = &transport;
+    link.pump = [](int timeout_ms) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(timeout_ms));
+        return Status::ok();
+    };
+    const std::atomic<int> stop{0};
+    Result<device::DeviceRunReport> report = device::runDevice(source, options, link, stop);
+    ASSERT_TRUE(report.isOk()) << report.status().toString();
+    EXPECT_EQ(report->frames_captured, 24);  // every frame, the ones after the outage too
+    EXPECT_EQ(report->frames_processed, 24);
+    EXPECT_FALSE(report->source_error) << report->source_message;
+    // Fragments: frames 0-7, 8-9 (closed at the unplug), then 10-17 and 18-23 after it.
+    EXPECT_EQ(report->fragments_cut, 4);
+
+    std::vector<messages::TrackingState> states;
+    for (const auto& [channel, bytes] : transport.sent) {
+        if (channel != messages::kChannelStatus) continue;
+        auto msg = messages::decodeMessage<plumb::device_status_t>(bytes);
+        ASSERT_TRUE(msg.isOk()) << msg.status().toString();
+        auto status = messages::fromMessage(*msg);
+        ASSERT_TRUE(status.isOk()) << status.status().toString();
+        if (states.empty() || states.back() != status->tracking) states.push_back(status->tracking);
+    }
+    // The heartbeat says the camera is gone during the outage (30 x 20 ms = 0.6 s, heartbeat
+    // every 50 ms), then tracking again, and finally stopped.
+    const auto gone = std::find(states.begin(), states.end(), messages::TrackingState::kNoCamera);
+    ASSERT_NE(gone, states.end());
+    EXPECT_NE(std::find(gone, states.end(), messages::TrackingState::kOk), states.end());
+    ASSERT_FALSE(states.empty());
+    EXPECT_EQ(states.back(), messages::TrackingState::kStopped);
 }
 
 }  // namespace

@@ -49,7 +49,7 @@
     box.className = "";
     const age = Date.now() / 1000 - d.received_unix_s;
     const stale = age > d.stale_after_s;
-    const trackCls = d.tracking === "ok" ? "badge good" : d.tracking === "lost" ? "badge bad" : "badge warn";
+    const trackCls = d.tracking === "ok" ? "badge good" : d.tracking === "lost" || d.tracking === "no camera" ? "badge bad" : "badge warn";
     box.append(dl([
       ["tracking", d.tracking, trackCls],
       ["fps", d.fps.toFixed(1)],
