@@ -22,6 +22,11 @@ void describe(config::Schema& s, PreprocessConfig& c) {
         .positive();
     s.field("num_levels", c.num_levels, "pyramid levels (each next level half the size)")
         .range(1, 5);
+    s.field("min_level_width_px", c.min_level_width_px,
+            "coarser pyramid levels are built only while at least this wide (a 160 px camera "
+            "gets 2 levels)",
+            "px")
+        .min(1);
     s.field("max_normal_depth_jump_m", c.max_normal_depth_jump_m,
             "a normal is invalid when a neighbour's depth differs by more than this", "m")
         .positive();

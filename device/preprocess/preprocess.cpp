@@ -23,6 +23,10 @@ Status PreprocessConfig::validate() const {
         return invalidArgument("preprocess: num_levels must be in [1, 5], got " +
                                std::to_string(num_levels));
     }
+    if (min_level_width_px < 1) {
+        return invalidArgument("preprocess: min_level_width_px must be >= 1, got " +
+                               std::to_string(min_level_width_px));
+    }
     if (!(max_normal_depth_jump_m > 0.0f)) {
         return invalidArgument("preprocess: max_normal_depth_jump_m must be positive");
     }
@@ -168,8 +172,13 @@ Result<FramePyramid> preprocess(const DepthImage& depth, const PinholeCamera& ca
     }
     FramePyramid pyramid;
     pyramid.depth = gateDepth(depth, config);
-    pyramid.levels.resize(static_cast<size_t>(config.num_levels));
-    for (int l = 0; l < config.num_levels; ++l) {
+    int num_levels = 1;
+    while (num_levels < config.num_levels &&
+           (camera.width >> num_levels) >= config.min_level_width_px) {
+        ++num_levels;
+    }
+    pyramid.levels.resize(static_cast<size_t>(num_levels));
+    for (int l = 0; l < num_levels; ++l) {
         PyramidLevel& level = pyramid.levels[static_cast<size_t>(l)];
         if (l == 0) {
             level.camera = camera;

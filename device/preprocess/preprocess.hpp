@@ -28,8 +28,13 @@ struct PreprocessConfig {
     float bilateral_sigma_space_px = 4.5f;
     /// Range sigma of the bilateral filter, metres. Neighbours further than 3 sigma are ignored.
     float bilateral_sigma_depth_m = 0.03f;
-    /// Number of pyramid levels (level 0 = full resolution, each next level half the size).
+    /// Most pyramid levels (level 0 = full resolution, each next level half the size); see
+    /// min_level_width_px.
     int num_levels = 3;
+    /// Coarser levels are only built while they stay at least this wide, pixels. Below about 80
+    /// px the coarsest ICP level has too few valid normals on far views and can pull the first
+    /// estimate out of the basin (a 160x120 camera gets 2 levels: 160 and 80 px).
+    int min_level_width_px = 80;
     /// A normal is invalid when a neighbour's depth differs by more than this, metres.
     float max_normal_depth_jump_m = 0.05f;
     /// Worker threads (0 = TBB default). Results do not depend on it.

@@ -69,6 +69,12 @@ TEST(Preprocess, PyramidNormalsMatchATiltedPlane) {
     const DepthImage depth = scene.render(cam, Eigen::Isometry3d::Identity());
     PreprocessConfig config;
     config.bilateral = false;  // exact geometry: the filter is tested above
+    // By default a 160 px camera stops at 80 px (min_level_width_px); 1 keeps the 40 px level.
+    Result<FramePyramid> two = preprocess(depth, cam, config);
+    ASSERT_TRUE(two.isOk());
+    ASSERT_EQ(two->levels.size(), 2u);
+    EXPECT_EQ(two->levels[1].camera.width, 80);
+    config.min_level_width_px = 1;
     Result<FramePyramid> pyr = preprocess(depth, cam, config);
     ASSERT_TRUE(pyr.isOk());
     ASSERT_EQ(pyr->levels.size(), 3u);
