@@ -11,6 +11,7 @@
 #include "common/core/logging.hpp"
 #include "device/stream/device_runner.hpp"
 #include "drivers/device_list.hpp"
+#include "drivers/sim/sim_source.hpp"
 #include "drivers/source.hpp"
 #include "messages/lcm_link.hpp"
 
@@ -95,6 +96,8 @@ int main(int argc, char** argv) {
             if (!value(&intrinsics)) return usageError("--intrinsics needs a value");
         } else if (a == "--noise") {
             if (!value(&sim_noise)) return usageError("--noise needs a mode");
+            if (Status s = sim::checkNoiseMode(sim_noise); !s.isOk())
+                return usageError(s.message());
         } else if (a == "--realtime") {
             realtime = true;
         } else if (a == "--lcm-url") {

@@ -61,6 +61,11 @@ Status parseNoiseMode(const std::string& mode, NoiseConfig* noise) {
     return Status::ok();
 }
 
+Status checkNoiseMode(const std::string& mode) {
+    NoiseConfig scratch;
+    return parseNoiseMode(mode, &scratch);
+}
+
 Result<std::unique_ptr<SimSource>> SimSource::create(const SimConfig& config) {
     PLUMB_RETURN_IF_ERROR(config.camera.validate());
     auto scene = resolveScene(config.scene);

@@ -89,5 +89,7 @@ Status writeSimDataset(const SimSource& source, const std::filesystem::path& dir
 /// Parses a noise setting: "off", "redwood" or "on" (table distortion), "parametric" (§1.4.D),
 /// "undistorted" (Redwood quantisation and noise without distortion). Updates `noise`.
 Status parseNoiseMode(const std::string& mode, NoiseConfig* noise);
+/// OK when parseNoiseMode accepts `mode` (for command lines that pass the mode on).
+Status checkNoiseMode(const std::string& mode);
 
 }  // namespace plumb::sim

@@ -151,10 +151,7 @@ int runDemo(const std::vector<std::string>& args) {
                 return usageError("--frames needs an integer >= 60");
         } else if (a == "--noise" && has_value) {
             noise = args[++i];
-            sim::NoiseConfig parsed;
-            if (Status s = sim::parseNoiseMode(noise, &parsed); !s.isOk()) {
-                return usageError(s.message());
-            }
+            if (Status s = sim::checkNoiseMode(noise); !s.isOk()) return usageError(s.message());
         } else if (a == "--port" && has_value) {
             const std::string& v = args[++i];
             const auto [p, ec] = std::from_chars(v.data(), v.data() + v.size(), port);

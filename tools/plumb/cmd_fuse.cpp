@@ -94,7 +94,6 @@ struct FuseOptions {
     std::string source;
     std::filesystem::path out;
     SourceOptions source_options;
-    std::string noise;
     int threads = 0;
     bool quiet = false;
 };
@@ -239,7 +238,9 @@ int runFuse(const std::vector<std::string>& arguments) {
             if (!value(&v) || !parseNumber(v, &o.source_options.seed))
                 return usageError("--seed needs a non-negative integer");
         } else if (a == "--noise") {
-            if (!value(&o.noise)) return usageError("--noise needs a mode");
+            if (!value(&o.source_options.sim_noise)) return usageError("--noise needs a mode");
+            if (Status s = sim::checkNoiseMode(o.source_options.sim_noise); !s.isOk())
+                return usageError(s.message());
         } else if (a == "--threads") {
             if (!value(&v) || !parseNumber(v, &o.threads) || o.threads < 1)
                 return usageError("--threads needs a positive integer");
@@ -269,14 +270,10 @@ int runFuse(const std::vector<std::string>& arguments) {
     const std::string uri = (o.source.rfind("sim:", 0) == 0 || o.source.rfind("dataset:", 0) == 0)
                                 ? o.source
                                 : "dataset:" + o.source;
-    if (!o.noise.empty() && uri.rfind("sim:", 0) != 0) {
+    if (!o.source_options.sim_noise.empty() && uri.rfind("sim:", 0) != 0) {
         return usageError("--noise applies to sim: sources only");
     }
-    SourceOptions source_options = o.source_options;
-    source_options.sim_noise = o.noise;
-    if (uri.rfind("sim:", 0) == 0 && source_options.max_frames == 0)
-        source_options.max_frames = 600;
-    Result<std::unique_ptr<FrameSource>> opened = openFrameSource(uri, source_options);
+    Result<std::unique_ptr<FrameSource>> opened = openFrameSource(uri, o.source_options);
     if (!opened.isOk()) return failure(opened.status());
     std::unique_ptr<FrameSource> source = std::move(opened).value();
 

@@ -210,6 +210,8 @@ int runReconstruct(const std::vector<std::string>& arguments) {
                 return usageError("--seed needs a non-negative integer");
         } else if (a == "--noise") {
             if (!value(&o.source_options.sim_noise)) return usageError("--noise needs a mode");
+            if (Status s = sim::checkNoiseMode(o.source_options.sim_noise); !s.isOk())
+                return usageError(s.message());
         } else if (a == "--gt") {
             if (!value(&v)) return usageError("--gt needs a folder");
             o.gt_dir = v;
