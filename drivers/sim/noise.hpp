@@ -6,10 +6,11 @@
 // a parametric substitute), 1/8-pixel disparity quantisation with disparity noise - plus missing
 // data at grazing angles and depth edges, random dropout and the sensor's range limits.
 //
-// Randomness: every frame draws from std::mt19937_64 generators seeded per (seed, frame, row,
-// pass), so a frame is a pure function of (clean depth, seed, frame index), whatever the thread
-// count or the order in which frames are generated.
+// Randomness: every frame draws from MT19937-64 generators (Mt19937_64, the std::mt19937_64
+// sequence) seeded per (seed, frame, row, pass), so a frame is a pure function of (clean depth,
+// seed, frame index), whatever the thread count or the order in which frames are generated.
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <filesystem>
@@ -75,9 +76,26 @@ class DistortionTable {
 
     /// Factor f for pixel (x, y) of a 640x480 image and depth z (metres), interpolated between
     /// depth bins (A.3). 0 marks an invalid cell.
-    float factor(int x640, int y480, double z) const;
+    float factor(int x640, int y480, double z) const {
+        return cellFactor(cellX(x640), cellY(y480), z);
+    }
+    /// The cell column of x640 and row of y480 (clamped to the table): factor() in two steps, so
+    /// that per-image loops can look cells up once per column and row.
+    static int cellX(int x640);
+    static int cellY(int y480);
+    /// factor() of the cell (cell_x, cell_y) from cellX, cellY. Inline: once per noisy pixel.
+    float cellFactor(int cell_x, int cell_y, double z) const {
+        // Eq. A.3: bins centred at 1, 3, 5, 7, 9 m, linear in between, clamped at both ends.
+        const int i2 = static_cast<int>((z + 1.0) / 2.0);
+        const int i1 = i2 - 1;
+        const double a = (z - (2.0 * i1 + 1.0)) / 2.0;
+        const std::array<float, 5>& cell = cells_[static_cast<size_t>(cell_y) * kCells + cell_x];
+        return static_cast<float>((1.0 - a) * cell[std::clamp(i1, 0, 4)] +
+                                  a * cell[std::min(i2, 4)]);
+    }
 
   private:
+    static constexpr int kCells = 80;          // table cells along x and y
     std::vector<std::array<float, 5>> cells_;  // 80 * 80
 };
 
@@ -98,10 +116,19 @@ class DepthNoiseModel {
     /// A.3 distortion, A.4 disparity quantisation + noise, E range gating.
     DepthImage apply(const DepthImage& clean, const Image<float>& cos_view, uint64_t seed,
                      uint64_t frame_index) const;
+    /// The same into `out` (resized as needed; a buffer of the right size is reused, which avoids
+    /// first-touching fresh pages every frame). `out` must not alias `clean` or `cos_view`.
+    void apply(const DepthImage& clean, const Image<float>& cos_view, uint64_t seed,
+               uint64_t frame_index, DepthImage* out) const;
 
     const NoiseConfig& config() const { return config_; }
 
   private:
+    // Pass 1 (§1.4.E) for the even row v: the clean depth with missing data set to 0 at the even
+    // columns u, stored at row[u / 2]. Draws the row's whole random stream.
+    void maskRow(const DepthImage& clean, const Image<float>& cos_view, uint64_t seed,
+                 uint64_t frame_index, int v, float* row) const;
+
     NoiseConfig config_;
     std::optional<DistortionTable> table_;
     double cx_, cy_;
@@ -110,6 +137,25 @@ class DepthNoiseModel {
 /// A standard normal sample from 32 random bits by a 4096-bin inverse-CDF table with linear
 /// interpolation (tails truncated at 3.7 sigma; variance within 0.5 % of 1). Deterministic.
 float standardNormalFromBits(uint32_t bits);
+
+/// MT19937-64: the exact output sequence of std::mt19937_64 (same seeding, same tempering), with
+/// the state regenerated in blocks by loops the compiler vectorises and tempered in bulk. The
+/// noise draws ~2 values per pixel and reseeds per row, so this generator is on the hot path.
+class Mt19937_64 {
+  public:
+    explicit Mt19937_64(uint64_t seed);
+    uint64_t operator()() {
+        if (next_ == kN) refill();
+        return out_[next_++];
+    }
+
+  private:
+    static constexpr int kN = 312;
+    void refill();  // twist the state, temper it into out_
+    std::array<uint64_t, kN> state_;
+    std::array<uint64_t, kN> out_;
+    int next_ = kN;
+};
 
 /// splitmix64 finaliser: a well-mixed 64-bit hash used to derive per-frame and per-row seeds.
 uint64_t mixSeed(uint64_t x);

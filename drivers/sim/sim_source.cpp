@@ -115,29 +115,34 @@ Result<std::unique_ptr<SimSource>> SimSource::create(const SimConfig& config) {
 }
 
 Result<SimFrame> SimSource::render(size_t k) const {
+    SimFrame out;
+    PLUMB_RETURN_IF_ERROR(render(k, &out));
+    return out;
+}
+
+Status SimSource::render(size_t k, SimFrame* out) const {
     if (k >= trajectory_.size()) {
         return outOfRange(fmt::format("simulated frame {} requested, the sequence has {}", k,
                                       trajectory_.size()));
     }
-    SimFrame out;
     const io::StampedPose& pose = trajectory_[k];
-    renderer_->render(pose.T_W_C, &out.view);
-    out.frame.index = static_cast<int64_t>(k);
-    out.frame.timestamp_s = pose.timestamp_s;
-    out.frame.depth = noise_->apply(out.view.depth, out.view.cos_view, config_.seed, k);
-    out.frame.gray = out.view.gray;
-    out.frame.name = fmt::format("sim:{}/{:05d}", scene().name, k);
-    out.frame.T_W_C_gt = pose.T_W_C;
-    return out;
+    renderer_->render(pose.T_W_C, &out->view);
+    out->frame.index = static_cast<int64_t>(k);
+    out->frame.timestamp_s = pose.timestamp_s;
+    noise_->apply(out->view.depth, out->view.cos_view, config_.seed, k, &out->frame.depth);
+    out->frame.gray = out->view.gray;  // copy-assignment reuses the buffer
+    out->frame.name = fmt::format("sim:{}/{:05d}", scene().name, k);
+    out->frame.T_W_C_gt = pose.T_W_C;
+    return Status::ok();
 }
 
 Result<Frame> SimSource::next() {
     if (next_ >= trajectory_.size()) {
         return outOfRange(fmt::format("end of the simulated sequence ({} frames)", next_));
     }
-    auto frame = render(next_++);
-    if (!frame.isOk()) return frame.status();
-    return std::move(frame->frame);
+    // The clean view stays in scratch_ for the next frame; the frame itself goes to the caller.
+    PLUMB_RETURN_IF_ERROR(render(next_++, &scratch_));
+    return std::move(scratch_.frame);
 }
 
 std::string SimSource::description() const {

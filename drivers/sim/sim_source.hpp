@@ -55,6 +55,9 @@ class SimSource final : public FrameSource {
 
     /// Frame k with its clean render; k < size(). Thread-safe.
     Result<SimFrame> render(size_t k) const;
+    /// The same into `out`, reusing its image buffers: rendering frame after frame into one
+    /// SimFrame allocates (and first-touches) no image memory. Thread-safe for distinct `out`.
+    Status render(size_t k, SimFrame* out) const;
 
     const Scene& scene() const { return renderer_->caster().scene(); }
     const io::Trajectory& trajectory() const { return trajectory_; }
@@ -68,6 +71,7 @@ class SimSource final : public FrameSource {
     io::Trajectory trajectory_;
     std::string noise_source_;
     size_t next_ = 0;
+    SimFrame scratch_;  // next(): keeps the clean render's buffers from frame to frame
 };
 
 /// Options of writeSimDataset.

@@ -3,10 +3,12 @@
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <random>
 #include <sstream>
 
 #include "common/camera/pinhole.hpp"
@@ -251,6 +253,121 @@ TEST(SimNoise, MatchesOpen3dDepthNoiseSimulator) {
         EXPECT_NEAR(mean(vals), ref_mean, 0.002 * z) << "z = " << z;
         EXPECT_NEAR(stddev(vals) / ref_std, 1.0, 0.2) << "z = " << z;
         EXPECT_NEAR(double(vals.size()) / total, ref_valid, 0.02) << "z = " << z;
+    }
+}
+
+// The noise model as first written (full-resolution pass 1, std::mt19937_64, a fresh image):
+// the slow reference for apply(), which skips the pixels A.2 never reads and reuses buffers.
+DepthImage referenceApply(const NoiseConfig& c, double cx, double cy, const DepthImage& clean,
+                          const Image<float>& cos_view, uint64_t seed, uint64_t frame) {
+    const int w = clean.width(), h = clean.height();
+    auto row_seed = [&](int row, int pass) {
+        return mixSeed(mixSeed(mixSeed(seed) ^ frame) ^ ((static_cast<uint64_t>(row) << 4) | pass));
+    };
+    auto uniform = [](uint32_t bits) { return (bits + 0.5) * (1.0 / 4294967296.0); };
+    auto in_range = [&](double z) {
+        return z >= c.min_depth_m && (c.max_depth_m <= 0.0 || z <= c.max_depth_m);
+    };
+    DepthImage src = clean;
+    for (int v = 0; v < h && c.missing_data; ++v) {
+        std::mt19937_64 rng(row_seed(v, 1));
+        for (int u = 0; u < w; ++u) {
+            const uint64_t bits = rng();
+            const float z = clean(u, v);
+            if (!(z > 0.0F)) continue;
+            bool drop = uniform(static_cast<uint32_t>(bits)) < c.random_dropout;
+            const double cs = cos_view(u, v);
+            if (cs < c.grazing_cos_drop) {
+                drop = true;
+            } else if (cs < c.grazing_cos_keep) {
+                const double p =
+                    (c.grazing_cos_keep - cs) / (c.grazing_cos_keep - c.grazing_cos_drop);
+                drop |= uniform(static_cast<uint32_t>(bits >> 32)) < p;
+            }
+            if (!drop) {
+                float lo = z, hi = z;
+                for (int vv = std::max(0, v - 1); vv <= std::min(h - 1, v + 1); ++vv) {
+                    for (int uu = std::max(0, u - 1); uu <= std::min(w - 1, u + 1); ++uu) {
+                        const float zn = clean(uu, vv);
+                        if (!(zn > 0.0F)) continue;
+                        lo = std::min(lo, zn);
+                        hi = std::max(hi, zn);
+                    }
+                }
+                drop = hi - lo > c.edge_relative_range * z;
+            }
+            if (drop) src(u, v) = 0.0F;
+        }
+    }
+    DepthImage out(w, h, 0.0F);
+    for (int v = 0; v < h; ++v) {
+        std::mt19937_64 rng(row_seed(v, 2));
+        for (int u = 0; u < w; ++u) {
+            const uint64_t r1 = rng();
+            const uint64_t r2 = rng();
+            const double jx = c.jitter_std_px * standardNormalFromBits(static_cast<uint32_t>(r1));
+            const double jy =
+                c.jitter_std_px * standardNormalFromBits(static_cast<uint32_t>(r1 >> 32));
+            const int x = std::clamp(static_cast<int>(std::nearbyint(u + jx)), 0, w - 1);
+            const int y = std::clamp(static_cast<int>(std::nearbyint(v + jy)), 0, h - 1);
+            double d = src(x - x % 2, y - y % 2);
+            if (!(d > 0.0)) continue;
+            if (c.distortion == DistortionKind::kParametric) {
+                const double rx = (x - cx) / cx;
+                const double ry = (y - cy) / cy;
+                const double rho = 0.5 * (rx * rx + ry * ry);
+                d /= 1.0 + c.k1 * std::clamp(d / 3.0, 0.0, 1.5) * rho + c.k2 * rx;
+            }
+            const double disparity =
+                c.baseline_focal_px_m / d +
+                c.disparity_noise_std * standardNormalFromBits(static_cast<uint32_t>(r2));
+            const double level = std::nearbyint(disparity * c.disparity_subpixel_steps);
+            if (!(level > 0.0)) continue;
+            const double z = c.baseline_focal_px_m * c.disparity_subpixel_steps / level;
+            if (in_range(z)) out(u, v) = static_cast<float>(z);
+        }
+    }
+    return out;
+}
+
+TEST(SimNoise, GeneratorIsStdMt19937_64) {
+    for (const uint64_t seed :
+         {uint64_t{0}, uint64_t{1}, uint64_t{5489}, mixSeed(7), ~uint64_t{0}}) {
+        std::mt19937_64 reference(seed);
+        Mt19937_64 ours(seed);
+        for (int i = 0; i < 2000; ++i) ASSERT_EQ(ours(), reference()) << seed << " #" << i;
+    }
+}
+
+TEST(SimNoise, ApplyMatchesTheReferenceBitForBit) {
+    // Odd and even sizes, steps, holes, grazing angles; missing data on and off; reused and fresh
+    // output buffers; one and two threads.
+    for (const auto& [w, h] : {std::pair{160, 120}, std::pair{97, 61}}) {
+        DepthImage clean(w, h);
+        Image<float> cos_view(w, h);
+        for (int v = 0; v < h; ++v) {
+            for (int u = 0; u < w; ++u) {
+                clean(u, v) = (u + v) % 37 == 0 ? 0.0F : (u < w / 2 ? 1.3F : 2.9F) + 0.004F * v;
+                cos_view(u, v) = static_cast<float>(u) / w;
+            }
+        }
+        for (const bool missing : {true, false}) {
+            NoiseConfig config;
+            config.distortion = DistortionKind::kParametric;
+            config.missing_data = missing;
+            const DepthNoiseModel model(config, std::nullopt, 0.5 * w, 0.5 * h);
+            DepthImage reused;
+            for (const int threads : {1, 2}) {
+                tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+                for (uint64_t frame = 0; frame < 3; ++frame) {
+                    const DepthImage expected =
+                        referenceApply(config, 0.5 * w, 0.5 * h, clean, cos_view, 11, frame);
+                    model.apply(clean, cos_view, 11, frame, &reused);
+                    ASSERT_EQ(reused, expected) << w << "x" << h << " frame " << frame;
+                    ASSERT_EQ(model.apply(clean, cos_view, 11, frame), expected);
+                }
+            }
+        }
     }
 }
 

@@ -5,7 +5,10 @@
 // For every built-in scene it renders `--frames` poses of the loop trajectory and reports
 //   - render: exact ray casting of the clean depth, view-angle cosines, labels, grey image;
 //   - noise:  the Redwood pipeline with the measured distortion table plus missing data;
-//   - total:  SimSource::render(k), i.e. what the `sim:<scene>` frame source costs per frame.
+//   - total:  SimSource::next(), i.e. what the `sim:<scene>` frame source costs per frame (the
+//             clean render's buffers are reused; the delivered frame is fresh and dropped);
+//   - fresh:  SimSource::render(k), a new SimFrame (clean view + frame) allocated every call.
+// Stage timings reuse their output buffers, as SimSource does.
 // Peer: Open3D has no working renderer in the Debian build (RaycastingScene never hits, see
 // reference §1.2), but its C++ t::io::DepthNoiseSimulator implements the same Redwood model, so
 // the noise stage alone is timed against it on the same clean depth images (uint16 mm) with the
@@ -57,6 +60,7 @@ struct SceneResult {
     double noise_fps = 0.0;
     double total_fps = 0.0;
     double total_cpu_ms = 0.0;  ///< CPU time per frame, all threads
+    double fresh_fps = 0.0;     ///< SimSource::render(k) into a new SimFrame each call
     double valid_fraction = 0.0;
 };
 
@@ -102,8 +106,8 @@ int main(int argc, char** argv) {
 
     std::printf("plumb-bench-sim: 640x480, %zu frames per scene, %d threads, noise %s\n", frames,
                 threads, have_table ? "redwood (distortion table) + missing data" : "parametric");
-    std::printf("%-16s %12s %12s %12s %14s %8s\n", "scene", "render fps", "noise fps", "total fps",
-                "total cpu ms", "valid");
+    std::printf("%-16s %12s %12s %12s %14s %12s %8s\n", "scene", "render fps", "noise fps",
+                "total fps", "total cpu ms", "fresh fps", "valid");
 
     std::vector<SceneResult> results;
     std::vector<DepthImage> clean_for_peer;  // living_room clean renders, for the peer
@@ -116,11 +120,13 @@ int main(int argc, char** argv) {
             have_table ? sim::DistortionKind::kTable : sim::DistortionKind::kParametric;
         if (have_table) config.noise_model_path = model_path->string();
         auto source = sim::SimSource::create(config);
+        auto stream = sim::SimSource::create(config);  // consumed through next()
         if (!source.isOk()) {
             std::fprintf(stderr, "plumb-bench-sim: %s\n", source.status().toString().c_str());
             return 1;
         }
         const sim::SimSource& src = **source;
+        if (!stream.isOk()) return 1;
 
         // Stage timings with our own renderer and noise model (the same objects SimSource uses).
         std::optional<sim::DistortionTable> table;
@@ -129,6 +135,7 @@ int main(int argc, char** argv) {
         const sim::DepthNoiseModel noise(config.noise, std::move(table), config.camera.cx,
                                          config.camera.cy);
         sim::RenderedView view;
+        DepthImage noisy;
         renderer.render(src.trajectory()[0].T_W_C, &view);  // warm-up
         double t_render = 0.0, t_noise = 0.0;
         size_t valid = 0;
@@ -137,16 +144,16 @@ int main(int argc, char** argv) {
             renderer.render(src.trajectory()[k].T_W_C, &view);
             t_render += secondsSince(t0);
             t0 = Clock::now();
-            const DepthImage noisy = noise.apply(view.depth, view.cos_view, config.seed, k);
+            noise.apply(view.depth, view.cos_view, config.seed, k, &noisy);
             t_noise += secondsSince(t0);
             valid += countValid(noisy);
             if (name == "living_room" && k % 3 == 0) clean_for_peer.push_back(view.depth);
         }
-        // End to end through the frame source (allocations included).
+        // End to end through the frame source, as a live consumer of `sim:<scene>` sees it.
         auto t0 = Clock::now();
         const double cpu0 = cpuSeconds();
         for (size_t k = 0; k < frames; ++k) {
-            auto f = src.render(k);
+            auto f = (*stream)->next();
             if (!f.isOk()) {
                 std::fprintf(stderr, "plumb-bench-sim: %s\n", f.status().toString().c_str());
                 return 1;
@@ -154,15 +161,27 @@ int main(int argc, char** argv) {
         }
         const double t_total = secondsSince(t0);
         const double cpu_total = cpuSeconds() - cpu0;
+        // Random access with a new SimFrame per call (allocation and first touch included).
+        t0 = Clock::now();
+        for (size_t k = 0; k < frames; ++k) {
+            auto f = src.render(k);
+            if (!f.isOk()) {
+                std::fprintf(stderr, "plumb-bench-sim: %s\n", f.status().toString().c_str());
+                return 1;
+            }
+        }
+        const double t_fresh = secondsSince(t0);
         SceneResult r;
         r.scene = name;
         r.render_fps = frames / t_render;
         r.noise_fps = frames / t_noise;
         r.total_fps = frames / t_total;
         r.total_cpu_ms = 1000.0 * cpu_total / frames;
+        r.fresh_fps = frames / t_fresh;
         r.valid_fraction = static_cast<double>(valid) / (frames * 640.0 * 480.0);
-        std::printf("%-16s %12.1f %12.1f %12.1f %14.1f %7.1f%%\n", name.c_str(), r.render_fps,
-                    r.noise_fps, r.total_fps, r.total_cpu_ms, 100.0 * r.valid_fraction);
+        std::printf("%-16s %12.1f %12.1f %12.1f %14.1f %12.1f %7.1f%%\n", name.c_str(),
+                    r.render_fps, r.noise_fps, r.total_fps, r.total_cpu_ms, r.fresh_fps,
+                    100.0 * r.valid_fraction);
         results.push_back(r);
     }
     double min_total = 1e30, max_cpu_ms = 0.0;
@@ -224,8 +243,9 @@ int main(int argc, char** argv) {
         if (!scenes_json.empty()) scenes_json += ",";
         scenes_json += fmt::format(
             "\"{}\":{{\"render_fps\":{:.1f},\"noise_fps\":{:.1f},\"total_fps\":{:.1f},"
-            "\"cpu_ms\":{:.2f},\"valid_fraction\":{:.3f}}}",
-            r.scene, r.render_fps, r.noise_fps, r.total_fps, r.total_cpu_ms, r.valid_fraction);
+            "\"cpu_ms\":{:.2f},\"fresh_fps\":{:.1f},\"valid_fraction\":{:.3f}}}",
+            r.scene, r.render_fps, r.noise_fps, r.total_fps, r.total_cpu_ms, r.fresh_fps,
+            r.valid_fraction);
     }
     fmt::print(
         "{{\"bench\":\"sim\",\"width\":640,\"height\":480,\"threads\":{},\"frames\":{},"
