@@ -46,6 +46,10 @@ class FrameSource {
 
     /// One line for logs: "TUM dataset ../data/x (252 frames, 640x480 fx=...)".
     virtual std::string description() const = 0;
+
+    /// The source that produces the frames when this one wraps another (CalibratedSource),
+    /// else itself: what to ask for source-specific facts such as the simulator's ground truth.
+    virtual const FrameSource& underlying() const { return *this; }
 };
 
 }  // namespace plumb

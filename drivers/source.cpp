@@ -5,6 +5,7 @@
 #include <filesystem>
 
 #include "drivers/dataset/dataset.hpp"
+#include "drivers/depth_calibration.hpp"
 #include "drivers/openni2/openni2_source.hpp"
 #include "drivers/sim/sim_source.hpp"
 #include "drivers/v4l2/v4l2_source.hpp"
@@ -23,16 +24,16 @@ Status parseDepthMode(const std::string& mode, int* width, int* height, int* fps
     return Status::ok();
 }
 
-}  // namespace
-
-Result<std::unique_ptr<FrameSource>> openFrameSource(const std::string& uri,
-                                                     const SourceOptions& options) {
-    (void)options;
+/// The raw source, without calibration. `sensor_calibration` receives the table the sensor
+/// ships with (empty when it has none).
+Result<std::unique_ptr<FrameSource>> openRawSource(const std::string& uri,
+                                                   const SourceOptions& options,
+                                                   std::string* sensor_calibration) {
     const auto colon = uri.find(':');
     const std::string scheme = colon == std::string::npos ? "" : uri.substr(0, colon);
     const std::string rest = colon == std::string::npos ? uri : uri.substr(colon + 1);
     if (scheme.empty() && std::filesystem::is_directory(uri)) {
-        return openFrameSource("dataset:" + uri, options);
+        return openRawSource("dataset:" + uri, options, sensor_calibration);
     }
     if (scheme == "dataset") {
         dataset::DatasetConfig config;
@@ -59,6 +60,11 @@ Result<std::unique_ptr<FrameSource>> openFrameSource(const std::string& uri,
         }
         auto source = sim::SimSource::create(config);
         if (!source.isOk()) return source.status();
+        if (config.noise.enabled && config.noise.distortion == sim::DistortionKind::kTable) {
+            auto table = sim::findNoiseModelFile(config.noise_model_path);
+            if (!table.isOk()) return table.status();
+            *sensor_calibration = table->string();
+        }
         return std::unique_ptr<FrameSource>(std::move(source).value());
     }
     if (scheme == "openni2" || uri == "openni2") {
@@ -87,6 +93,32 @@ Result<std::unique_ptr<FrameSource>> openFrameSource(const std::string& uri,
     return unsupported("unknown frame source '" + uri + "' (scheme '" + scheme + "', target '" +
                        rest +
                        "'); use dataset:<dir>, sim:<scene>, openni2[:<uri>] or v4l2:/dev/videoN");
+}
+
+}  // namespace
+
+Status checkDepthCalibration(const std::string& value) {
+    if (value.empty() || value == "sensor" || value == "none") return Status::ok();
+    if (std::filesystem::is_regular_file(value)) return Status::ok();
+    return notFound("depth calibration '" + value +
+                    "' is neither 'sensor', 'none' nor an existing dist-model.txt file");
+}
+
+Result<std::unique_ptr<FrameSource>> openFrameSource(const std::string& uri,
+                                                     const SourceOptions& options) {
+    PLUMB_RETURN_IF_ERROR(checkDepthCalibration(options.depth_calibration));
+    std::string sensor_calibration;
+    auto source = openRawSource(uri, options, &sensor_calibration);
+    if (!source.isOk()) return source.status();
+    const std::string& choice = options.depth_calibration;
+    const std::string path = choice.empty() || choice == "sensor" ? sensor_calibration
+                             : choice == "none"                   ? std::string()
+                                                                  : choice;
+    if (path.empty()) return source;
+    auto calibration = DepthCalibration::load(path);
+    if (!calibration.isOk()) return calibration.status();
+    return std::unique_ptr<FrameSource>(std::make_unique<CalibratedSource>(
+        std::move(source).value(), std::move(calibration).value()));
 }
 
 }  // namespace plumb

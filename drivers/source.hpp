@@ -29,9 +29,19 @@ struct SourceOptions {
     std::string sim_noise;
     /// Live cameras (openni2, v4l2): depth mode "WxH@fps", e.g. "640x480@30" or "320x240@60".
     std::string depth_mode = "640x480@30";
+    /// Depth calibration (drivers/depth_calibration.hpp): empty or "sensor" = the sensor's own
+    /// (the simulated sensor with the measured distortion table is calibrated with that table,
+    /// like a CLAMS-calibrated camera; other sources have none), "none" = raw depth, anything
+    /// else = a CLAMS / Redwood dist-model.txt file.
+    std::string depth_calibration;
 };
 
+/// Opens the source and, when a depth calibration applies (SourceOptions::depth_calibration),
+/// wraps it in a CalibratedSource.
 Result<std::unique_ptr<FrameSource>> openFrameSource(const std::string& uri,
                                                      const SourceOptions& options = {});
+
+/// Checks a --depth-calibration value: "", "sensor", "none" or an existing file.
+Status checkDepthCalibration(const std::string& value);
 
 }  // namespace plumb

@@ -8,7 +8,7 @@
 //   repeat (outer, at most max_outer_iterations; the paper converges within 20):
 //       layout <- estimate_layout(T)                                  (layout step, §3.2)
 //       T <- refinePoses(T, layout)  (correspondences C_i, C_ij at T;  (registration step, §3.3)
-//                                     LM inner loop, E non-increasing)
+//                                     LM inner loop, E non-increasing for fixed C)
 //       shrink the correspondence distances and support margins (annealing)
 //       stop when the layout is unchanged (same planes, |Δn| < tol, |Δd| < tol) and the largest
 //       pose change of the outer iteration is below the pose tolerances.

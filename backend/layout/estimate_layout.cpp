@@ -664,10 +664,37 @@ Result<LayoutEstimate> estimateLayout(const std::vector<Fragment>& fragments,
             runs.front().second += runs.back().second;
             runs.pop_back();
         }
+        std::vector<std::pair<int, int>> kept;  // labelled runs long enough, neighbours merged
         for (const auto& [l, len] : runs) {
             if (l < 0 || len < config.min_contour_run_cells) continue;
-            if (!seq.empty() && seq.back() == l) continue;
-            seq.push_back(l);
+            if (!kept.empty() && kept.back().first == l) {
+                kept.back().second += len;
+            } else {
+                kept.emplace_back(l, len);
+            }
+        }
+        // Where the contour rounds a corner its cells can alternate between the two walls
+        // (A B A B): drop the shortest run B that sits between two runs of the same wall A and
+        // merge those, until no such triple is left.
+        for (bool changed = true; changed && kept.size() > 3;) {
+            changed = false;
+            const size_t m = kept.size();
+            size_t best = m;
+            for (size_t k = 0; k < m; ++k) {
+                if (kept[(k + m - 1) % m].first != kept[(k + 1) % m].first) continue;
+                if (best == m || kept[k].second < kept[best].second) best = k;
+            }
+            if (best == m) break;
+            const size_t prev = (best + m - 1) % m, next = (best + 1) % m;
+            kept[prev].second += kept[next].second;
+            const size_t lo = std::min(best, next), hi = std::max(best, next);
+            kept.erase(kept.begin() + static_cast<std::ptrdiff_t>(hi));
+            kept.erase(kept.begin() + static_cast<std::ptrdiff_t>(lo));
+            changed = true;
+        }
+        for (const auto& run : kept) {
+            if (!seq.empty() && seq.back() == run.first) continue;
+            seq.push_back(run.first);
         }
         while (seq.size() > 1 && seq.front() == seq.back()) seq.pop_back();
     }

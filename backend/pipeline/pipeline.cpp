@@ -189,6 +189,15 @@ Result<PipelineResult> runPipeline(const PipelineInput& input, const PipelineCon
         auto scope = timer.scope("per-fragment planes (supervoxels, T-linkage, graph cuts)");
         Progress progress("extracting fragment planes", n, progressOptions(show_progress));
         for (size_t i = 0; i < n; ++i) {
+            if (fragments[i].points_F.empty()) {
+                // A fragment closed by lost tracking may hold no surface: it has no planes,
+                // and the layout is estimated from the others.
+                log::warn("fragment {} has no points; it contributes no planes to the layout",
+                          fragments[i].id);
+                planes[i].fragment_id = fragments[i].id;
+                progress.advance();
+                continue;
+            }
             Result<layout::FragmentPlanes> p =
                 layout::extractFragmentPlanes(fragments[i], config.layout.planes);
             if (!p.isOk()) return prefixed(p.status(), fmt::format("planes of fragment {}", i));

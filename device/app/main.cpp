@@ -32,6 +32,9 @@ constexpr const char* kUsage =
     "  --frames N           stop the source after N frames (default: all)\n"
     "  --intrinsics X       camera preset or intrinsics file (sets capture.intrinsics)\n"
     "  --noise MODE         sim: sources only: redwood (default), undistorted, parametric, off\n"
+    "  --depth-calibration X  undistort depth: sensor (default: the sensor's own table; the\n"
+    "                       simulated sensor with the measured table is calibrated with it,\n"
+    "                       real cameras have none), none, or a CLAMS/Redwood dist-model.txt\n"
     "  --realtime           pace recorded sources like a live sensor (capture.realtime)\n"
     "  --lcm-url URL        LCM URL (default udpm://239.255.76.67:7667?ttl=0, stays on host)\n"
     "  --allow-remote       allow an LCM URL that can leave this machine\n"
@@ -68,7 +71,7 @@ int main(int argc, char** argv) {
     auto config_args = config::extractConfigArgs(args);
     if (!config_args.isOk()) return usageError(config_args.status().message());
 
-    std::string source_uri, spool_dir, dump_dir, intrinsics, sim_noise;
+    std::string source_uri, spool_dir, dump_dir, intrinsics, sim_noise, depth_calibration;
     messages::LinkOptions link_options;
     int64_t frames = 0, session_id = 0, key_id = 1;
     bool realtime = false;
@@ -97,6 +100,10 @@ int main(int argc, char** argv) {
         } else if (a == "--noise") {
             if (!value(&sim_noise)) return usageError("--noise needs a mode");
             if (Status s = sim::checkNoiseMode(sim_noise); !s.isOk())
+                return usageError(s.message());
+        } else if (a == "--depth-calibration") {
+            if (!value(&depth_calibration)) return usageError("--depth-calibration needs a value");
+            if (Status s = checkDepthCalibration(depth_calibration); !s.isOk())
                 return usageError(s.message());
         } else if (a == "--realtime") {
             realtime = true;
@@ -151,6 +158,7 @@ int main(int argc, char** argv) {
     source_options.max_frames = static_cast<size_t>(frames);
     source_options.seed = options.config.capture.seed;
     source_options.sim_noise = sim_noise;
+    source_options.depth_calibration = depth_calibration;
     auto source = openFrameSource(source_uri, source_options);
     if (!source.isOk()) {
         log::error("cannot open source '{}': {}", source_uri, source.status().toString());

@@ -144,10 +144,24 @@ Result<io::Trajectory> generateTrajectory(const Scene& scene, const TrajectoryCo
     const std::vector<Eigen::Vector2d>& P = control_or.value();
     const int n = static_cast<int>(P.size());
 
+    // The path starts at the straightest control point (the first one on a straight stretch,
+    // mid-edge on the built-in rooms): starting at a corner, the first views would look back
+    // into the wall just turned from.
+    int start = 0;
+    double least_turn = kPi;
+    for (int i = 0; i < n; ++i) {
+        const Eigen::Vector2d in = P[i] - P[(i + n - 1) % n], out = P[(i + 1) % n] - P[i];
+        const double turn = std::abs(std::atan2(cross2(in, out), in.dot(out)));
+        if (turn < least_turn - 1e-9) {
+            least_turn = turn;
+            start = i;
+        }
+    }
     // Closed uniform cubic B-spline, densely sampled, then resampled by arc length.
     std::vector<Eigen::Vector2d> dense;
     constexpr int kPerSegment = 200;
-    for (int i = 0; i < n; ++i) {
+    for (int j = 0; j < n; ++j) {
+        const int i = (j + start) % n;
         const Eigen::Vector2d& p0 = P[(i + n - 1) % n];
         const Eigen::Vector2d& p1 = P[i];
         const Eigen::Vector2d& p2 = P[(i + 1) % n];

@@ -3,13 +3,16 @@
 
 // Handheld camera trajectories through a Scene (reference §1.3). The path is a closed uniform
 // cubic B-spline through control points on the room outline inset by path_inset_m (or the
-// scene's own waypoints). The camera looks sideways-ahead to the outside of the path (at the
-// walls), with a slow pitch sway to see floor and ceiling; speed follows the path with a yaw-rate
-// and acceleration limit; hand shake adds smooth sums of sinusoids (seeded phases) to position
-// and orientation. The loop variant goes around a whole number of times and ends at its start
-// (loop closures possible) whenever num_frames allows a speed within [min, max] (with too few
-// frames it is a partial lap at max speed); the no-loop variant covers no_loop_fraction of the
-// loop without revisits (with more frames than that takes at min speed it stands at the end).
+// scene's own waypoints), starting at the straightest control point (mid-edge). By default the
+// operator walks backwards along the walls with the camera looking back over the room at a corner
+// (look_offset_deg), so that every view holds two or three non-parallel walls plus floor or ceiling
+// (a view of one wall and the floor leaves ICP free to slide along the wall); a slow pitch sway
+// shows floor and ceiling; speed follows the path with a yaw-rate and acceleration limit; hand
+// shake adds smooth sums of sinusoids (seeded phases) to position and orientation. The loop variant
+// goes around a whole number of times and ends at its start (loop closures possible) whenever
+// num_frames allows a speed within [min, max] (with too few frames it is a partial lap at max
+// speed); the no-loop variant covers no_loop_fraction of the loop without revisits (with more
+// frames than that takes at min speed it stands at the end).
 
 #include <Eigen/Geometry>
 #include <cstdint>
@@ -40,8 +43,11 @@ struct TrajectoryConfig {
     double height_m = 1.4;
     double height_sway_m = 0.08;
     /// Look direction relative to the direction of travel, degrees (negative = to the right,
-    /// i.e. outward on a counter-clockwise loop).
-    double look_offset_deg = -65.0;
+    /// i.e. outward on a counter-clockwise loop). 195: back along the path and 15 degrees
+    /// outward, at the corner just passed and the far side of the room. Sideways views (-65)
+    /// see one wall and the floor and let ICP slide along the wall; 210-225 face the wall
+    /// frontally at 1.5 m while the path turns a corner (issue 4 notes).
+    double look_offset_deg = 195.0;
     /// Mean pitch (negative = down) and the amplitude of its slow sway, degrees.
     double pitch_deg = -8.0;
     double pitch_sway_deg = 10.0;

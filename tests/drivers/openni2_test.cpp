@@ -96,7 +96,7 @@ TEST(OpenNI2Virtual, StreamsTheSimulatorsFramesUnmirrored) {
         last_index = k;
         last_time = frame->timestamp_s;
         const DepthImage expected = expectedFrame(uri, 640, 480, static_cast<size_t>(k));
-        EXPECT_GT(validPixels(expected), expected.size() / 2);
+        EXPECT_GT(validPixels(expected), expected.size() / 3);  // not an empty view
         EXPECT_EQ(countDifferences(frame->depth, expected), 0u) << "frame " << k;
         // The scene is not left-right symmetric: a mirrored stream would have failed above.
         DepthImage mirrored = expected;

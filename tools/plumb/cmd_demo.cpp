@@ -50,10 +50,14 @@ constexpr const char* kUsage =
     "options:\n"
     "  --out DIR        output folder (default out/demo)\n"
     "  --scene NAME     living_room (default), weak_manhattan, l_shape, corridor\n"
-    "  --frames N       frames of the scan, one loop around the room (default 300)\n"
+    "  --frames N       frames of the scan at 30 Hz (default 300: about 3 m of walking, a third\n"
+    "                   of the way round living_room; more frames go further round)\n"
     "  --noise MODE     simulated depth noise: redwood (default; with the measured distortion\n"
     "                   table, which bends frames by up to several cm at 3 m), undistorted,\n"
     "                   parametric, off\n"
+    "  --depth-calibration X  the device's depth calibration: sensor (default; the simulated\n"
+    "                   sensor is calibrated with its measured table), none (raw, bent depth),\n"
+    "                   or a dist-model.txt file\n"
     "  --port P         LCM UDP port on 239.255.76.67 (default: 7667 + pid % 1000)\n"
     "  -h, --help       this text\n"
     "\n"
@@ -115,7 +119,7 @@ Status writeGroundTruth(const std::string& scene, size_t frames, const fs::path&
     options.max_frames = frames;
     Result<std::unique_ptr<FrameSource>> source = openFrameSource("sim:" + scene, options);
     if (!source.isOk()) return source.status();
-    const auto* sim = dynamic_cast<const sim::SimSource*>(source->get());
+    const auto* sim = dynamic_cast<const sim::SimSource*>(&(*source)->underlying());
     if (!sim) return failedPrecondition("sim: did not open the simulated scanner");
     std::error_code ec;
     fs::create_directories(dir, ec);
@@ -132,6 +136,7 @@ int runDemo(const std::vector<std::string>& args) {
     fs::path out = "out/demo";
     std::string scene = "living_room";
     std::string noise = "redwood";
+    std::string depth_calibration = "sensor";
     size_t frames = 300;
     int port = 7667 + static_cast<int>(getpid() % 1000);
     for (size_t i = 0; i < args.size(); ++i) {
@@ -152,6 +157,10 @@ int runDemo(const std::vector<std::string>& args) {
         } else if (a == "--noise" && has_value) {
             noise = args[++i];
             if (Status s = sim::checkNoiseMode(noise); !s.isOk()) return usageError(s.message());
+        } else if (a == "--depth-calibration" && has_value) {
+            depth_calibration = args[++i];
+            if (Status s = checkDepthCalibration(depth_calibration); !s.isOk())
+                return usageError(s.message());
         } else if (a == "--port" && has_value) {
             const std::string& v = args[++i];
             const auto [p, ec] = std::from_chars(v.data(), v.data() + v.size(), port);
@@ -195,7 +204,8 @@ int runDemo(const std::vector<std::string>& args) {
     std::this_thread::sleep_for(std::chrono::milliseconds(500));
     Result<pid_t> device_pid =
         spawn(*device, {"--source", "sim:" + scene, "--frames", std::to_string(frames), "--noise",
-                        noise, "--lcm-url", url, "--spool-dir", (out / "device_spool").string()});
+                        noise, "--depth-calibration", depth_calibration, "--lcm-url", url,
+                        "--spool-dir", (out / "device_spool").string()});
     if (!device_pid.isOk()) {
         kill(*backend_pid, SIGTERM);
         waitExit(*backend_pid);

@@ -66,6 +66,8 @@ constexpr const char* kUsage =
     "  --depth-scale S    depth units per metre (default: the dataset's)\n"
     "  --seed S           seed of the simulator (default 1)\n"
     "  --noise MODE       simulator noise: redwood (default), off, parametric, undistorted\n"
+    "  --depth-calibration X  undistort depth: sensor (default: the sensor's own table), none,\n"
+    "                     or a CLAMS/Redwood dist-model.txt\n"
     "  --threads N        worker threads (default: all); results do not depend on it\n"
     "  --config FILE      configuration file (see `plumb config doc fusion`)\n"
     "  --set KEY=VALUE    override one configuration key, e.g. frames_per_fragment=100\n"
@@ -237,6 +239,11 @@ int runFuse(const std::vector<std::string>& arguments) {
         } else if (a == "--seed") {
             if (!value(&v) || !parseNumber(v, &o.source_options.seed))
                 return usageError("--seed needs a non-negative integer");
+        } else if (a == "--depth-calibration") {
+            if (!value(&o.source_options.depth_calibration))
+                return usageError("--depth-calibration needs a value");
+            if (Status s = checkDepthCalibration(o.source_options.depth_calibration); !s.isOk())
+                return usageError(s.message());
         } else if (a == "--noise") {
             if (!value(&o.source_options.sim_noise)) return usageError("--noise needs a mode");
             if (Status s = sim::checkNoiseMode(o.source_options.sim_noise); !s.isOk())
@@ -288,7 +295,7 @@ int runFuse(const std::vector<std::string>& arguments) {
 
     // Ground-truth surface of the simulated room, in W.
     std::optional<PointCloud> gt_surface;
-    if (const auto* sim = dynamic_cast<const sim::SimSource*>(source.get())) {
+    if (const auto* sim = dynamic_cast<const sim::SimSource*>(&source->underlying())) {
         gt_surface = sim::sampleSurfaces(sim->scene(), 0.01);
     }
 

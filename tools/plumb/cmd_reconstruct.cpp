@@ -70,6 +70,9 @@ constexpr const char* kUsage =
     "  --seed S           seed of the simulator (default 1)\n"
     "  --noise MODE       simulator noise: redwood (default; with the measured distortion\n"
     "                     table), undistorted, parametric, off\n"
+    "  --depth-calibration X  undistort depth: sensor (default: the sensor's own table; the\n"
+    "                     simulated sensor with the measured table is calibrated with it,\n"
+    "                     recordings and real cameras have none), none, or a dist-model.txt\n"
     "  --gt DIR           ground truth folder (groundtruth.txt or trajectory.log,\n"
     "                     gt_points.ply, layout.json; default: the dataset folder)\n"
     "  --no-gt            do not evaluate against ground truth\n"
@@ -208,6 +211,11 @@ int runReconstruct(const std::vector<std::string>& arguments) {
         } else if (a == "--seed") {
             if (!value(&v) || !parseNumber(v, &o.source_options.seed))
                 return usageError("--seed needs a non-negative integer");
+        } else if (a == "--depth-calibration") {
+            if (!value(&o.source_options.depth_calibration))
+                return usageError("--depth-calibration needs a value");
+            if (Status s = checkDepthCalibration(o.source_options.depth_calibration); !s.isOk())
+                return usageError(s.message());
         } else if (a == "--noise") {
             if (!value(&o.source_options.sim_noise)) return usageError("--noise needs a mode");
             if (Status s = sim::checkNoiseMode(o.source_options.sim_noise); !s.isOk())
@@ -255,7 +263,7 @@ int runReconstruct(const std::vector<std::string>& arguments) {
     input.description = uri;
     input.camera = (*source)->camera();
     if (!o.no_gt) {
-        if (const auto* sim = dynamic_cast<const sim::SimSource*>(source->get())) {
+        if (const auto* sim = dynamic_cast<const sim::SimSource*>(&(*source)->underlying())) {
             Result<backend::GroundTruth> gt = simGroundTruth(*sim);
             if (!gt.isOk()) return failure(gt.status());
             input.ground_truth = std::move(*gt);

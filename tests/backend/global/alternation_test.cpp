@@ -55,9 +55,17 @@ TEST(Alternation, ConvergesWithTheGroundTruthLayout) {
             "max change %.2g rad %.2g m\n",
             it.iteration, it.before.total, it.after.total, it.after.layout, it.after.frag,
             it.after.pair, it.inner_iterations, it.max_pose_change_rad, it.max_pose_change_m);
-        EXPECT_LE(it.after.total, it.before.total + 1e-15);
+        // LM never accepts an increase within a round (fixed correspondences); a new round
+        // re-establishes correspondences, so energies of different rounds are not compared.
+        for (size_t k = 1; k < it.inner.size(); ++k) {
+            if (it.inner[k].round != it.inner[k - 1].round) continue;
+            EXPECT_LE(it.inner[k].energy.total, it.inner[k - 1].energy.total)
+                << "outer " << it.iteration << ", inner " << k;
+        }
         EXPECT_FALSE(it.inner.empty());
     }
+    ASSERT_FALSE(r->iterations.empty());
+    EXPECT_LT(r->iterations.back().after.total, 0.5 * r->iterations.front().before.total);
     EXPECT_TRUE(r->converged);
     EXPECT_EQ(r->stop_reason, "converged");
     EXPECT_LT(r->iterations.size(), 20U);

@@ -174,11 +174,13 @@ TEST_P(SimLayout, PerturbedPosesStillGiveTheRoom) {
         const auto poses = perturbed(room.T_W_F, seed);
         auto est = estimateLayout(room.fragments, room.planes, poses);
         ASSERT_TRUE(est.isOk()) << est.status().toString();
-        // Every fragment is off by up to 3 cm + 1 deg x 4 m = 10 cm at the far walls, and a wall
-        // is seen by a few fragments only: the structure must stay right (same walls, same
-        // matching, angles within 1.5 deg), offsets within 10 cm; the layout-constrained
-        // registration (backend/global) is what removes the remaining error.
-        expectLayoutMatches(est->layout, room.gt, 1.5, 0.10,
+        // Every fragment is off by up to 3 cm + 1 deg x 7 m = 15 cm at the far walls (l_shape is
+        // 7 m across), and a wall is seen by a few fragments only: the structure must stay right
+        // (same walls, same matching, angles within 2 deg: a wall tilted by its fragments' 1 deg,
+        // walls being kept perpendicular to a base plane that is itself off by up to 1 deg),
+        // offsets within 15 cm; the layout-constrained registration (backend/global) removes the
+        // remaining error.
+        expectLayoutMatches(est->layout, room.gt, 2.0, 0.15,
                             GetParam() + " perturbed seed " + std::to_string(seed));
         EXPECT_EQ(static_cast<int>(est->layout.walls().size()), room.scene.numWalls());
     }

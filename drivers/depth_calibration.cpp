@@ -1,0 +1,60 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "drivers/depth_calibration.hpp"
+
+#include <fmt/format.h>
+
+#include <cmath>
+#include <utility>
+
+namespace plumb {
+
+Result<DepthCalibration> DepthCalibration::load(const std::filesystem::path& path) {
+    auto table = sim::DistortionTable::load(path);
+    if (!table.isOk()) return table.status();
+    return DepthCalibration(std::move(table).value(), path.string());
+}
+
+DepthCalibration::DepthCalibration(sim::DistortionTable table, std::string source)
+    : table_(std::move(table)), source_(std::move(source)) {}
+
+DepthImage DepthCalibration::undistort(const DepthImage& depth) const {
+    const int w = depth.width();
+    const int h = depth.height();
+    DepthImage out(w, h, 0.0F);
+    for (int v = 0; v < h; ++v) {
+        // The table's cells are defined on a 640x480 image and, as in the sensor model
+        // (reference §1.4.A.2-3), looked up at the origin of the pixel's 2x2 disparity block.
+        const int y480 = (v - v % 2) * 480 / h;
+        for (int u = 0; u < w; ++u) {
+            const float measured = depth(u, v);
+            if (!(measured > 0.0F)) continue;
+            const int x640 = (u - u % 2) * 640 / w;
+            double z = measured;
+            for (int i = 0; i < kMaxIterations; ++i) {
+                const double next = measured * static_cast<double>(table_.factor(x640, y480, z));
+                const bool converged = std::abs(next - z) < kTolerance;
+                z = next;
+                if (converged || z <= 0.0) break;
+            }
+            out(u, v) = static_cast<float>(z);
+        }
+    }
+    return out;
+}
+
+CalibratedSource::CalibratedSource(std::unique_ptr<FrameSource> inner, DepthCalibration calibration)
+    : inner_(std::move(inner)), calibration_(std::move(calibration)) {}
+
+Result<Frame> CalibratedSource::next() {
+    Result<Frame> frame = inner_->next();
+    if (!frame.isOk()) return frame;
+    frame->depth = calibration_.undistort(frame->depth);
+    return frame;
+}
+
+std::string CalibratedSource::description() const {
+    return fmt::format("{}, depth calibrated with {}", inner_->description(),
+                       calibration_.source());
+}
+
+}  // namespace plumb

@@ -1,0 +1,67 @@
+// SPDX-License-Identifier: Apache-2.0
+#pragma once
+
+// Depth calibration of a structured-light sensor. PrimeSense-type cameras bend depth by a
+// low-frequency, depth-dependent factor that CLAMS (Teichman, Miller, Thrun 2013) measures per
+// image cell; Choi, Zhou and Koltun (CVPR 2015) ship such a measurement as dist-model.txt, and
+// the sensor model of reference §1.4.A.3 reports d_meas = d / f(u, v, d). Left in, the bend is
+// fixed to the image: on weakly structured views projective ICP follows the pattern rather than
+// the room (a camera walking past a wall appears to stand still). Undistorting inverts A.3:
+// d = d_meas * f(u, v, d), solved by fixed-point iteration from d = d_meas (f varies by a few per
+// cent over metres, so each step shrinks the error by the small factor d * df/dd).
+
+#include <filesystem>
+#include <memory>
+#include <string>
+
+#include "common/core/status.hpp"
+#include "common/image/image.hpp"
+#include "drivers/frame_source.hpp"
+#include "drivers/sim/noise.hpp"
+
+namespace plumb {
+
+class DepthCalibration {
+  public:
+    /// Reads a CLAMS / Redwood dist-model.txt (80x80 cells of 8x6 pixels at 640x480, five depth
+    /// bins centred at 1, 3, 5, 7 and 9 m).
+    static Result<DepthCalibration> load(const std::filesystem::path& path);
+    DepthCalibration(sim::DistortionTable table, std::string source);
+
+    /// The undistorted image: d = d_meas * f(u, v, d) per valid pixel, f looked up at the origin
+    /// of the pixel's 2x2 disparity block scaled to the table's 640x480 grid; pixels in cells the
+    /// calibration could not measure (f = 0) become invalid. Any image size.
+    DepthImage undistort(const DepthImage& depth) const;
+
+    /// Where the table came from (for logs).
+    const std::string& source() const { return source_; }
+
+    /// Fixed-point iterations of undistort(): at most kMaxIterations, stopping when a step moves
+    /// the depth by less than kTolerance metres.
+    static constexpr int kMaxIterations = 8;
+    static constexpr double kTolerance = 1e-6;
+
+  private:
+    sim::DistortionTable table_;
+    std::string source_;
+};
+
+/// A FrameSource whose frames' depth is undistorted with a DepthCalibration; everything else
+/// (intrinsics, grey image, ground truth, errors, end of stream) passes through unchanged.
+class CalibratedSource final : public FrameSource {
+  public:
+    CalibratedSource(std::unique_ptr<FrameSource> inner, DepthCalibration calibration);
+
+    const PinholeCamera& camera() const override { return inner_->camera(); }
+    Result<Frame> next() override;
+    std::optional<size_t> size() const override { return inner_->size(); }
+    bool canSkipErrors() const override { return inner_->canSkipErrors(); }
+    std::string description() const override;
+    const FrameSource& underlying() const override { return inner_->underlying(); }
+
+  private:
+    std::unique_ptr<FrameSource> inner_;
+    DepthCalibration calibration_;
+};
+
+}  // namespace plumb
