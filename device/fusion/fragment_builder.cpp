@@ -21,6 +21,10 @@ Status FusionConfig::validate() const {
         return invalidArgument("fusion: frames_per_fragment must be >= 1, got " +
                                std::to_string(frames_per_fragment));
     }
+    if (handover_frames < 0) {
+        return invalidArgument("fusion: handover_frames must be >= 0, got " +
+                               std::to_string(handover_frames));
+    }
     PLUMB_RETURN_IF_ERROR(tsdf.validate());
     PLUMB_RETURN_IF_ERROR(preprocess.validate());
     PLUMB_RETURN_IF_ERROR(icp.validate());
@@ -33,7 +37,14 @@ FragmentBuilder::FragmentBuilder(const PinholeCamera& camera, const FusionConfig
     PLUMB_CHECK(s.isOk()) << s.toString();
 }
 
-void FragmentBuilder::openFragment(const Eigen::Isometry3d& T_W_F) {
+void FragmentBuilder::openFragment(const Eigen::Isometry3d& T_W_F, bool handover) {
+    handover_ = handover && have_model_ && config_.handover_frames > 0;
+    if (handover_) {
+        std::swap(volume_, previous_volume_);  // the closed fragment's model; volume_ cleared below
+        T_P_M_ = T_W_M_.inverse() * T_W_F;
+    } else {
+        previous_volume_.clear();
+    }
     current_.emplace();
     current_->id = next_id_++;
     current_->segment = segment_;
@@ -120,13 +131,23 @@ Result<FrameReport> FragmentBuilder::processImpl(const Frame& frame) {
     }
 
     const Clock::time_point t_track = Clock::now();
+    if (handover_ &&
+        (!current_ || static_cast<int>(current_->frames.size()) >= config_.handover_frames)) {
+        handover_ = false;  // the new fragment's own volume is the model from now on
+        previous_volume_.clear();
+    }
+    // Model X: the open fragment's volume (X = M), or the previous one during a handover.
+    const tsdf::TsdfVolume& model_volume = handover_ ? previous_volume_ : volume_;
+    const Eigen::Isometry3d T_X_M = handover_ ? T_P_M_ : Eigen::Isometry3d::Identity();
     const std::vector<ModelLevel> model =
-        predictModel(volume_, pyramid, T_M_last_, config_.raycast);
+        predictModel(model_volume, pyramid, T_X_M * T_M_last_, config_.raycast);
     // Start from a constant-velocity prediction: along directions the geometry leaves free
     // (solution remapping in the ICP) the camera keeps moving as it did.
     const Eigen::Isometry3d T_M_pred =
         config_.constant_velocity && !lost_ ? T_M_last_ * velocity_ : T_M_last_;
-    report.icp = alignFrameToModel(pyramid, model, T_M_last_, T_M_pred, config_.icp);
+    report.icp =
+        alignFrameToModel(pyramid, model, T_X_M * T_M_last_, T_X_M * T_M_pred, config_.icp);
+    if (handover_) report.icp.T_M_C = T_P_M_.inverse() * report.icp.T_M_C;
     report.timing.track_ms = msSince(t_track);
 
     if (report.icp.ok) {
@@ -152,7 +173,7 @@ Result<FrameReport> FragmentBuilder::processImpl(const Frame& frame) {
             }
         } else {
             // First frame after a cut (or a re-localisation): it begins the next fragment.
-            openFragment(T_W_C_);
+            openFragment(T_W_C_, /*handover=*/true);
             report.integrated = integrate(pyramid, Eigen::Isometry3d::Identity(), &report);
             if (report.integrated) {
                 addFrame(frame, Eigen::Isometry3d::Identity(), true, report.icp.inlier_fraction);

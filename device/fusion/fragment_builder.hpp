@@ -5,6 +5,10 @@
 // raycast of the current fragment's TSDF; a fragment is cut every `frames_per_fragment` frames and
 // its volume is kept just long enough to track the next frame, so odometry never restarts across
 // cuts. Fragment F's frame is the camera frame of its first frame; T_W_F comes from odometry.
+// Handover: a new fragment's volume holds one frame at first, too thin a model to track against
+// (noisy depth far away, coarse voxels), so the first `handover_frames` frames after a cut are
+// tracked against the previous fragment's volume, still in memory, while they are integrated into
+// the new one. This costs a second volume on the device for those frames.
 //
 // Tracking loss: the fragment is closed early (FragmentEnd::kTrackingLost, the failed frame listed
 // with tracking_ok = false). The next frame tries to re-localise against the closed fragment's
@@ -37,6 +41,9 @@ struct FusionConfig {
     int frames_per_fragment = 50;
     /// Start ICP from a constant-velocity prediction (else from the last pose).
     bool constant_velocity = true;
+    /// Frames of a new fragment tracked against the previous fragment's volume after a cut
+    /// (0 = track against the new fragment's own volume from its second frame).
+    int handover_frames = 5;
     /// TSDF volume of each fragment (voxel size, truncation, block budget).
     tsdf::TsdfConfig tsdf;
     /// Model prediction for tracking.
@@ -93,7 +100,9 @@ class FragmentBuilder {
     const tsdf::TsdfVolume& volume() const { return volume_; }
 
   private:
-    void openFragment(const Eigen::Isometry3d& T_W_F);
+    /// `handover`: keep the current volume as the tracking model of the first handover_frames
+    /// frames (after a cut or a successful re-localisation, when the pose is consistent with it).
+    void openFragment(const Eigen::Isometry3d& T_W_F, bool handover = false);
     void addFrame(const Frame& frame, const Eigen::Isometry3d& T_F_C, bool tracking_ok,
                   double quality);
     Fragment closeFragment(FragmentEnd end, FrameTiming* timing = nullptr);
@@ -104,9 +113,12 @@ class FragmentBuilder {
     PinholeCamera camera_;
     FusionConfig config_;
     tsdf::TsdfVolume volume_;
-    std::optional<Fragment> current_;  ///< the open fragment
-    bool have_model_ = false;          ///< volume_ holds a model to track the next frame against
-    bool lost_ = false;                ///< the last tracking attempt failed
+    tsdf::TsdfVolume previous_volume_;  ///< the last fragment's volume during a handover
+    bool handover_ = false;             ///< previous_volume_ is the tracking model
+    Eigen::Isometry3d T_P_M_ = Eigen::Isometry3d::Identity();  ///< volume_ in previous_volume_
+    std::optional<Fragment> current_;                          ///< the open fragment
+    bool have_model_ = false;  ///< volume_ holds a model to track the next frame against
+    bool lost_ = false;        ///< the last tracking attempt failed
     Eigen::Isometry3d T_W_M_ = Eigen::Isometry3d::Identity();     ///< frame of volume_
     Eigen::Isometry3d T_M_last_ = Eigen::Isometry3d::Identity();  ///< last good camera in M
     Eigen::Isometry3d T_W_C_ = Eigen::Isometry3d::Identity();

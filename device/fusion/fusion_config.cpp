@@ -82,6 +82,11 @@ void describe(config::Schema& s, FusionConfig& c) {
         .min(1);
     s.field("constant_velocity", c.constant_velocity,
             "start tracking from a constant-velocity prediction (else from the last pose)");
+    s.field("handover_frames", c.handover_frames,
+            "after a cut, track this many frames of the new fragment against the previous "
+            "fragment's volume (0 = against the new fragment's own volume)",
+            "frames")
+        .min(0);
     s.section("tsdf", c.tsdf, "the voxel-hashed TSDF volume of each fragment");
     s.section("raycast", c.raycast, "model prediction (raycast) for tracking");
     s.section("surface", c.surface, "oriented surface points of a closed fragment");

@@ -190,6 +190,47 @@ TEST(SimFusion, DISABLED_LivingRoomRedwoodUncalibratedDrift) {
     checkSimulatedFragment("living_room", "redwood", 0.01, true);
 }
 
+// A fragment's first frame alone is a thin model (160x120, 2 cm voxels, noise at 2-3 m): the
+// first frames after each cut are tracked against the previous fragment's volume (handover).
+TEST(SimFusion, HandoverKeepsTrackingAcrossCutsAtLowResolution) {
+    PLUMB_REQUIRE_SHARED_DATA(path, "redwood-noise/dist-model.txt");
+    auto run = [&](int handover_frames) {
+        SourceOptions so;
+        so.intrinsics = "ci";
+        so.max_frames = 40;
+        Result<std::unique_ptr<FrameSource>> source = openFrameSource("sim:living_room", so);
+        EXPECT_TRUE(source.isOk()) << source.status().toString();
+        FusionConfig config;
+        config.frames_per_fragment = 8;
+        config.tsdf.voxel_size_m = 0.02;
+        config.handover_frames = handover_frames;
+        FragmentBuilder builder((*source)->camera(), config);
+        int failures = 0;
+        std::vector<Fragment> fragments;
+        while (true) {
+            Result<Frame> frame = (*source)->next();
+            if (!frame.isOk()) break;
+            Result<FrameReport> r = builder.process(*frame);
+            EXPECT_TRUE(r.isOk());
+            failures += r->tracked ? 0 : 1;
+            for (Fragment& f : r->closed) fragments.push_back(std::move(f));
+        }
+        if (auto last = builder.finish()) fragments.push_back(std::move(*last));
+        std::printf("handover %d frames: %d tracking failures, %zu fragments\n", handover_frames,
+                    failures, fragments.size());
+        return std::make_pair(failures, fragments);
+    };
+    const auto [failures, fragments] = run(FusionConfig{}.handover_frames);
+    EXPECT_EQ(failures, 0);
+    ASSERT_EQ(fragments.size(), 5U);
+    for (const Fragment& f : fragments) {
+        EXPECT_EQ(f.end, FragmentEnd::kFrameCount);
+        EXPECT_EQ(f.frames.size(), 8U);
+        EXPECT_GT(f.points_F.size(), 1000U);
+    }
+    run(0);  // for comparison in the log: the new fragment's own volume from its second frame
+}
+
 /// Per-fragment ATE on the first `frames` frames of a recorded dataset.
 void checkRecording(const std::string& name, size_t frames, double max_ate_m) {
     PLUMB_REQUIRE_SHARED_DATA(path, name);

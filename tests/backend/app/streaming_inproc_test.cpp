@@ -40,14 +40,11 @@ using messages::testing::LossyHub;
 
 constexpr int64_t kSession = 4242;
 
-// 40 frames of the simulated living room at 160x120, 8 frames per fragment, encoded. Noise off:
-// these tests are about the transport, and at 160x120 with 2 cm voxels a fragment's first frame
-// alone is too coarse a model to track the next noisy frame against (issue 4 notes).
+// 40 frames of the simulated living room at 160x120, 8 frames per fragment, encoded.
 const std::vector<std::vector<uint8_t>>& deviceFragments() {
     static const std::vector<std::vector<uint8_t>> fragments = [] {
         SourceOptions so;
         so.intrinsics = "ci";
-        so.sim_noise = "off";
         so.max_frames = 40;
         auto source = openFrameSource("sim:living_room", so);
         PLUMB_CHECK(source.isOk()) << source.status().toString();

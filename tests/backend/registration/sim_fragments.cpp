@@ -18,7 +18,7 @@ namespace {
 
 std::filesystem::path cacheDir(const SimScanOptions& o) {
     std::ostringstream key;
-    key << "v1-" << o.scene << "-" << o.num_frames << "-" << o.rate_hz << "-"
+    key << "v2-" << o.scene << "-" << o.num_frames << "-" << o.rate_hz << "-"
         << o.frames_per_fragment << "-" << (o.loop ? "loop" : "open") << "-" << o.seed;
     return std::filesystem::temp_directory_path() / "plumb-registration-cache" / key.str();
 }
