@@ -17,17 +17,19 @@ Result<DepthCalibration> DepthCalibration::load(const std::filesystem::path& pat
 DepthCalibration::DepthCalibration(sim::DistortionTable table, std::string source)
     : table_(std::move(table)), source_(std::move(source)) {}
 
-DepthImage DepthCalibration::undistort(const DepthImage& depth) const {
+DepthImage DepthCalibration::undistort(DepthImage depth) const {
     const int w = depth.width();
     const int h = depth.height();
-    DepthImage out(w, h, 0.0F);
     for (int v = 0; v < h; ++v) {
         // The table's cells are defined on a 640x480 image and, as in the sensor model
         // (reference §1.4.A.2-3), looked up at the origin of the pixel's 2x2 disparity block.
         const int y480 = (v - v % 2) * 480 / h;
         for (int u = 0; u < w; ++u) {
             const float measured = depth(u, v);
-            if (!(measured > 0.0F)) continue;
+            if (!(measured > 0.0F)) {
+                depth(u, v) = 0.0F;  // invalid stays invalid, NaN included
+                continue;
+            }
             const int x640 = (u - u % 2) * 640 / w;
             double z = measured;
             for (int i = 0; i < kMaxIterations; ++i) {
@@ -36,10 +38,10 @@ DepthImage DepthCalibration::undistort(const DepthImage& depth) const {
                 z = next;
                 if (converged || z <= 0.0) break;
             }
-            out(u, v) = static_cast<float>(z);
+            depth(u, v) = static_cast<float>(z);
         }
     }
-    return out;
+    return depth;
 }
 
 CalibratedSource::CalibratedSource(std::unique_ptr<FrameSource> inner, DepthCalibration calibration)
@@ -48,7 +50,7 @@ CalibratedSource::CalibratedSource(std::unique_ptr<FrameSource> inner, DepthCali
 Result<Frame> CalibratedSource::next() {
     Result<Frame> frame = inner_->next();
     if (!frame.isOk()) return frame;
-    frame->depth = calibration_.undistort(frame->depth);
+    frame->depth = calibration_.undistort(std::move(frame->depth));
     return frame;
 }
 

@@ -31,7 +31,8 @@ class DepthCalibration {
     /// The undistorted image: d = d_meas * f(u, v, d) per valid pixel, f looked up at the origin
     /// of the pixel's 2x2 disparity block scaled to the table's 640x480 grid; pixels in cells the
     /// calibration could not measure (f = 0) become invalid. Any image size.
-    DepthImage undistort(const DepthImage& depth) const;
+    /// Works in place on `depth` (pass an rvalue to avoid a copy).
+    DepthImage undistort(DepthImage depth) const;
 
     /// Where the table came from (for logs).
     const std::string& source() const { return source_; }
