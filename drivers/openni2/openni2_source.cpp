@@ -192,7 +192,6 @@ struct OpenNI2Source::Impl : openni::OpenNI::DeviceConnectedListener,
         if (is_file) {
             openni::PlaybackControl* playback = device.getPlaybackControl();
             if (playback == nullptr) return internal("'" + uri + "' has no playback control");
-            playback->setRepeatEnabled(false);
             playback->setSpeed(-1.0f);  // manual: one frame per read, none dropped
         }
         if (!device.hasSensor(openni::SENSOR_DEPTH)) {
@@ -239,7 +238,15 @@ struct OpenNI2Source::Impl : openni::OpenNI::DeviceConnectedListener,
                                        mode.getResolutionX(), mode.getResolutionY()));
         }
         if (is_file) {
-            num_recorded = device.getPlaybackControl()->getNumberOfFrames(stream);
+            // libOniFile's player thread walks its stream list without a lock, and at the end of
+            // a recording without repeat it spins through that list; destroying the stream then
+            // races with it (a crash on close). With repeat on, the thread rewinds after the last
+            // frame and parks waiting for the next manual trigger, where destroying the stream is
+            // safe. next() ends the recording by its frame count, so nothing is played twice.
+            // Only a recording whose length is unknown plays without repeat, ending on a timeout.
+            openni::PlaybackControl* playback = device.getPlaybackControl();
+            num_recorded = playback->getNumberOfFrames(stream);
+            playback->setRepeatEnabled(num_recorded > 0);
         }
         if (start && stream.start() != openni::STATUS_OK) {
             const std::string why = oniError();

@@ -74,7 +74,7 @@ TEST(OpenNI2Virtual, ListsTheVirtualDevice) {
 }
 
 TEST(OpenNI2Virtual, StreamsTheSimulatorsFramesUnmirrored) {
-    const std::string uri = "plumb-sim://living_room?frames=40";
+    const std::string uri = "plumb-sim://living_room?frames=300";
     OpenNI2Config config;
     config.uri = uri;
     auto source = OpenNI2Source::open(config);
@@ -108,7 +108,7 @@ TEST(OpenNI2Virtual, StreamsTheSimulatorsFramesUnmirrored) {
 }
 
 TEST(OpenNI2Virtual, Mode320x240At60In100Micrometres) {
-    const std::string uri = "plumb-sim://living_room?frames=20&seed=3";
+    const std::string uri = "plumb-sim://living_room?frames=600&seed=3";
     SourceOptions options;
     options.depth_mode = "320x240@60";
     options.max_frames = 3;
@@ -181,7 +181,7 @@ TEST(OpenNI2Virtual, UnplugIsReportedAndTheScanResumes) {
 TEST(OpenNI2Virtual, RecordsToOniAndPlaysBackTheSameFrames) {
     const auto dir = testing::freshTempDir("openni2_record");
     const std::string oni = (dir / "scan.oni").string();
-    const std::string uri = "plumb-sim://living_room?frames=30&seed=5";
+    const std::string uri = "plumb-sim://living_room?frames=300&seed=5";
     OpenNI2Config record;
     record.uri = uri;
     ASSERT_TRUE(recordOni(record, oni, 8).isOk());
@@ -226,7 +226,7 @@ TEST(OpenNI2Virtual, DamagedFramesGiveClearErrorsAndStreamingGoesOn) {
                           Case{"empty", StatusCode::kCorrupt, "empty"},
                           Case{"format", StatusCode::kUnsupported, "RGB888"}}) {
         OpenNI2Config config;
-        config.uri = std::string("plumb-sim://living_room?frames=12&fault_at=2&fault=") + c.fault;
+        config.uri = std::string("plumb-sim://living_room?frames=300&fault_at=2&fault=") + c.fault;
         auto source = OpenNI2Source::open(config);
         ASSERT_TRUE(source.isOk()) << source.status().toString();
         bool saw_error = false;

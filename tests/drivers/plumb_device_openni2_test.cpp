@@ -78,7 +78,7 @@ TEST(PlumbDeviceOpenNI2, ScansAReplayedOniRecording) {
     const auto dir = testing::freshTempDir("plumb_device_oni");
     const std::string oni = (dir / "scan.oni").string();
     openni2::OpenNI2Config record;
-    record.uri = "plumb-sim://living_room?frames=40&seed=9";
+    record.uri = "plumb-sim://living_room?frames=300&seed=9";
     ASSERT_TRUE(openni2::recordOni(record, oni, 10).isOk());
     const DeviceRun run =
         runDevice("--source openni2:" + oni + " --dump-dir " + (dir / "dump").string() + kCommon);
