@@ -59,6 +59,7 @@ class CalibratedSource final : public FrameSource {
     bool canSkipErrors() const override { return inner_->canSkipErrors(); }
     std::string description() const override;
     const FrameSource& underlying() const override { return inner_->underlying(); }
+    void cameraArrived() override { inner_->cameraArrived(); }
 
   private:
     std::unique_ptr<FrameSource> inner_;

@@ -50,6 +50,13 @@ class FrameSource {
     /// The source that produces the frames when this one wraps another (CalibratedSource),
     /// else itself: what to ask for source-specific facts such as the simulator's ground truth.
     virtual const FrameSource& underlying() const { return *this; }
+
+    /// A camera of the kind this source reads appeared on the bus (USB hot-plug, see
+    /// drivers/usb/usb_devices.hpp): a source waiting for its unplugged camera tries to reopen it
+    /// at once instead of at its next attempt. The one method that is thread-safe: it is called
+    /// from the hot-plug thread while another thread is in next(). Sources that never reconnect,
+    /// or that learn of arrivals from their own driver (OpenNI2), ignore it.
+    virtual void cameraArrived() {}
 };
 
 }  // namespace plumb

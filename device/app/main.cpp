@@ -13,6 +13,7 @@
 #include "drivers/device_list.hpp"
 #include "drivers/sim/sim_source.hpp"
 #include "drivers/source.hpp"
+#include "drivers/usb/usb_devices.hpp"
 #include "messages/lcm_link.hpp"
 
 namespace {
@@ -163,6 +164,21 @@ int main(int argc, char** argv) {
     if (!source.isOk()) {
         log::error("cannot open source '{}': {}", source_uri, source.status().toString());
         return 1;
+    }
+    // Live cameras: USB hot-plug ends the reconnect wait as soon as a camera returns. Declared
+    // after the source, so it stops before the source goes away.
+    std::unique_ptr<usb::HotplugMonitor> hotplug;
+    if (options.config.capture.usb_hotplug && !(*source)->size().has_value()) {
+        auto monitor = usb::HotplugMonitor::start(usb::forwardArrivals(**source));
+        if (monitor.isOk()) {
+            hotplug = std::move(monitor).value();
+            log::info("usb: watching for depth cameras arriving and leaving");
+        } else {
+            log::info(
+                "usb: no hot-plug notifications ({}); a vanished camera is retried "
+                "periodically",
+                monitor.status().message());
+        }
     }
     auto link = messages::LcmLink::open(link_options);
     if (!link.isOk()) {

@@ -17,6 +17,9 @@ void describe(config::Schema& s, CaptureConfig& c) {
     s.field("intrinsics", c.intrinsics,
             "intrinsics preset or file for the source (empty: default)");
     s.field("seed", c.seed, "seed of sources with randomness (simulator)");
+    s.field("usb_hotplug", c.usb_hotplug,
+            "live cameras: watch USB hot-plug, log cameras arriving and leaving, reopen an "
+            "unplugged camera as soon as it returns");
 }
 
 void describe(config::Schema& s, FusionOptions& c) {

@@ -29,6 +29,11 @@ struct CaptureConfig {
     std::string intrinsics;
     /// Seed of sources with randomness (the simulator).
     uint64_t seed = 1;
+    /// Watch the USB bus (libusb hot-plug) while reading a live camera: log depth cameras that
+    /// arrive or leave, and reopen an unplugged camera as soon as one arrives instead of at the
+    /// source's next periodic attempt. Without hot-plug support (containers) the source still
+    /// retries on its own.
+    bool usb_hotplug = true;
 };
 
 /// The fusion parameters exposed to users (the rest keep FusionConfig's defaults).

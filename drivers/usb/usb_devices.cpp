@@ -7,6 +7,8 @@
 #include <atomic>
 #include <thread>
 
+#include "common/core/logging.hpp"
+
 namespace plumb::usb {
 
 const std::vector<KnownCamera>& knownDepthCameras() {
@@ -156,6 +158,17 @@ HotplugMonitor::~HotplugMonitor() {
     if (impl_->registered) libusb_hotplug_deregister_callback(impl_->ctx, impl_->handle);
     if (impl_->thread.joinable()) impl_->thread.join();
     if (impl_->ctx != nullptr) libusb_exit(impl_->ctx);
+}
+
+HotplugMonitor::Callback forwardArrivals(FrameSource& source) {
+    return [&source](UsbEvent event, const UsbCamera& camera) {
+        if (event == UsbEvent::kArrived) {
+            log::info("usb: {} arrived", toString(camera));
+            source.cameraArrived();
+        } else {
+            log::warn("usb: {} left", toString(camera));
+        }
+    };
 }
 
 }  // namespace plumb::usb

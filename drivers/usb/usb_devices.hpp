@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "common/core/status.hpp"
+#include "drivers/frame_source.hpp"
 
 namespace plumb::usb {
 
@@ -68,5 +69,10 @@ class HotplugMonitor {
     Callback callback_;
     std::unique_ptr<Impl> impl_;
 };
+
+/// The handler plumb-device installs for a live source: logs every known depth camera that
+/// arrives or leaves, and tells `source` when one arrives (FrameSource::cameraArrived), so a
+/// source waiting for its unplugged camera reopens it at once. `source` must outlive the monitor.
+HotplugMonitor::Callback forwardArrivals(FrameSource& source);
 
 }  // namespace plumb::usb

@@ -370,12 +370,25 @@ Result<Frame> V4l2Source::decode(const uint8_t* data, uint32_t bytesused, uint32
     return frame;
 }
 
+void V4l2Source::cameraArrived() {
+    {
+        std::lock_guard lock(arrival_mutex_);
+        arrived_ = true;
+    }
+    arrival_.notify_all();
+}
+
 Result<Frame> V4l2Source::next() {
     if (config_.max_frames > 0 && returned_ >= config_.max_frames) {
         return outOfRange(fmt::format("stopped after {} frames (max_frames)", returned_));
     }
     if (lost_) {
-        std::this_thread::sleep_for(std::chrono::milliseconds(config_.reconnect_wait_ms));
+        {
+            std::unique_lock lock(arrival_mutex_);
+            arrival_.wait_for(lock, std::chrono::milliseconds(config_.reconnect_wait_ms),
+                              [this] { return arrived_; });
+            arrived_ = false;
+        }
         Status s = start();
         if (!s.isOk()) {
             stop();

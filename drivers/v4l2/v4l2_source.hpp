@@ -12,8 +12,10 @@
 // All system calls go through V4l2Io (drivers/v4l2/v4l2_io.hpp), so tests replay recordings.
 // Not thread-safe: one consumer calls next().
 
+#include <condition_variable>
 #include <cstdint>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -39,7 +41,8 @@ struct V4l2Config {
     int num_buffers = 4;
     /// No buffer within this time = kUnavailable, ms.
     int timeout_ms = 2000;
-    /// Pause before each reopen attempt after the camera vanished, ms.
+    /// Pause before each reopen attempt after the camera vanished, ms; a USB hot-plug arrival
+    /// (cameraArrived) ends it early.
     int reconnect_wait_ms = 500;
     /// Stop after this many frames (kOutOfRange); 0 = never.
     size_t max_frames = 0;
@@ -79,6 +82,8 @@ class V4l2Source final : public FrameSource {
     Result<Frame> next() override;
     bool canSkipErrors() const override { return true; }
     std::string description() const override;
+    /// Ends the wait before the next reopen attempt (else reconnect_wait_ms).
+    void cameraArrived() override;
 
     uint32_t format() const { return fourcc_; }
     bool connected() const { return fd_.valid(); }
@@ -109,6 +114,9 @@ class V4l2Source final : public FrameSource {
     bool lost_ = false;  ///< the camera vanished; next() reopens
     std::string lost_reason_;
     uint32_t last_sequence_ = 0;
+    std::mutex arrival_mutex_;
+    std::condition_variable arrival_;
+    bool arrived_ = false;  ///< a camera arrived since the last reopen attempt
 };
 
 }  // namespace plumb::v4l2

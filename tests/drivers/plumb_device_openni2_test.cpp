@@ -70,6 +70,10 @@ TEST(PlumbDeviceOpenNI2, ScansTheVirtualDeviceThroughAnUnplug) {
     EXPECT_EQ(capturedFrames(run.output), 14) << run.output;  // the scan resumed after the unplug
     EXPECT_NE(run.output.find("disconnected"), std::string::npos) << run.output;
     EXPECT_NE(run.output.find("the camera is back"), std::string::npos) << run.output;
+    // A live camera: the device watches USB hot-plug, or says why it cannot.
+    const bool watching = run.output.find("usb: watching") != std::string::npos;
+    const bool cannot = run.output.find("usb: no hot-plug notifications (") != std::string::npos;
+    EXPECT_TRUE(watching != cannot) << run.output;
     EXPECT_NE(run.output.find("14 processed, 0 dropped"), std::string::npos) << run.output;
     EXPECT_GE(filesIn(dir / "dump"), 2u) << run.output;  // a fragment closed at the unplug + more
 }
@@ -83,7 +87,8 @@ TEST(PlumbDeviceOpenNI2, ScansAReplayedOniRecording) {
     const DeviceRun run =
         runDevice("--source openni2:" + oni + " --dump-dir " + (dir / "dump").string() + kCommon);
     ASSERT_TRUE(run.exit_code == 0 || run.exit_code == 1) << run.output;
-    EXPECT_GE(capturedFrames(run.output), 10) << run.output;  // every recorded frame
+    EXPECT_GE(capturedFrames(run.output), 10) << run.output;               // every recorded frame
+    EXPECT_EQ(run.output.find("usb: "), std::string::npos) << run.output;  // a file: no hot-plug
     EXPECT_GE(filesIn(dir / "dump"), 2u) << run.output;
 }
 

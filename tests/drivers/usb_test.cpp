@@ -3,10 +3,14 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
+#include <memory>
 #include <vector>
 
+#include "drivers/depth_calibration.hpp"
 #include "drivers/device_clock.hpp"
 #include "drivers/usb/usb_devices.hpp"
+#include "tests/testing/shared_data.hpp"
 
 namespace plumb {
 namespace {
@@ -48,6 +52,37 @@ TEST(UsbCameras, ListingAndHotplugEitherWorkOrSayWhy) {
     ASSERT_EQ(arrived.size(), 1u);
     EXPECT_EQ(arrived[0].address, 7);
     EXPECT_EQ(usb::toString(arrived[0]).rfind("1d27:0600 bus 1 addr 7", 0), 0u);
+}
+
+/// Counts the hot-plug arrivals it is told about.
+class ArrivalCounter final : public FrameSource {
+  public:
+    const PinholeCamera& camera() const override { return camera_; }
+    Result<Frame> next() override { return outOfRange("no frames"); }
+    std::string description() const override { return "arrival counter"; }
+    void cameraArrived() override { ++arrivals; }
+    std::atomic<int> arrivals{0};
+
+  private:
+    PinholeCamera camera_;
+};
+
+TEST(UsbCameras, ArrivalsReachTheSourceThroughItsDecorators) {
+    PLUMB_REQUIRE_SHARED_DATA(path, "redwood-noise/dist-model.txt");
+    auto table = DepthCalibration::load(path);
+    ASSERT_TRUE(table.isOk()) << table.status().toString();
+    auto counter = std::make_unique<ArrivalCounter>();
+    ArrivalCounter* inner = counter.get();
+    CalibratedSource source(std::move(counter), std::move(table).value());
+    const auto handler = usb::forwardArrivals(source);
+    usb::UsbCamera xtion;
+    xtion.vendor_id = 0x1d27;
+    xtion.product_id = 0x0601;
+    handler(usb::UsbEvent::kLeft, xtion);
+    EXPECT_EQ(inner->arrivals.load(), 0);  // a camera leaving is only logged
+    handler(usb::UsbEvent::kArrived, xtion);
+    handler(usb::UsbEvent::kArrived, xtion);
+    EXPECT_EQ(inner->arrivals.load(), 2);
 }
 
 TEST(DeviceClock, RecoversTheOffsetFromTheFastestFrame) {

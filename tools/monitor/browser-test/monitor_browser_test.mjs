@@ -119,7 +119,7 @@ try {
     document.querySelectorAll("#map line.edge.odometry").length >= n - 1 &&
     document.querySelector("#map polygon.room") !== null &&
     document.getElementById("connection").textContent === "live",
-    FRAGMENTS, { timeout: 60000, polling: 100 });
+    FRAGMENTS, { timeout: 120000, polling: 100 });
   const before = await page.locator("#map line.edge.loop").count();
   if (before !== 0) fail("loop edges before the pose graph was written: " + before);
 
@@ -166,6 +166,18 @@ try {
   console.log("1 passed, 0 failed");
   process.exit(0);
 } catch (err) {
+  // Say what the page showed when a wait gave up, so a failure can be told apart from slowness.
+  let shown = "";
+  try {
+    shown = "\npage: " + JSON.stringify(await browser.pages()[0].evaluate(() => ({
+      fragments: document.querySelectorAll("#fragment-list tr.fragment").length,
+      outlines: document.querySelectorAll("#map polygon.fragment-outline").length,
+      odometry: document.querySelectorAll("#map line.edge.odometry").length,
+      loops: document.querySelectorAll("#map line.edge.loop").length,
+      room: document.querySelector("#map polygon.room") !== null,
+      connection: document.getElementById("connection").textContent,
+    })));
+  } catch (_) {}
   await cleanup();
-  fail(err && err.stack ? err.stack : String(err));
+  fail((err && err.stack ? err.stack : String(err)) + shown);
 }
