@@ -1,9 +1,13 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "drivers/source.hpp"
 
+#include <algorithm>
+#include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <thread>
 
+#include "common/core/logging.hpp"
 #include "drivers/dataset/dataset.hpp"
 #include "drivers/depth_calibration.hpp"
 #include "drivers/openni2/openni2_source.hpp"
@@ -119,6 +123,93 @@ Result<std::unique_ptr<FrameSource>> openFrameSource(const std::string& uri,
     if (!calibration.isOk()) return calibration.status();
     return std::unique_ptr<FrameSource>(std::make_unique<CalibratedSource>(
         std::move(source).value(), std::move(calibration).value()));
+}
+
+bool isLiveCameraUri(const std::string& uri) {
+    if (uri == "openni2") return true;
+    if (uri.rfind("v4l2:", 0) == 0) return true;
+    if (uri.rfind("openni2:", 0) != 0) return false;
+    const std::filesystem::path target(uri.substr(8));
+    return target.extension() != ".oni" && target.extension() != ".ONI";
+}
+
+void ArrivalRelay::arrived() {
+    std::lock_guard lock(mutex_);
+    if (source_ != nullptr) {
+        source_->cameraArrived();
+        return;
+    }
+    pending_ = true;
+    changed_.notify_all();
+}
+
+void ArrivalRelay::attach(FrameSource* source) {
+    std::lock_guard lock(mutex_);
+    source_ = source;
+    pending_ = false;
+}
+
+bool ArrivalRelay::waitForArrival(int ms) {
+    std::unique_lock lock(mutex_);
+    const bool arrived =
+        changed_.wait_for(lock, std::chrono::milliseconds(ms), [this] { return pending_; });
+    pending_ = false;
+    return arrived;
+}
+
+Result<std::unique_ptr<FrameSource>> openFrameSourceWhenPresent(const std::string& uri,
+                                                                const SourceOptions& options,
+                                                                const CameraWait& wait,
+                                                                ArrivalRelay* relay,
+                                                                const std::function<bool()>& stop) {
+    using Clock = std::chrono::steady_clock;
+    const auto start = Clock::now();
+    auto elapsed_s = [&start] {
+        return std::chrono::duration<double>(Clock::now() - start).count();
+    };
+    double next_report_s = wait.report_s;
+    for (int attempt = 1;; ++attempt) {
+        auto source = openFrameSource(uri, options);
+        if (source.isOk()) {
+            if (attempt > 1) {
+                log::info("camera '{}' is present after {:.1f} s; starting", uri, elapsed_s());
+            }
+            return source;
+        }
+        const Status& why = source.status();
+        const bool absent =
+            why.code() == StatusCode::kNotFound || why.code() == StatusCode::kUnavailable;
+        if (!absent || !isLiveCameraUri(uri) || wait.timeout_s == 0.0) return why;
+        if (attempt == 1) {
+            log::info("waiting for camera '{}' to be plugged in ({}){}", uri, why.message(),
+                      wait.timeout_s > 0.0 ? fmt::format(" for up to {:g} s", wait.timeout_s)
+                                           : std::string(" until stopped"));
+        }
+        // Pause retry_ms, in slices so a stop request is seen within 100 ms.
+        const auto until = Clock::now() + std::chrono::milliseconds(std::max(1, wait.retry_ms));
+        while (Clock::now() < until) {
+            if (stop && stop()) {
+                return unavailable(
+                    fmt::format("stopped while waiting for the camera ({})", why.message()));
+            }
+            if (wait.timeout_s > 0.0 && elapsed_s() >= wait.timeout_s) {
+                return unavailable(fmt::format("no camera plugged in within {:g} s ({})",
+                                               wait.timeout_s, why.message()));
+            }
+            const auto left =
+                std::chrono::duration_cast<std::chrono::milliseconds>(until - Clock::now());
+            const int slice = static_cast<int>(std::clamp<int64_t>(left.count(), 1, 100));
+            if (relay != nullptr ? relay->waitForArrival(slice) : false) {
+                log::info("a depth camera arrived; trying '{}' again", uri);
+                break;
+            }
+            if (relay == nullptr) std::this_thread::sleep_for(std::chrono::milliseconds(slice));
+        }
+        if (wait.report_s > 0.0 && elapsed_s() >= next_report_s) {
+            log::info("still waiting for camera '{}' ({:.0f} s)", uri, elapsed_s());
+            next_report_s += wait.report_s;
+        }
+    }
 }
 
 }  // namespace plumb

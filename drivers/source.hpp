@@ -7,8 +7,15 @@
 //   openni2[:<uri>]   OpenNI2 device (first one without a URI) or .oni recording (drivers/openni2)
 //   v4l2:/dev/videoN  UVC/V4L2 depth camera (drivers/v4l2)
 // A bare directory path is taken as dataset:<dir>.
+//
+// A live camera (openni2 device, v4l2 node) may not be plugged in yet when a program starts;
+// openFrameSourceWhenPresent waits for it, woken early by USB hot-plug arrivals (ArrivalRelay).
 
+#include <atomic>
+#include <condition_variable>
+#include <functional>
 #include <memory>
+#include <mutex>
 #include <string>
 
 #include "drivers/frame_source.hpp"
@@ -43,5 +50,47 @@ Result<std::unique_ptr<FrameSource>> openFrameSource(const std::string& uri,
 
 /// Checks a --depth-calibration value: "", "sensor", "none" or an existing file.
 Status checkDepthCalibration(const std::string& value);
+
+/// True when `uri` names a live camera (an OpenNI2 device or a V4L2 node) rather than a
+/// recording, a dataset or the simulator: a camera that can be absent, leave and come back.
+bool isLiveCameraUri(const std::string& uri);
+
+/// How long to wait at start for a live camera that is not plugged in.
+struct CameraWait {
+    /// Seconds; 0 = fail at once, < 0 = until stopped.
+    double timeout_s = 0.0;
+    /// Pause between open attempts, ms; a camera arrival (ArrivalRelay::arrived) ends it early.
+    int retry_ms = 1000;
+    /// A "still waiting" line every this many seconds.
+    double report_s = 10.0;
+};
+
+/// Carries USB hot-plug arrivals (from the libusb event thread) to whoever waits for a camera:
+/// first to openFrameSourceWhenPresent, then, once attached, to the open source
+/// (FrameSource::cameraArrived). Thread-safe. The attached source must stay alive until it is
+/// detached (attach(nullptr)) or the notifier stopped.
+class ArrivalRelay {
+  public:
+    void arrived();
+    void attach(FrameSource* source);
+    /// Waits up to `ms` for an arrival not yet consumed; true when there was one.
+    bool waitForArrival(int ms);
+
+  private:
+    std::mutex mutex_;
+    std::condition_variable changed_;
+    bool pending_ = false;
+    FrameSource* source_ = nullptr;
+};
+
+/// openFrameSource, but a live camera that is absent (kNotFound / kUnavailable) is tried again
+/// every `wait.retry_ms` or at the next arrival on `relay` (may be null) until it opens,
+/// `wait.timeout_s` passes or `stop` returns true (both kUnavailable, naming the last error).
+/// Other sources and other errors return at once. Logs the wait and its progress.
+Result<std::unique_ptr<FrameSource>> openFrameSourceWhenPresent(const std::string& uri,
+                                                                const SourceOptions& options,
+                                                                const CameraWait& wait,
+                                                                ArrivalRelay* relay,
+                                                                const std::function<bool()>& stop);
 
 }  // namespace plumb

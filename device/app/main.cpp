@@ -1,9 +1,11 @@
 // SPDX-License-Identifier: Apache-2.0
 // plumb-device: capture -> tracking/fusion -> fragments over LCM (device/stream/device_runner.hpp).
 
+#include <cmath>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -37,6 +39,9 @@ constexpr const char* kUsage =
     "                       simulated sensor with the measured table is calibrated with it,\n"
     "                       real cameras have none), none, or a CLAMS/Redwood dist-model.txt\n"
     "  --realtime           pace recorded sources like a live sensor (capture.realtime)\n"
+    "  --wait-for-camera S  a live camera (openni2, v4l2) not plugged in at start: wait up to S\n"
+    "                       seconds for it, or 'forever' (capture.wait_for_camera_s; default 0,\n"
+    "                       fail at once)\n"
     "  --lcm-url URL        LCM URL (default udpm://239.255.76.67:7667?ttl=0, stays on host)\n"
     "  --allow-remote       allow an LCM URL that can leave this machine\n"
     "  --key-file FILE      shared key (hex) for HMAC-SHA256 authentication of every message\n"
@@ -53,6 +58,20 @@ extern "C" void onSignal(int) { g_stop_requests.fetch_add(1); }
 int usageError(const std::string& message) {
     std::fprintf(stderr, "plumb-device: %s\n\n%s", message.c_str(), kUsage);
     return 2;
+}
+
+/// Seconds >= 0, or "forever" (-1).
+bool parseSeconds(const std::string& text, double* out) {
+    if (text == "forever") {
+        *out = -1.0;
+        return true;
+    }
+    if (text.empty()) return false;
+    char* end = nullptr;
+    const double v = std::strtod(text.c_str(), &end);
+    if (*end != '\0' || !std::isfinite(v) || v < 0.0) return false;
+    *out = v;
+    return true;
 }
 
 bool parseInt64(const std::string& text, int64_t* out) {
@@ -76,6 +95,7 @@ int main(int argc, char** argv) {
     messages::LinkOptions link_options;
     int64_t frames = 0, session_id = 0, key_id = 1;
     bool realtime = false;
+    std::optional<double> wait_for_camera_s;
     log::Level level = log::Level::kInfo;
     for (size_t i = 0; i < args.size(); ++i) {
         const std::string& a = args[i];
@@ -108,6 +128,11 @@ int main(int argc, char** argv) {
                 return usageError(s.message());
         } else if (a == "--realtime") {
             realtime = true;
+        } else if (a == "--wait-for-camera") {
+            double seconds = 0.0;
+            if (!value(&v) || !parseSeconds(v, &seconds))
+                return usageError("--wait-for-camera needs seconds >= 0 or 'forever'");
+            wait_for_camera_s = seconds;
         } else if (a == "--lcm-url") {
             if (!value(&link_options.url)) return usageError("--lcm-url needs a value");
         } else if (a == "--allow-remote") {
@@ -146,6 +171,7 @@ int main(int argc, char** argv) {
     }
     if (!intrinsics.empty()) options.config.capture.intrinsics = intrinsics;
     if (realtime) options.config.capture.realtime = true;
+    if (wait_for_camera_s) options.config.capture.wait_for_camera_s = *wait_for_camera_s;
     options.config_toml = config::toToml(options.config, "plumb-device configuration (effective)");
     options.spool_dir = spool_dir;
     options.dump_dir = dump_dir;
@@ -160,16 +186,22 @@ int main(int argc, char** argv) {
     source_options.seed = options.config.capture.seed;
     source_options.sim_noise = sim_noise;
     source_options.depth_calibration = depth_calibration;
-    auto source = openFrameSource(source_uri, source_options);
-    if (!source.isOk()) {
-        log::error("cannot open source '{}': {}", source_uri, source.status().toString());
-        return 1;
-    }
-    // Live cameras: USB hot-plug ends the reconnect wait as soon as a camera returns. Declared
-    // after the source, so it stops before the source goes away.
+    struct sigaction sa {};
+    sa.sa_handler = onSignal;
+    sigemptyset(&sa.sa_mask);
+    sigaction(SIGINT, &sa, nullptr);
+    sigaction(SIGTERM, &sa, nullptr);
+
+    // Live cameras: USB hot-plug wakes the wait for a camera absent at start, then ends the
+    // source's reconnect wait as soon as an unplugged camera returns. Declared in this order so
+    // the monitor stops before the source goes away, and the source before the relay.
+    const device::CaptureConfig& capture = options.config.capture;
+    ArrivalRelay arrivals;
+    std::unique_ptr<FrameSource> source;
     std::unique_ptr<usb::HotplugMonitor> hotplug;
-    if (options.config.capture.usb_hotplug && !(*source)->size().has_value()) {
-        auto monitor = usb::HotplugMonitor::start(usb::forwardArrivals(**source));
+    if (capture.usb_hotplug && isLiveCameraUri(source_uri)) {
+        auto monitor =
+            usb::HotplugMonitor::start(usb::forwardArrivals([&arrivals] { arrivals.arrived(); }));
         if (monitor.isOk()) {
             hotplug = std::move(monitor).value();
             log::info("usb: watching for depth cameras arriving and leaving");
@@ -180,23 +212,32 @@ int main(int argc, char** argv) {
                 monitor.status().message());
         }
     }
+    CameraWait wait;
+    wait.timeout_s = capture.wait_for_camera_s;
+    auto opened = openFrameSourceWhenPresent(source_uri, source_options, wait, &arrivals,
+                                             [] { return g_stop_requests.load() > 0; });
+    if (!opened.isOk()) {
+        log::error("cannot open source '{}': {}", source_uri, opened.status().toString());
+        const StatusCode code = opened.status().code();
+        if (wait.timeout_s == 0.0 && isLiveCameraUri(source_uri) &&
+            (code == StatusCode::kNotFound || code == StatusCode::kUnavailable)) {
+            log::info("to wait for the camera to be plugged in: --wait-for-camera SECONDS|forever");
+        }
+        return 1;
+    }
+    source = std::move(opened).value();
+    arrivals.attach(source.get());
     auto link = messages::LcmLink::open(link_options);
     if (!link.isOk()) {
         log::error("{}", link.status().toString());
         return 1;
     }
-    log::info("source {}; LCM {}{}; session {}", (*source)->description(), (*link)->url(),
+    log::info("source {}; LCM {}{}; session {}", source->description(), (*link)->url(),
               (*link)->authenticated() ? " (authenticated)" : "", options.session_id);
-
-    struct sigaction sa {};
-    sa.sa_handler = onSignal;
-    sigemptyset(&sa.sa_mask);
-    sigaction(SIGINT, &sa, nullptr);
-    sigaction(SIGTERM, &sa, nullptr);
 
     messages::LcmLink& l = **link;
     device::DeviceLink device_link{&l.transport(), [&l](int ms) { return l.pump(ms); }};
-    auto report = device::runDevice(**source, options, device_link, g_stop_requests);
+    auto report = device::runDevice(*source, options, device_link, g_stop_requests);
     if (!report.isOk()) {
         log::error("{}", report.status().toString());
         return 1;

@@ -20,6 +20,10 @@ void describe(config::Schema& s, CaptureConfig& c) {
     s.field("usb_hotplug", c.usb_hotplug,
             "live cameras: watch USB hot-plug, log cameras arriving and leaving, reopen an "
             "unplugged camera as soon as it returns");
+    s.field("wait_for_camera_s", c.wait_for_camera_s,
+            "live cameras absent at start: wait this long for one to be plugged in (0: fail at "
+            "once; negative: until interrupted)",
+            "s");
 }
 
 void describe(config::Schema& s, FusionOptions& c) {

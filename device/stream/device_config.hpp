@@ -34,6 +34,10 @@ struct CaptureConfig {
     /// source's next periodic attempt. Without hot-plug support (containers) the source still
     /// retries on its own.
     bool usb_hotplug = true;
+    /// A live camera that is not plugged in when plumb-device starts: wait this long for it,
+    /// seconds (0 = fail at once, negative = until interrupted). Attempts are repeated every
+    /// second, and at once when USB hot-plug reports a depth camera arriving.
+    double wait_for_camera_s = 0.0;
 };
 
 /// The fusion parameters exposed to users (the rest keep FusionConfig's defaults).

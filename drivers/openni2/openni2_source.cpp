@@ -20,9 +20,20 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
+/// OpenNI2's extended error on one line: its lines are tab-indented and newline-terminated.
 std::string oniError() {
     const char* e = openni::OpenNI::getExtendedError();
-    return e != nullptr && *e != '\0' ? std::string(e) : std::string("no details from OpenNI2");
+    std::string text;
+    for (const char* c = e; c != nullptr && *c != '\0'; ++c) {
+        const bool space = *c == '\n' || *c == '\r' || *c == '\t' || *c == ' ';
+        if (!space) {
+            text += *c;
+        } else if (!text.empty() && text.back() != ' ') {
+            text += ' ';
+        }
+    }
+    while (!text.empty() && text.back() == ' ') text.pop_back();
+    return text.empty() ? std::string("no details from OpenNI2") : text;
 }
 
 const char* pixelFormatName(openni::PixelFormat f) {

@@ -71,10 +71,13 @@ Result<SimDeviceSpec> parseSimDeviceUri(const std::string& uri) {
             spec.fault = value;
         } else if (key == "fault_at") {
             PLUMB_RETURN_IF_ERROR(parseNumber(key, value, &spec.fault_at));
+        } else if (key == "plug_file") {
+            if (value.empty()) return invalidArgument("plumb-sim URI: plug_file needs a path");
+            spec.plug_file = value;
         } else {
             return invalidArgument("plumb-sim URI: unknown key '" + key +
                                    "' (frames, seed, unplug_at, unplug_frames, registration, "
-                                   "realtime, fault, fault_at)");
+                                   "realtime, fault, fault_at, plug_file)");
         }
     }
     return spec;

@@ -5,7 +5,8 @@
 // driver plugin that streams it (drivers/openni2/sim_driver) and by tests that compare what came
 // through OpenNI2 with the simulator's own frames.
 //
-//   plumb-sim://<scene>[?frames=N&seed=S&unplug_at=K&unplug_frames=G&registration=1&realtime=0]
+//   plumb-sim://<scene>[?frames=N&seed=S&unplug_at=K&unplug_frames=G&registration=1&realtime=0
+//                        &fault=F&fault_at=K&plug_file=PATH]
 //
 // frames        trajectory length (default 300); the camera goes idle after the last frame
 // seed          simulator seed (trajectory and noise), default 1
@@ -16,6 +17,8 @@
 // realtime      pace frames at the video mode's rate (default 1) or send them as fast as rendered
 // fault         send frame fault_at damaged, to test consumers: "short" (half the bytes),
 //               "empty" (0x0, no bytes) or "format" (labelled RGB888)
+// plug_file     the camera is not plugged in until this file exists: opening it fails like
+//               opening an absent camera, so a test plugs the camera in by creating the file
 
 #include <cstdint>
 #include <string>
@@ -37,6 +40,7 @@ struct SimDeviceSpec {
     bool realtime = true;
     std::string fault;  ///< "", "short", "empty" or "format"
     int64_t fault_at = -1;
+    std::string plug_file;  ///< "" = plugged in from the start
 };
 
 /// True when `uri` starts with plumb-sim://.

@@ -160,15 +160,19 @@ HotplugMonitor::~HotplugMonitor() {
     if (impl_->ctx != nullptr) libusb_exit(impl_->ctx);
 }
 
-HotplugMonitor::Callback forwardArrivals(FrameSource& source) {
-    return [&source](UsbEvent event, const UsbCamera& camera) {
+HotplugMonitor::Callback forwardArrivals(std::function<void()> arrived) {
+    return [arrived = std::move(arrived)](UsbEvent event, const UsbCamera& camera) {
         if (event == UsbEvent::kArrived) {
             log::info("usb: {} arrived", toString(camera));
-            source.cameraArrived();
+            if (arrived) arrived();
         } else {
             log::warn("usb: {} left", toString(camera));
         }
     };
+}
+
+HotplugMonitor::Callback forwardArrivals(FrameSource& source) {
+    return forwardArrivals([&source] { source.cameraArrived(); });
 }
 
 }  // namespace plumb::usb

@@ -75,4 +75,7 @@ class HotplugMonitor {
 /// source waiting for its unplugged camera reopens it at once. `source` must outlive the monitor.
 HotplugMonitor::Callback forwardArrivals(FrameSource& source);
 
+/// The same handler for any receiver: logs arrivals and departures, calls `arrived` on arrivals.
+HotplugMonitor::Callback forwardArrivals(std::function<void()> arrived);
+
 }  // namespace plumb::usb

@@ -10,6 +10,8 @@
 #include <array>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
+#include <functional>
 #include <regex>
 #include <string>
 
@@ -24,14 +26,19 @@ struct DeviceRun {
     std::string output;
 };
 
-DeviceRun runDevice(const std::string& args) {
+/// Runs plumb-device with `args`; `on_line` sees every output line as it is printed.
+DeviceRun runDevice(const std::string& args,
+                    const std::function<void(const std::string&)>& on_line = {}) {
     const std::string command = std::string("LD_LIBRARY_PATH=") + PLUMB_OPENNI2_RUNTIME_DIR + " " +
                                 PLUMB_DEVICE_EXE + " " + args + " 2>&1";
     DeviceRun run;
     FILE* pipe = popen(command.c_str(), "r");
     if (pipe == nullptr) return run;
     std::array<char, 4096> buffer{};
-    while (fgets(buffer.data(), buffer.size(), pipe) != nullptr) run.output += buffer.data();
+    while (fgets(buffer.data(), buffer.size(), pipe) != nullptr) {
+        run.output += buffer.data();
+        if (on_line) on_line(buffer.data());
+    }
     const int status = pclose(pipe);
     run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
     return run;
@@ -90,6 +97,43 @@ TEST(PlumbDeviceOpenNI2, ScansAReplayedOniRecording) {
     EXPECT_GE(capturedFrames(run.output), 10) << run.output;               // every recorded frame
     EXPECT_EQ(run.output.find("usb: "), std::string::npos) << run.output;  // a file: no hot-plug
     EXPECT_GE(filesIn(dir / "dump"), 2u) << run.output;
+}
+
+TEST(PlumbDeviceOpenNI2, WaitsForACameraPluggedInAfterTheStart) {
+    const auto dir = testing::freshTempDir("plumb_device_wait");
+    const auto plug = dir / "plugged";
+    const std::string source =
+        " --source 'openni2:plumb-sim://living_room?frames=300&plug_file=" + plug.string() + "'";
+
+    // Not plugged in and not asked to wait: a specific error and the way to wait.
+    const DeviceRun absent = runDevice(source + " --frames 4" + kCommon);
+    EXPECT_EQ(absent.exit_code, 1) << absent.output;
+    EXPECT_NE(absent.output.find("cannot open source"), std::string::npos) << absent.output;
+    EXPECT_NE(absent.output.find("--wait-for-camera"), std::string::npos) << absent.output;
+    EXPECT_EQ(capturedFrames(absent.output), -1) << absent.output;
+
+    // Asked to wait: the camera is plugged in once the device says it is waiting, and the scan
+    // runs. The wait allows ten minutes, so only the plug-in can end it within the test timeout.
+    bool plugged = false;
+    const DeviceRun run =
+        runDevice(source + " --wait-for-camera 600 --frames 12 --dump-dir " +
+                      (dir / "dump").string() + kCommon,
+                  [&](const std::string& line) {
+                      if (!plugged && line.find("waiting for camera") != std::string::npos) {
+                          std::ofstream(plug) << "plugged in\n";
+                          plugged = true;
+                      }
+                  });
+    EXPECT_TRUE(plugged) << run.output;
+    ASSERT_TRUE(run.exit_code == 0 || run.exit_code == 1) << run.output;
+    EXPECT_NE(run.output.find("is present after"), std::string::npos) << run.output;
+    EXPECT_EQ(capturedFrames(run.output), 12) << run.output;
+    EXPECT_GE(filesIn(dir / "dump"), 2u) << run.output;
+
+    // A bad value is a command-line error.
+    const DeviceRun bad = runDevice(source + " --wait-for-camera soon" + kCommon);
+    EXPECT_EQ(bad.exit_code, 2) << bad.output;
+    EXPECT_NE(bad.output.find("--wait-for-camera needs seconds"), std::string::npos) << bad.output;
 }
 
 }  // namespace

@@ -10,6 +10,7 @@
 #include "drivers/depth_calibration.hpp"
 #include "drivers/device_clock.hpp"
 #include "drivers/usb/usb_devices.hpp"
+#include "tests/testing/arrival_counter.hpp"
 #include "tests/testing/shared_data.hpp"
 
 namespace plumb {
@@ -54,18 +55,7 @@ TEST(UsbCameras, ListingAndHotplugEitherWorkOrSayWhy) {
     EXPECT_EQ(usb::toString(arrived[0]).rfind("1d27:0600 bus 1 addr 7", 0), 0u);
 }
 
-/// Counts the hot-plug arrivals it is told about.
-class ArrivalCounter final : public FrameSource {
-  public:
-    const PinholeCamera& camera() const override { return camera_; }
-    Result<Frame> next() override { return outOfRange("no frames"); }
-    std::string description() const override { return "arrival counter"; }
-    void cameraArrived() override { ++arrivals; }
-    std::atomic<int> arrivals{0};
-
-  private:
-    PinholeCamera camera_;
-};
+using testing::ArrivalCounter;
 
 TEST(UsbCameras, ArrivalsReachTheSourceThroughItsDecorators) {
     PLUMB_REQUIRE_SHARED_DATA(path, "redwood-noise/dist-model.txt");

@@ -24,6 +24,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -255,6 +256,10 @@ class SimDriver final : public DriverBase {
         {
             std::lock_guard lock(mutex_);
             if (cameras_.count(uri) != 0) return ONI_STATUS_ERROR;  // known (maybe unplugged)
+        }
+        auto spec = parseSimDeviceUri(uri);
+        if (spec.isOk() && !spec->plug_file.empty() && !std::filesystem::exists(spec->plug_file)) {
+            return ONI_STATUS_ERROR;  // not plugged in yet: OpenNI2 reports no such device
         }
         return addCamera(uri) != nullptr ? ONI_STATUS_OK : ONI_STATUS_ERROR;
     }
