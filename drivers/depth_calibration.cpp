@@ -45,17 +45,17 @@ DepthImage DepthCalibration::undistort(DepthImage depth) const {
 }
 
 CalibratedSource::CalibratedSource(std::unique_ptr<FrameSource> inner, DepthCalibration calibration)
-    : inner_(std::move(inner)), calibration_(std::move(calibration)) {}
+    : FrameSourceDecorator(std::move(inner)), calibration_(std::move(calibration)) {}
 
 Result<Frame> CalibratedSource::next() {
-    Result<Frame> frame = inner_->next();
+    Result<Frame> frame = inner().next();
     if (!frame.isOk()) return frame;
     frame->depth = calibration_.undistort(std::move(frame->depth));
     return frame;
 }
 
 std::string CalibratedSource::description() const {
-    return fmt::format("{}, depth calibrated with {}", inner_->description(),
+    return fmt::format("{}, depth calibrated with {}", inner().description(),
                        calibration_.source());
 }
 

@@ -49,20 +49,14 @@ class DepthCalibration {
 
 /// A FrameSource whose frames' depth is undistorted with a DepthCalibration; everything else
 /// (intrinsics, grey image, ground truth, errors, end of stream) passes through unchanged.
-class CalibratedSource final : public FrameSource {
+class CalibratedSource final : public FrameSourceDecorator {
   public:
     CalibratedSource(std::unique_ptr<FrameSource> inner, DepthCalibration calibration);
 
-    const PinholeCamera& camera() const override { return inner_->camera(); }
     Result<Frame> next() override;
-    std::optional<size_t> size() const override { return inner_->size(); }
-    bool canSkipErrors() const override { return inner_->canSkipErrors(); }
     std::string description() const override;
-    const FrameSource& underlying() const override { return inner_->underlying(); }
-    void cameraArrived() override { inner_->cameraArrived(); }
 
   private:
-    std::unique_ptr<FrameSource> inner_;
     DepthCalibration calibration_;
 };
 

@@ -6,6 +6,7 @@
 
 #include <Eigen/Geometry>
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <string>
 
@@ -57,6 +58,28 @@ class FrameSource {
     /// from the hot-plug thread while another thread is in next(). Sources that never reconnect,
     /// or that learn of arrivals from their own driver (OpenNI2), ignore it.
     virtual void cameraArrived() {}
+};
+
+/// Base of sources that wrap another one (depth calibration, recording): everything passes
+/// through to `inner` unless the wrapper overrides it.
+class FrameSourceDecorator : public FrameSource {
+  public:
+    explicit FrameSourceDecorator(std::unique_ptr<FrameSource> inner) : inner_(std::move(inner)) {}
+
+    const PinholeCamera& camera() const override { return inner_->camera(); }
+    Result<Frame> next() override { return inner_->next(); }
+    std::optional<size_t> size() const override { return inner_->size(); }
+    bool canSkipErrors() const override { return inner_->canSkipErrors(); }
+    std::string description() const override { return inner_->description(); }
+    const FrameSource& underlying() const override { return inner_->underlying(); }
+    void cameraArrived() override { inner_->cameraArrived(); }
+
+  protected:
+    FrameSource& inner() { return *inner_; }
+    const FrameSource& inner() const { return *inner_; }
+
+  private:
+    std::unique_ptr<FrameSource> inner_;
 };
 
 }  // namespace plumb

@@ -13,6 +13,7 @@
 #include "common/core/logging.hpp"
 #include "device/stream/device_runner.hpp"
 #include "drivers/device_list.hpp"
+#include "drivers/recording_source.hpp"
 #include "drivers/sim/sim_source.hpp"
 #include "drivers/source.hpp"
 #include "drivers/usb/usb_devices.hpp"
@@ -48,6 +49,9 @@ constexpr const char* kUsage =
     "  --key-id N           identifier of the key (default 1)\n"
     "  --spool-dir DIR      keep unacknowledged fragments here across runs (default: memory)\n"
     "  --dump-dir DIR       also write every encoded fragment here as sent\n"
+    "  --record DIR         also record every captured frame to DIR (a new folder) as a plumb\n"
+    "                       dataset: depth/*.png in mm, depth.txt, intrinsics.json, capture.txt;\n"
+    "                       replay it with --source dataset:DIR\n"
     "  --session-id N       session id (default: start time in microseconds)\n"
     "  --log-level L        trace|debug|info|warn|error (default info)\n";
 
@@ -91,7 +95,8 @@ int main(int argc, char** argv) {
     auto config_args = config::extractConfigArgs(args);
     if (!config_args.isOk()) return usageError(config_args.status().message());
 
-    std::string source_uri, spool_dir, dump_dir, intrinsics, sim_noise, depth_calibration;
+    std::string source_uri, spool_dir, dump_dir, record_dir, intrinsics, sim_noise,
+        depth_calibration;
     messages::LinkOptions link_options;
     int64_t frames = 0, session_id = 0, key_id = 1;
     bool realtime = false;
@@ -148,6 +153,10 @@ int main(int argc, char** argv) {
             if (!value(&spool_dir)) return usageError("--spool-dir needs a value");
         } else if (a == "--dump-dir") {
             if (!value(&dump_dir)) return usageError("--dump-dir needs a value");
+        } else if (a == "--record") {
+            if (!value(&record_dir)) return usageError("--record needs a folder");
+            if (Status st = RecordingSource::checkFolder(record_dir); !st.isOk())
+                return usageError(st.message());
         } else if (a == "--session-id") {
             if (!value(&v) || !parseInt64(v, &session_id) || session_id <= 0)
                 return usageError("--session-id needs a positive integer");
@@ -226,6 +235,16 @@ int main(int argc, char** argv) {
         return 1;
     }
     source = std::move(opened).value();
+    RecordingSource* recorder = nullptr;
+    if (!record_dir.empty()) {
+        auto recording = RecordingSource::create(std::move(source), record_dir);
+        if (!recording.isOk()) {
+            log::error("cannot record: {}", recording.status().toString());
+            return 1;
+        }
+        recorder = recording->get();
+        source = std::move(recording).value();
+    }
     arrivals.attach(source.get());
     auto link = messages::LcmLink::open(link_options);
     if (!link.isOk()) {
@@ -246,6 +265,9 @@ int main(int argc, char** argv) {
     log::info("frames: {} captured, {} processed, {} dropped; fragments: {} cut, {} acknowledged",
               r.frames_captured, r.frames_processed, r.frames_dropped, r.fragments_cut,
               r.fragments_acked);
+    if (recorder != nullptr) {
+        log::info("recorded {} frame(s) to {}", recorder->recorded(), record_dir);
+    }
     if (l.authenticated() && l.authStats().rejected() > 0) {
         log::warn("rejected {} unauthenticated message(s)", l.authStats().rejected());
     }

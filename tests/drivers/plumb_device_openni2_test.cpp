@@ -14,8 +14,12 @@
 #include <functional>
 #include <regex>
 #include <string>
+#include <vector>
 
+#include "drivers/dataset/dataset.hpp"
 #include "drivers/openni2/openni2_source.hpp"
+#include "drivers/openni2/sim_device.hpp"
+#include "drivers/sim/sim_source.hpp"
 #include "tests/testing/shared_data.hpp"
 
 namespace plumb {
@@ -57,6 +61,53 @@ size_t filesIn(const std::filesystem::path& dir) {
     return n;
 }
 
+/// Checks a `--record` folder against the simulator: recorded frame i came from device frame K
+/// (capture.txt names it "openni2 frame K") and must equal the simulator's frame K + offset, pixel
+/// for pixel in millimetres. Returns the number of frames compared.
+size_t expectRecordingEqualsTheSimulator(const std::filesystem::path& dir,
+                                         const std::string& device_uri, int offset) {
+    std::vector<int> device_frames;
+    std::ifstream capture(dir / "capture.txt");
+    static const std::regex kName("openni2 frame ([0-9]+)$");
+    for (std::string line; std::getline(capture, line);) {
+        std::smatch m;
+        if (line.empty() || line[0] == '#') continue;
+        EXPECT_TRUE(std::regex_search(line, m, kName)) << line;
+        device_frames.push_back(std::stoi(m[1]));
+    }
+    auto recording = dataset::DatasetSource::open(dir);
+    EXPECT_TRUE(recording.isOk()) << recording.status().toString();
+    if (!recording.isOk()) return 0;
+    EXPECT_EQ((*recording)->size(), std::optional<size_t>(device_frames.size()));
+    auto spec = openni2::parseSimDeviceUri(device_uri);
+    EXPECT_TRUE(spec.isOk());
+    auto config = openni2::simConfigFor(*spec, 640, 480);
+    EXPECT_TRUE(config.isOk());
+    auto sim = sim::SimSource::create(*config);
+    EXPECT_TRUE(sim.isOk());
+    if (!spec.isOk() || !config.isOk() || !sim.isOk()) return 0;
+    size_t compared = 0;
+    for (int device_frame : device_frames) {
+        auto frame = (*recording)->next();
+        EXPECT_TRUE(frame.isOk()) << frame.status().toString();
+        auto expected = (*sim)->render(static_cast<size_t>(device_frame + offset));
+        EXPECT_TRUE(expected.isOk());
+        if (!frame.isOk() || !expected.isOk()) break;
+        const DepthImage& want = expected->frame.depth;
+        EXPECT_EQ(frame->depth.size(), want.size());
+        size_t differ = 0, valid = 0;
+        for (size_t i = 0; i < want.size() && i < frame->depth.size(); ++i) {
+            const uint16_t mm = openni2::depthToPixel(want.pixels()[i], 1000.0);
+            differ += frame->depth.pixels()[i] != openni2::pixelToDepth(mm, 1000.0) ? 1 : 0;
+            valid += mm > 0 ? 1 : 0;
+        }
+        EXPECT_GT(valid, want.size() / 3) << "device frame " << device_frame;
+        EXPECT_EQ(differ, 0u) << "device frame " << device_frame;
+        ++compared;
+    }
+    return compared;
+}
+
 const char* kCommon =
     " --set stream.ack_wait_s=0.2 --set fusion.frames_per_fragment=5 --set capture.queue_frames=64"
     " --lcm-url udpm://239.255.76.67:7671?ttl=0 --log-level info";
@@ -72,7 +123,7 @@ TEST(PlumbDeviceOpenNI2, ScansTheVirtualDeviceThroughAnUnplug) {
     const DeviceRun run = runDevice(
         "--source 'openni2:plumb-sim://living_room?frames=60&unplug_at=6&unplug_frames=6'"
         " --frames 14 --dump-dir " +
-        (dir / "dump").string() + kCommon);
+        (dir / "dump").string() + " --record " + (dir / "frames").string() + kCommon);
     ASSERT_TRUE(run.exit_code == 0 || run.exit_code == 1) << run.output;
     EXPECT_EQ(capturedFrames(run.output), 14) << run.output;  // the scan resumed after the unplug
     EXPECT_NE(run.output.find("disconnected"), std::string::npos) << run.output;
@@ -83,6 +134,12 @@ TEST(PlumbDeviceOpenNI2, ScansTheVirtualDeviceThroughAnUnplug) {
     EXPECT_TRUE(watching != cannot) << run.output;
     EXPECT_NE(run.output.find("14 processed, 0 dropped"), std::string::npos) << run.output;
     EXPECT_GE(filesIn(dir / "dump"), 2u) << run.output;  // a fragment closed at the unplug + more
+    // The frames that came out of plumb-device are the simulator's, across the unplug.
+    EXPECT_NE(run.output.find("recorded 14 frame(s)"), std::string::npos) << run.output;
+    EXPECT_EQ(
+        expectRecordingEqualsTheSimulator(
+            dir / "frames", "plumb-sim://living_room?frames=60&unplug_at=6&unplug_frames=6", 0),
+        14u);
 }
 
 TEST(PlumbDeviceOpenNI2, ScansAReplayedOniRecording) {
@@ -92,11 +149,14 @@ TEST(PlumbDeviceOpenNI2, ScansAReplayedOniRecording) {
     record.uri = "plumb-sim://living_room?frames=300&seed=9";
     ASSERT_TRUE(openni2::recordOni(record, oni, 10).isOk());
     const DeviceRun run =
-        runDevice("--source openni2:" + oni + " --dump-dir " + (dir / "dump").string() + kCommon);
+        runDevice("--source openni2:" + oni + " --dump-dir " + (dir / "dump").string() +
+                  " --record " + (dir / "frames").string() + kCommon);
     ASSERT_TRUE(run.exit_code == 0 || run.exit_code == 1) << run.output;
     EXPECT_GE(capturedFrames(run.output), 10) << run.output;               // every recorded frame
     EXPECT_EQ(run.output.find("usb: "), std::string::npos) << run.output;  // a file: no hot-plug
     EXPECT_GE(filesIn(dir / "dump"), 2u) << run.output;
+    // The player numbers recorded frames from 1; the recording began with stream frame 0.
+    EXPECT_GE(expectRecordingEqualsTheSimulator(dir / "frames", record.uri, -1), 10u);
 }
 
 TEST(PlumbDeviceOpenNI2, WaitsForACameraPluggedInAfterTheStart) {

@@ -1,0 +1,121 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "drivers/recording_source.hpp"
+
+#include <Eigen/Geometry>
+#include <system_error>
+
+#include "common/core/logging.hpp"
+#include "drivers/dataset/depth_png.hpp"
+#include "drivers/dataset/intrinsics_file.hpp"
+
+namespace plumb {
+namespace {
+
+Result<std::FILE*> openList(const std::filesystem::path& path, const char* header) {
+    std::FILE* file = std::fopen(path.c_str(), "w");
+    if (file == nullptr) {
+        return ioError(fmt::format("cannot create {}: {}", path.string(),
+                                   std::error_code(errno, std::generic_category()).message()));
+    }
+    if (std::fputs(header, file) < 0 || std::fflush(file) != 0) {
+        std::fclose(file);
+        return ioError("cannot write " + path.string());
+    }
+    return file;
+}
+
+void closeList(std::FILE*& file) {
+    if (file != nullptr) std::fclose(file);
+    file = nullptr;
+}
+
+}  // namespace
+
+RecordingSource::RecordingSource(std::unique_ptr<FrameSource> inner, std::filesystem::path dir)
+    : FrameSourceDecorator(std::move(inner)), dir_(std::move(dir)) {}
+
+RecordingSource::~RecordingSource() {
+    closeList(depth_list_);
+    closeList(capture_list_);
+    closeList(ground_truth_);
+}
+
+Status RecordingSource::checkFolder(const std::filesystem::path& dir) {
+    std::error_code ec;
+    if (std::filesystem::exists(dir / "depth.txt", ec)) {
+        return failedPrecondition(fmt::format(
+            "{} already holds a recording (depth.txt); choose a new folder", dir.string()));
+    }
+    return Status::ok();
+}
+
+Result<std::unique_ptr<RecordingSource>> RecordingSource::create(std::unique_ptr<FrameSource> inner,
+                                                                 const std::filesystem::path& dir) {
+    if (inner == nullptr) return invalidArgument("RecordingSource needs a source");
+    PLUMB_RETURN_IF_ERROR(checkFolder(dir));
+    std::error_code ec;
+    std::filesystem::create_directories(dir / "depth", ec);
+    if (ec) {
+        return ioError(fmt::format("cannot create the recording folder {}: {}",
+                                   (dir / "depth").string(), ec.message()));
+    }
+    PLUMB_RETURN_IF_ERROR(
+        dataset::writeIntrinsicsJson(dir / "intrinsics.json", inner->camera(), kDepthScale));
+    std::unique_ptr<RecordingSource> source(new RecordingSource(std::move(inner), dir));
+    auto depth = openList(dir / "depth.txt",
+                          "# depth maps recorded by plumb-device\n# timestamp filename\n");
+    if (!depth.isOk()) return depth.status();
+    source->depth_list_ = *depth;
+    auto capture = openList(dir / "capture.txt", "# index timestamp source frame name\n");
+    if (!capture.isOk()) return capture.status();
+    source->capture_list_ = *capture;
+    return source;
+}
+
+std::string RecordingSource::description() const {
+    return fmt::format("{}, recorded to {}", inner().description(), dir_.string());
+}
+
+Result<Frame> RecordingSource::next() {
+    auto frame = inner().next();
+    if (!frame.isOk()) return frame;
+    PLUMB_RETURN_IF_ERROR(record(*frame));
+    return frame;
+}
+
+Status RecordingSource::appendLine(std::FILE* file, const char* what, const std::string& line) {
+    if (std::fputs(line.c_str(), file) < 0 || std::fflush(file) != 0) {
+        return ioError(fmt::format("recording {}: cannot append to {}: {}", dir_.string(), what,
+                                   std::error_code(errno, std::generic_category()).message()));
+    }
+    return Status::ok();
+}
+
+Status RecordingSource::record(const Frame& frame) {
+    const std::string name = fmt::format("depth/{:06d}.png", recorded_);
+    PLUMB_RETURN_IF_ERROR(dataset::writeDepthPng(dir_ / name, toRaw(frame.depth, kDepthScale)));
+    // The image first, then the lines that list it: a cut-off recording lists only whole frames.
+    if (frame.T_W_C_gt) {
+        if (ground_truth_ == nullptr) {
+            auto gt = openList(dir_ / "groundtruth.txt", "# timestamp tx ty tz qx qy qz qw\n");
+            if (!gt.isOk()) return gt.status();
+            ground_truth_ = *gt;
+        }
+        Eigen::Quaterniond q(frame.T_W_C_gt->rotation());
+        if (q.w() < 0.0) q.coeffs() = -q.coeffs();
+        const Eigen::Vector3d t = frame.T_W_C_gt->translation();
+        PLUMB_RETURN_IF_ERROR(
+            appendLine(ground_truth_, "groundtruth.txt",
+                       fmt::format("{:.6f} {} {} {} {} {} {} {}\n", frame.timestamp_s, t.x(), t.y(),
+                                   t.z(), q.x(), q.y(), q.z(), q.w())));
+    }
+    PLUMB_RETURN_IF_ERROR(
+        appendLine(capture_list_, "capture.txt",
+                   fmt::format("{} {:.6f} {}\n", frame.index, frame.timestamp_s, frame.name)));
+    PLUMB_RETURN_IF_ERROR(
+        appendLine(depth_list_, "depth.txt", fmt::format("{:.6f} {}\n", frame.timestamp_s, name)));
+    ++recorded_;
+    return Status::ok();
+}
+
+}  // namespace plumb

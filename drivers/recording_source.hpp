@@ -1,0 +1,62 @@
+// SPDX-License-Identifier: Apache-2.0
+#pragma once
+
+// A FrameSource decorator that records every frame it passes on as a plumb dataset folder
+// (drivers/dataset/dataset.hpp, "plumb" layout), so a live scan can be replayed later with
+// `--source dataset:DIR` or reconstructed with `plumb reconstruct`:
+//
+//   depth/NNNNNN.png   16-bit depth in millimetres (depth_scale 1000), 0 = invalid
+//   depth.txt          `timestamp depth/NNNNNN.png` per frame (the frame's host/dataset stamp)
+//   intrinsics.json    the source's camera and depth scale
+//   capture.txt        `index timestamp name` per frame: the source's own frame name (an OpenNI2
+//                      device frame number, a dataset file), to trace a recorded frame back
+//   groundtruth.txt    TUM poses, only when the source knows them (simulator, datasets)
+//
+// Every list line is written after its image and flushed, so a scan that is cut off leaves a
+// readable recording of the frames captured so far. A failed write is the frame's error
+// (kIoError), never a silently incomplete recording.
+
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <string>
+
+#include "drivers/frame_source.hpp"
+
+namespace plumb {
+
+class RecordingSource final : public FrameSourceDecorator {
+  public:
+    /// kFailedPrecondition when `dir` already holds a recording (depth.txt): recordings are never
+    /// overwritten. Lets a program refuse the folder before it opens a camera.
+    static Status checkFolder(const std::filesystem::path& dir);
+
+    /// Creates `dir` (and depth/) and writes intrinsics.json, after checkFolder.
+    static Result<std::unique_ptr<RecordingSource>> create(std::unique_ptr<FrameSource> inner,
+                                                           const std::filesystem::path& dir);
+    ~RecordingSource() override;
+    RecordingSource(const RecordingSource&) = delete;
+    RecordingSource& operator=(const RecordingSource&) = delete;
+
+    Result<Frame> next() override;
+    std::string description() const override;
+
+    /// Frames recorded so far.
+    size_t recorded() const { return recorded_; }
+
+    /// Units per metre of the recorded PNGs.
+    static constexpr double kDepthScale = 1000.0;
+
+  private:
+    RecordingSource(std::unique_ptr<FrameSource> inner, std::filesystem::path dir);
+    Status record(const Frame& frame);
+    Status appendLine(std::FILE* file, const char* what, const std::string& line);
+
+    std::filesystem::path dir_;
+    std::FILE* depth_list_ = nullptr;
+    std::FILE* capture_list_ = nullptr;
+    std::FILE* ground_truth_ = nullptr;  ///< opened at the first frame with a pose
+    size_t recorded_ = 0;
+};
+
+}  // namespace plumb
