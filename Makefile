@@ -41,7 +41,8 @@ CROSS_BUILD_DIR ?= build-aarch64
 CROSS_TEST_EXCLUDE ?= MatchesOpen3dDepthNoiseSimulator|format_check
 # Warnings are not errors here: the aarch64 GCC 12 reports a false -Wstringop-overflow in
 # common/io/ply.cpp's byte swap (the host build keeps -Werror in CI).
-CROSS_CMAKE_FLAGS ?= -DPLUMB_WERROR=OFF
+# Tests run about ten times slower under qemu: their timeouts are scaled to match.
+CROSS_CMAKE_FLAGS ?= -DPLUMB_WERROR=OFF -DPLUMB_TEST_TIMEOUT_SCALE=10
 cross-device:
 	bash tools/setup.sh --cross-aarch64
 	cmake -S . -B $(CROSS_BUILD_DIR) -G Ninja -DCMAKE_BUILD_TYPE=Release \

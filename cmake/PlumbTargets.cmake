@@ -24,6 +24,10 @@ endfunction()
 # Labels added to every test of this build tree (the aarch64 cross build adds "aarch64").
 set(PLUMB_EXTRA_TEST_LABELS "" CACHE STRING "Extra ctest labels for every test of this build")
 
+# Test timeouts are multiplied by this (the aarch64 build runs its tests under qemu, about ten
+# times slower than natively).
+set(PLUMB_TEST_TIMEOUT_SCALE 1 CACHE STRING "Factor applied to every test timeout of this build")
+
 # plumb_add_test(<name> SOURCES ... LIBS ... LABELS ... [TIMEOUT s])
 # One GoogleTest executable per module; every test case is registered with ctest and labelled
 # (LABELS plus PLUMB_EXTRA_TEST_LABELS).
@@ -35,6 +39,7 @@ function(plumb_add_test name)
     if(NOT ARG_TIMEOUT)
         set(ARG_TIMEOUT 600)
     endif()
+    math(EXPR ARG_TIMEOUT "${ARG_TIMEOUT} * ${PLUMB_TEST_TIMEOUT_SCALE}")
     gtest_discover_tests(${name}
         WORKING_DIRECTORY ${PROJECT_SOURCE_DIR}
         PROPERTIES LABELS "${ARG_LABELS}" TIMEOUT ${ARG_TIMEOUT}

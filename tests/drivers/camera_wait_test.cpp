@@ -150,9 +150,12 @@ TEST(CameraWait, RecordingsDatasetsAndBadRequestsAreNotWaitedFor) {
                                            kNeverStop);
     ASSERT_FALSE(mode.isOk());
     EXPECT_EQ(mode.status().code(), StatusCode::kInvalidArgument);
-    // A camera that is present opens on the first attempt, waiting or not.
+    // A camera that is present opens on the first attempt (a finite wait, so that a missing
+    // virtual device fails the test instead of hanging it).
+    CameraWait minute;
+    minute.timeout_s = 60.0;
     auto present = openFrameSourceWhenPresent("openni2:plumb-sim://living_room?frames=300", {},
-                                              forever, nullptr, kNeverStop);
+                                              minute, nullptr, kNeverStop);
     EXPECT_TRUE(present.isOk()) << present.status().toString();
 }
 

@@ -1,9 +1,10 @@
 // SPDX-License-Identifier: Apache-2.0
 // plumb-device end to end on the virtual OpenNI2 device and on a replayed .oni recording: the
 // program runs as a child process with LD_LIBRARY_PATH pointing at the build's openni2-runtime
-// (so OpenNI2 loads the virtual device), captures the requested frames, cuts fragments (written
-// with --dump-dir) and, with no backend to acknowledge them, exits 1 after a short ack wait.
-// Frame-level equality with the simulator is checked in test_drivers_openni2.
+// (so OpenNI2 loads the virtual device; under emulation it is started through the emulator),
+// captures the requested frames, cuts fragments (written with --dump-dir), records the frames
+// (--record, compared with the simulator's) and, with no backend to acknowledge the fragments,
+// exits 1 after a short ack wait.
 
 #include <gtest/gtest.h>
 
@@ -33,8 +34,8 @@ struct DeviceRun {
 /// Runs plumb-device with `args`; `on_line` sees every output line as it is printed.
 DeviceRun runDevice(const std::string& args,
                     const std::function<void(const std::string&)>& on_line = {}) {
-    const std::string command = std::string("LD_LIBRARY_PATH=") + PLUMB_OPENNI2_RUNTIME_DIR + " " +
-                                PLUMB_DEVICE_EXE + " " + args + " 2>&1";
+    const std::string command =
+        std::string(PLUMB_DEVICE_LAUNCHER) + " " + PLUMB_DEVICE_EXE + " " + args + " 2>&1";
     DeviceRun run;
     FILE* pipe = popen(command.c_str(), "r");
     if (pipe == nullptr) return run;
