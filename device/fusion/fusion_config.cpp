@@ -70,7 +70,8 @@ void describe(config::Schema& s, IcpConfig& c) {
         .max(1.0);
     s.field("max_degenerate_directions", c.max_degenerate_directions,
             "tracking fails when more translations than this are unconstrained (a single plane "
-            "leaves 2, a wall meeting the floor 1)")
+            "leaves 2, a wall meeting the floor 1); unconstrained directions follow the "
+            "constant-velocity prediction")
         .range(0, 3);
     s.field("num_threads", c.num_threads, "worker threads (0 = all); results do not depend on it")
         .min(0);

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
 // Frame-to-model ICP on an analytic room corner: convergence from 2 cm / 2 deg offsets and failure
-// detection on degenerate or empty frames.
+// detection on degenerate or empty frames, and a single plane tracked along its normal only.
 
 #include <gtest/gtest.h>
 
@@ -43,7 +43,7 @@ Eigen::Isometry3d referencePose() {
 }
 
 IcpResult alignWithOffset(const testing::Scene& scene, const Vector6d& offset,
-                          Eigen::Isometry3d* T_true) {
+                          Eigen::Isometry3d* T_true, const IcpConfig& config = {}) {
     const PinholeCamera cam = cameraPreset("primesense").value().scaled(0.5);
     const Eigen::Isometry3d T_M_ref = referencePose();
     tsdf::TsdfVolume volume(volumeConfig());
@@ -53,7 +53,7 @@ IcpResult alignWithOffset(const testing::Scene& scene, const Vector6d& offset,
         preprocess(scene.render(cam, *T_true), cam, PreprocessConfig{}).value();
     const std::vector<ModelLevel> model =
         predictModel(volume, frame, T_M_ref, tsdf::RaycastConfig{});
-    return alignFrameToModel(frame, model, T_M_ref, T_M_ref, IcpConfig{});
+    return alignFrameToModel(frame, model, T_M_ref, T_M_ref, config);
 }
 
 TEST(Icp, ConvergesFromTwoCentimetresAndTwoDegrees) {
@@ -76,12 +76,28 @@ TEST(Icp, ConvergesFromTwoCentimetresAndTwoDegrees) {
     }
 }
 
-TEST(Icp, DetectsDegenerateSinglePlane) {
+TEST(Icp, ASinglePlaneKeepsThePredictionAlongItOrFailsWhenAskedTo) {
     testing::Scene plane;
-    plane.planes = {{{0, 0, -1}, 1.5}};
+    plane.planes = {{{0, 0, -1}, 1.5}};  // a wall filling the view
+    // The camera is 1 cm along the wall and 1 cm closer to it than predicted (the model pose).
+    const Vector6d offset = (Vector6d() << 0, 0, 0, 0.01, 0, -0.01).finished();
     Eigen::Isometry3d T_true;
-    const IcpResult r =
-        alignWithOffset(plane, (Vector6d() << 0, 0, 0, 0.01, 0, 0).finished(), &T_true);
+    const IcpResult tracked = alignWithOffset(plane, offset, &T_true);
+    ASSERT_TRUE(tracked.ok) << tracked.failure;  // default: up to 2 free translations
+    EXPECT_EQ(tracked.num_degenerate_directions, 2);
+    // Depth observes the distance to the wall: corrected. It cannot see the slide along the wall:
+    // that stays near the prediction (the reference pose; the small rotations the oblique view
+    // does constrain move it by a few mm) instead of following noise.
+    const Eigen::Vector3d n_W = Eigen::Vector3d(0, 0, -1);
+    const Eigen::Vector3d predicted = referencePose().translation();
+    const Eigen::Vector3d estimated = tracked.T_M_C.translation();
+    EXPECT_NEAR(n_W.dot(estimated), n_W.dot(T_true.translation()), 0.002);
+    const Eigen::Vector3d along = (estimated - predicted) - n_W * n_W.dot(estimated - predicted);
+    EXPECT_LT(along.norm(), 0.005);
+
+    IcpConfig strict;
+    strict.max_degenerate_directions = 1;
+    const IcpResult r = alignWithOffset(plane, offset, &T_true, strict);
     EXPECT_FALSE(r.ok) << r.condition_number;
     EXPECT_NE(r.failure.find("degenerate"), std::string::npos) << r.failure;
 }

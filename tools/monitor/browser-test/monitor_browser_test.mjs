@@ -69,6 +69,7 @@ let monitorExit = null;
 monitor.on("exit", (code, signal) => { monitorExit = { code, signal }; });
 
 let browser = null;
+let page = null;
 async function cleanup() {
   if (browser) await browser.close().catch(() => {});
   if (monitorExit === null) {
@@ -96,7 +97,7 @@ try {
            "--disable-background-networking", "--disable-component-update", "--disable-sync",
            "--disable-dev-shm-usage"],
   });
-  const page = await browser.newPage({ viewport: { width: 1400, height: 900 } });
+  page = await browser.newPage({ viewport: { width: 1400, height: 900 } });
   const external = [];
   page.on("request", (req) => { if (!req.url().startsWith("http://127.0.0.1")) external.push(req.url()); });
   const consoleErrors = [];
@@ -169,15 +170,18 @@ try {
   // Say what the page showed when a wait gave up, so a failure can be told apart from slowness.
   let shown = "";
   try {
-    shown = "\npage: " + JSON.stringify(await browser.pages()[0].evaluate(() => ({
+    shown = "\npage: " + JSON.stringify(await page.evaluate(() => ({
       fragments: document.querySelectorAll("#fragment-list tr.fragment").length,
       outlines: document.querySelectorAll("#map polygon.fragment-outline").length,
       odometry: document.querySelectorAll("#map line.edge.odometry").length,
       loops: document.querySelectorAll("#map line.edge.loop").length,
       room: document.querySelector("#map polygon.room") !== null,
       connection: document.getElementById("connection").textContent,
+      version: Number(document.body.dataset.version),
     })));
-  } catch (_) {}
+  } catch (e) {
+    shown = "\npage state unavailable: " + String(e);
+  }
   await cleanup();
   fail((err && err.stack ? err.stack : String(err)) + shown);
 }

@@ -209,6 +209,10 @@
   }
 
   function render(s) {
+    // The first poll and the event stream race: a state older than the one shown (a slow
+    // /api/state answer arriving after a newer event) must not replace it, or the page would
+    // stay behind until the next change, which may never come.
+    if (lastState && s.version < lastState.version) return;
     lastState = s;
     $("source").textContent = s.source.mode + (s.source.detail ? ": " + s.source.detail : "");
     $("version").textContent = "v" + s.version;
