@@ -9,36 +9,23 @@
 #include "drivers/dataset/intrinsics_file.hpp"
 
 namespace plumb {
-namespace {
 
-Result<std::FILE*> openList(const std::filesystem::path& path, const char* header) {
-    std::FILE* file = std::fopen(path.c_str(), "w");
+/// Creates `path` with `header` written and flushed.
+Result<RecordingSource::File> RecordingSource::openList(const std::filesystem::path& path,
+                                                        const char* header) {
+    File file(std::fopen(path.c_str(), "w"));
     if (file == nullptr) {
         return ioError(fmt::format("cannot create {}: {}", path.string(),
                                    std::error_code(errno, std::generic_category()).message()));
     }
-    if (std::fputs(header, file) < 0 || std::fflush(file) != 0) {
-        std::fclose(file);
+    if (std::fputs(header, file.get()) < 0 || std::fflush(file.get()) != 0) {
         return ioError("cannot write " + path.string());
     }
     return file;
 }
 
-void closeList(std::FILE*& file) {
-    if (file != nullptr) std::fclose(file);
-    file = nullptr;
-}
-
-}  // namespace
-
 RecordingSource::RecordingSource(std::unique_ptr<FrameSource> inner, std::filesystem::path dir)
     : FrameSourceDecorator(std::move(inner)), dir_(std::move(dir)) {}
-
-RecordingSource::~RecordingSource() {
-    closeList(depth_list_);
-    closeList(capture_list_);
-    closeList(ground_truth_);
-}
 
 Status RecordingSource::checkFolder(const std::filesystem::path& dir) {
     std::error_code ec;
@@ -65,10 +52,10 @@ Result<std::unique_ptr<RecordingSource>> RecordingSource::create(std::unique_ptr
     auto depth = openList(dir / "depth.txt",
                           "# depth maps recorded by plumb-device\n# timestamp filename\n");
     if (!depth.isOk()) return depth.status();
-    source->depth_list_ = *depth;
+    source->depth_list_ = std::move(depth).value();
     auto capture = openList(dir / "capture.txt", "# index timestamp source frame name\n");
     if (!capture.isOk()) return capture.status();
-    source->capture_list_ = *capture;
+    source->capture_list_ = std::move(capture).value();
     return source;
 }
 
@@ -83,8 +70,8 @@ Result<Frame> RecordingSource::next() {
     return frame;
 }
 
-Status RecordingSource::appendLine(std::FILE* file, const char* what, const std::string& line) {
-    if (std::fputs(line.c_str(), file) < 0 || std::fflush(file) != 0) {
+Status RecordingSource::appendLine(const File& file, const char* what, const std::string& line) {
+    if (std::fputs(line.c_str(), file.get()) < 0 || std::fflush(file.get()) != 0) {
         return ioError(fmt::format("recording {}: cannot append to {}: {}", dir_.string(), what,
                                    std::error_code(errno, std::generic_category()).message()));
     }
@@ -99,7 +86,7 @@ Status RecordingSource::record(const Frame& frame) {
         if (ground_truth_ == nullptr) {
             auto gt = openList(dir_ / "groundtruth.txt", "# timestamp tx ty tz qx qy qz qw\n");
             if (!gt.isOk()) return gt.status();
-            ground_truth_ = *gt;
+            ground_truth_ = std::move(gt).value();
         }
         Eigen::Quaterniond q(frame.T_W_C_gt->rotation());
         if (q.w() < 0.0) q.coeffs() = -q.coeffs();

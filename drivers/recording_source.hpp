@@ -34,10 +34,6 @@ class RecordingSource final : public FrameSourceDecorator {
     /// Creates `dir` (and depth/) and writes intrinsics.json, after checkFolder.
     static Result<std::unique_ptr<RecordingSource>> create(std::unique_ptr<FrameSource> inner,
                                                            const std::filesystem::path& dir);
-    ~RecordingSource() override;
-    RecordingSource(const RecordingSource&) = delete;
-    RecordingSource& operator=(const RecordingSource&) = delete;
-
     Result<Frame> next() override;
     std::string description() const override;
 
@@ -48,14 +44,20 @@ class RecordingSource final : public FrameSourceDecorator {
     static constexpr double kDepthScale = 1000.0;
 
   private:
+    struct FileCloser {
+        void operator()(std::FILE* f) const { std::fclose(f); }
+    };
+    using File = std::unique_ptr<std::FILE, FileCloser>;
+
     RecordingSource(std::unique_ptr<FrameSource> inner, std::filesystem::path dir);
     Status record(const Frame& frame);
-    Status appendLine(std::FILE* file, const char* what, const std::string& line);
+    static Result<File> openList(const std::filesystem::path& path, const char* header);
+    Status appendLine(const File& file, const char* what, const std::string& line);
 
     std::filesystem::path dir_;
-    std::FILE* depth_list_ = nullptr;
-    std::FILE* capture_list_ = nullptr;
-    std::FILE* ground_truth_ = nullptr;  ///< opened at the first frame with a pose
+    File depth_list_;
+    File capture_list_;
+    File ground_truth_;  ///< opened at the first frame with a pose
     size_t recorded_ = 0;
 };
 

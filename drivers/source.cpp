@@ -128,9 +128,13 @@ Result<std::unique_ptr<FrameSource>> openFrameSource(const std::string& uri,
 bool isLiveCameraUri(const std::string& uri) {
     if (uri == "openni2") return true;
     if (uri.rfind("v4l2:", 0) == 0) return true;
-    if (uri.rfind("openni2:", 0) != 0) return false;
-    const std::filesystem::path target(uri.substr(8));
-    return target.extension() != ".oni" && target.extension() != ".ONI";
+    return uri.rfind("openni2:", 0) == 0 && !openni2::isOniFile(uri.substr(8));
+}
+
+bool isAbsentCamera(const std::string& uri, const Status& status) {
+    const StatusCode code = status.code();
+    return isLiveCameraUri(uri) &&
+           (code == StatusCode::kNotFound || code == StatusCode::kUnavailable);
 }
 
 void ArrivalRelay::arrived() {
@@ -177,9 +181,7 @@ Result<std::unique_ptr<FrameSource>> openFrameSourceWhenPresent(const std::strin
             return source;
         }
         const Status& why = source.status();
-        const bool absent =
-            why.code() == StatusCode::kNotFound || why.code() == StatusCode::kUnavailable;
-        if (!absent || !isLiveCameraUri(uri) || wait.timeout_s == 0.0) return why;
+        if (wait.timeout_s == 0.0 || !isAbsentCamera(uri, why)) return why;
         if (attempt == 1) {
             log::info("waiting for camera '{}' to be plugged in ({}){}", uri, why.message(),
                       wait.timeout_s > 0.0 ? fmt::format(" for up to {:g} s", wait.timeout_s)
@@ -199,11 +201,12 @@ Result<std::unique_ptr<FrameSource>> openFrameSourceWhenPresent(const std::strin
             const auto left =
                 std::chrono::duration_cast<std::chrono::milliseconds>(until - Clock::now());
             const int slice = static_cast<int>(std::clamp<int64_t>(left.count(), 1, 100));
-            if (relay != nullptr ? relay->waitForArrival(slice) : false) {
+            if (relay == nullptr) {
+                std::this_thread::sleep_for(std::chrono::milliseconds(slice));
+            } else if (relay->waitForArrival(slice)) {
                 log::info("a depth camera arrived; trying '{}' again", uri);
                 break;
             }
-            if (relay == nullptr) std::this_thread::sleep_for(std::chrono::milliseconds(slice));
         }
         if (wait.report_s > 0.0 && elapsed_s() >= next_report_s) {
             log::info("still waiting for camera '{}' ({:.0f} s)", uri, elapsed_s());

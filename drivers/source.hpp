@@ -55,6 +55,10 @@ Status checkDepthCalibration(const std::string& value);
 /// recording, a dataset or the simulator: a camera that can be absent, leave and come back.
 bool isLiveCameraUri(const std::string& uri);
 
+/// True when opening `uri` failed with `status` because the live camera is not there (kNotFound
+/// or kUnavailable from an OpenNI2 device or V4L2 node): what openFrameSourceWhenPresent waits out.
+bool isAbsentCamera(const std::string& uri, const Status& status);
+
 /// How long to wait at start for a live camera that is not plugged in.
 struct CameraWait {
     /// Seconds; 0 = fail at once, < 0 = until stopped.

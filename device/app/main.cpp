@@ -227,9 +227,7 @@ int main(int argc, char** argv) {
                                              [] { return g_stop_requests.load() > 0; });
     if (!opened.isOk()) {
         log::error("cannot open source '{}': {}", source_uri, opened.status().toString());
-        const StatusCode code = opened.status().code();
-        if (wait.timeout_s == 0.0 && isLiveCameraUri(source_uri) &&
-            (code == StatusCode::kNotFound || code == StatusCode::kUnavailable)) {
+        if (wait.timeout_s == 0.0 && isAbsentCamera(source_uri, opened.status())) {
             log::info("to wait for the camera to be plugged in: --wait-for-camera SECONDS|forever");
         }
         return 1;

@@ -63,11 +63,6 @@ double unitsPerMetre(openni::PixelFormat f) {
     return f == openni::PIXEL_FORMAT_DEPTH_100_UM ? 10000.0 : 1000.0;
 }
 
-bool isOniFile(const std::string& uri) {
-    const std::filesystem::path p(uri);
-    return p.extension() == ".oni" || p.extension() == ".ONI";
-}
-
 /// One OpenNI2 initialise/shutdown pair (OpenNI2 counts them).
 class Runtime {
   public:
@@ -88,6 +83,11 @@ class Runtime {
 };
 
 }  // namespace
+
+bool isOniFile(const std::string& uri) {
+    const std::filesystem::path p(uri);
+    return p.extension() == ".oni" || p.extension() == ".ONI";
+}
 
 Result<std::vector<DeviceEntry>> listDevices() {
     auto runtime = Runtime::acquire();

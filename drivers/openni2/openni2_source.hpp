@@ -58,6 +58,9 @@ struct DeviceEntry {
 /// initialise (no drivers) is an error naming OpenNI2's own explanation.
 Result<std::vector<DeviceEntry>> listDevices();
 
+/// True when `uri` names an OpenNI2 recording (a .oni file) rather than a device.
+bool isOniFile(const std::string& uri);
+
 class OpenNI2Source final : public FrameSource {
   public:
     static Result<std::unique_ptr<OpenNI2Source>> open(const OpenNI2Config& config);
