@@ -65,7 +65,9 @@ void describe(config::Schema& s, IcpConfig& c) {
             "(solution remapping)")
         .min(0.0);
     s.field("min_normal_spread", c.min_normal_spread,
-            "a translation t is unconstrained when mean (n.t)^2 over the inliers is below this")
+            "a translation t is unconstrained when mean (n.t)^2 over the inliers is below this; "
+            "the pose then keeps the prediction along t (walking down a corridor, along a wall) "
+            "instead of following the few pixels that face t (0 = never)")
         .min(0.0)
         .max(1.0);
     s.field("max_degenerate_directions", c.max_degenerate_directions,

@@ -108,6 +108,40 @@ size_t countValidNormals(const PyramidLevel& level) {
     return n;
 }
 
+/// Step 4: (sum J^T J) xi = -sum J^T r, solved with solution remapping (Zhang, Kaess, Singh, ICRA
+/// 2016): directions the data does not constrain keep the prediction instead of following noise.
+/// They are (a) translations along axes t of sum n n^T / inliers with mean (n.t)^2 below
+/// min_normal_spread -- sliding along a wall, down a corridor, along the line where a wall meets
+/// the floor -- removed before the solve, and (b) eigen-directions of the remaining system whose
+/// eigenvalue per inlier is below min_normalized_eigenvalue.
+Vector6d solveStep(const Accumulator& sys, const IcpConfig& config) {
+    const double per_inlier = 1.0 / static_cast<double>(sys.count);
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> spread(sys.JtJ.bottomRightCorner<3, 3>() *
+                                                                per_inlier);
+    // Basis of the directions solved for: the three rotations and the constrained translations
+    // (xi = [omega, v]; a twist [0, t] translates the camera by t).
+    Eigen::Matrix<double, 6, Eigen::Dynamic> basis(6, 6);
+    basis.setZero();
+    int k = 0;
+    for (int i = 0; i < 3; ++i) basis(i, k++) = 1.0;
+    for (int i = 0; i < 3; ++i) {
+        if (!(spread.eigenvalues()(i) >= config.min_normal_spread)) continue;
+        basis.block<3, 1>(3, k++) = spread.eigenvectors().col(i);
+    }
+    basis.conservativeResize(6, k);
+    const Eigen::MatrixXd H = basis.transpose() * sys.JtJ * basis;
+    const Eigen::VectorXd g = basis.transpose() * (-sys.Jtr);
+    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(H);
+    const Eigen::VectorXd b = es.eigenvectors().transpose() * g;
+    Eigen::VectorXd y = Eigen::VectorXd::Zero(k);
+    for (int i = 0; i < k; ++i) {
+        const double ev = es.eigenvalues()(i);
+        if (!(ev * per_inlier >= config.min_normalized_eigenvalue)) continue;
+        y += es.eigenvectors().col(i) * (b(i) / ev);
+    }
+    return basis * y;
+}
+
 }  // namespace
 
 std::vector<ModelLevel> predictModel(const tsdf::TsdfVolume& volume, const FramePyramid& frame,
@@ -187,19 +221,7 @@ IcpResult alignFrameToModel(const FramePyramid& frame, const std::vector<ModelLe
             Accumulator sys = buildSystem(level, model[static_cast<size_t>(l)], T, T_P_M, config);
             if (sys.count < 6) break;
             ++result.iterations;
-            // Step 4: (sum J^T J) xi = -sum J^T r, T <- Exp(xi) T, solved in the eigenbasis of
-            // J^T J with solution remapping (Zhang, Kaess, Singh, ICRA 2016): directions whose
-            // eigenvalue per inlier is below min_normalized_eigenvalue (e.g. sliding along the
-            // line where a wall meets the floor) keep the prediction instead of following noise.
-            const Eigen::SelfAdjointEigenSolver<Matrix6d> es(sys.JtJ);
-            const Vector6d b = es.eigenvectors().transpose() * (-sys.Jtr);
-            const double per_inlier = 1.0 / static_cast<double>(sys.count);
-            Vector6d xi = Vector6d::Zero();
-            for (int i = 0; i < 6; ++i) {
-                const double ev = es.eigenvalues()(i);
-                if (!(ev * per_inlier >= config.min_normalized_eigenvalue)) continue;
-                xi += es.eigenvectors().col(i) * (b(i) / ev);
-            }
+            const Vector6d xi = solveStep(sys, config);
             if (!xi.allFinite()) break;
             T = lie::orthonormalized(lie::expSE3(xi) * T);
             if (xi.norm() < config.min_update_norm) break;
@@ -225,7 +247,9 @@ IcpResult alignFrameToModel(const FramePyramid& frame, const std::vector<ModelLe
     result.num_degenerate_directions = 0;
     if (last.count > 0) {
         const Eigen::Matrix3d nn = last.JtJ.bottomRightCorner<3, 3>() / last.count;
-        const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig_t(nn, Eigen::EigenvaluesOnly);
+        const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig_t(nn);
+        result.translation_spread = eig_t.eigenvalues();
+        result.translation_axes_M = eig_t.eigenvectors();
         for (int i = 0; i < 3; ++i) {
             if (!(eig_t.eigenvalues()(i) >= config.min_normal_spread)) {
                 ++result.num_degenerate_directions;

@@ -40,13 +40,17 @@ struct IcpConfig {
     double min_normalized_eigenvalue = 1e-3;
     /// Directions below min_normalized_eigenvalue keep the predicted pose (solution remapping).
     /// A translation t is unconstrained when mean (n.t)^2 over the inliers (an eigenvalue of
-    /// sum n n^T / inliers) is below min_normal_spread; tracking fails when more than
-    /// max_degenerate_directions translations are (a single plane leaves 2, a wall meeting the
-    /// floor 1, a room corner 0). Default 2: a wall filling the view is tracked, its free
-    /// directions following the constant-velocity prediction. Declaring such frames lost cuts the
-    /// scan into segments of two or three frames wherever the camera faces a wall (a 600-frame
-    /// living_room loop: 39 fragments instead of 14, ATE 28.7 cm instead of 8.8 cm), which
-    /// costs far more than the drift of a few frames along the wall.
+    /// sum n n^T / inliers) is below min_normal_spread. The pose keeps the prediction along such
+    /// a t too: looking down a corridor, the few pixels that face the camera (furniture, the
+    /// ragged ends of surfaces cut by the depth range) would otherwise decide the motion along
+    /// it, and their errors, fed back through the constant-velocity prediction, grew into runaway
+    /// drift (a 600-frame l_shape scan: 1.2 m within 25 frames). Tracking fails when more than
+    /// max_degenerate_directions translations are unconstrained (a single plane leaves 2, a wall
+    /// meeting the floor 1, a room corner 0). Default 2: a wall filling the view is tracked, its
+    /// free directions following the constant-velocity prediction. Declaring such frames lost
+    /// cuts the scan into segments of two or three frames wherever the camera faces a wall (a
+    /// 600-frame living_room loop: 39 fragments instead of 14, ATE 28.7 cm instead of 8.8 cm),
+    /// which costs far more than the drift of a few frames along the wall.
     double min_normal_spread = 0.02;
     int max_degenerate_directions = 2;
     /// Worker threads (0 = TBB default). Results do not depend on it.
@@ -80,6 +84,11 @@ struct IcpResult {
     double condition_number = 0.0;           ///< of the finest level's normal equations
     double min_normalized_eigenvalue = 0.0;  ///< smallest eigenvalue of J^T J / inliers
     int num_degenerate_directions = 0;       ///< unconstrained translations (see IcpConfig)
+    /// Eigenvalues (ascending) of sum n n^T / inliers at the finest level, the mean of (n.t)^2
+    /// along each axis t of translation_axes_M: how strongly the geometry pins each translation.
+    Eigen::Vector3d translation_spread = Eigen::Vector3d::Zero();
+    /// The matching eigenvectors (columns) in the model frame M.
+    Eigen::Matrix3d translation_axes_M = Eigen::Matrix3d::Identity();
     Matrix6d information = Matrix6d::Zero();  ///< J^T J at the finest level (rotation first)
 };
 

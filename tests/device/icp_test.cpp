@@ -102,6 +102,41 @@ TEST(Icp, ASinglePlaneKeepsThePredictionAlongItOrFailsWhenAskedTo) {
     EXPECT_NE(r.failure.find("degenerate"), std::string::npos) << r.failure;
 }
 
+TEST(Icp, ACorridorKeepsThePredictionAlongItsAxis) {
+    // Looking down a corridor (walls, floor and ceiling parallel to z; its far end beyond the
+    // 4 m range): only a ball 2 m ahead faces the camera, under 1 % of the pixels. The ball has
+    // rolled 5 cm away since the model was fused, and the camera moved 1 cm sideways.
+    testing::Scene corridor;
+    corridor.planes = {{{1, 0, 0}, 0.8}, {{-1, 0, 0}, 0.8}, {{0, 1, 0}, 0.6}, {{0, -1, 0}, 0.7}};
+    testing::Scene moved = corridor;
+    corridor.spheres = {{{0.2, 0.1, 2.0}, 0.05}};
+    moved.spheres = {{{0.2, 0.1, 2.05}, 0.05}};
+    const PinholeCamera cam = cameraPreset("primesense").value().scaled(0.5);
+    const Eigen::Isometry3d T_ref = Eigen::Isometry3d::Identity();
+    tsdf::TsdfVolume volume(volumeConfig());
+    ASSERT_TRUE(volume.integrate(corridor.render(cam, T_ref), cam, T_ref).isOk());
+    const Eigen::Isometry3d T_true = Eigen::Translation3d(0.01, 0.0, 0.0) * T_ref;
+    const FramePyramid frame = preprocess(moved.render(cam, T_true), cam, {}).value();
+    const std::vector<ModelLevel> model = predictModel(volume, frame, T_ref, {});
+
+    // The axis counts as unconstrained (mean (n.z)^2 below min_normal_spread): the pose keeps the
+    // prediction along it instead of following the ball; the sideways step is corrected.
+    const IcpResult r = alignFrameToModel(frame, model, T_ref, T_ref, {});
+    ASSERT_TRUE(r.ok) << r.failure;
+    EXPECT_EQ(r.num_degenerate_directions, 1) << r.translation_spread.transpose();
+    EXPECT_LT(r.translation_spread(0), IcpConfig{}.min_normal_spread);
+    EXPECT_GT(std::abs(r.translation_axes_M.col(0).z()), 0.99);
+    EXPECT_NEAR(r.T_M_C.translation().x(), 0.01, 0.002);
+    EXPECT_NEAR(r.T_M_C.translation().z(), 0.0, 0.002);
+
+    // With the threshold at zero the ball is the only constraint along the axis and drags the
+    // camera with it: the data do carry that (wrong) signal, the remapping is what ignores it.
+    IcpConfig follow;
+    follow.min_normal_spread = 0.0;
+    const IcpResult f = alignFrameToModel(frame, model, T_ref, T_ref, follow);
+    EXPECT_LT(f.T_M_C.translation().z(), -0.02);  // backwards, to keep its distance
+}
+
 TEST(Icp, DetectsEmptyFrame) {
     const PinholeCamera cam = cameraPreset("ci").value();
     tsdf::TsdfVolume volume(volumeConfig());
