@@ -113,10 +113,12 @@ std::vector<Eigen::Isometry3d> perturbed(const std::vector<Eigen::Isometry3d>& p
     for (const Eigen::Isometry3d& T : poses) {
         const Eigen::Vector3d axis = Eigen::Vector3d(g(rng), g(rng), g(rng)).normalized();
         const Eigen::Vector3d dir = Eigen::Vector3d(g(rng), g(rng), g(rng)).normalized();
-        Eigen::Isometry3d D = Eigen::Isometry3d::Identity();
-        D.linear() = Eigen::AngleAxisd(1.0 * std::numbers::pi / 180.0, axis).toRotationMatrix();
-        D.translation() = 0.03 * dir;
-        out.push_back(D * T);  // 3 cm and 1 deg in the world, about the fragment origin
+        // 1 deg about the fragment origin, then 3 cm, both in world axes.
+        Eigen::Isometry3d P = T;
+        P.linear() =
+            Eigen::AngleAxisd(1.0 * std::numbers::pi / 180.0, axis).toRotationMatrix() * T.linear();
+        P.translation() += 0.03 * dir;
+        out.push_back(P);
     }
     return out;
 }
@@ -174,13 +176,14 @@ TEST_P(SimLayout, PerturbedPosesStillGiveTheRoom) {
         const auto poses = perturbed(room.T_W_F, seed);
         auto est = estimateLayout(room.fragments, room.planes, poses);
         ASSERT_TRUE(est.isOk()) << est.status().toString();
-        // Every fragment is off by up to 3 cm + 1 deg x 7 m = 15 cm at the far walls (l_shape is
-        // 7 m across), and a wall is seen by a few fragments only: the structure must stay right
-        // (same walls, same matching, angles within 2 deg: a wall tilted by its fragments' 1 deg,
-        // walls being kept perpendicular to a base plane that is itself off by up to 1 deg),
-        // offsets within 15 cm; the layout-constrained registration (backend/global) removes the
-        // remaining error.
-        expectLayoutMatches(est->layout, room.gt, 2.0, 0.15,
+        // Every fragment is off by 3 cm plus 1 deg about its own origin: up to 3 + 7 = 10 cm at a
+        // wall 4 m away (the depth range), and a wall is seen by a few fragments only. The
+        // structure must stay right (same walls, same matching, angles within 2 deg: a wall
+        // tilted by its fragments' 1 deg, walls being kept perpendicular to a base plane that is
+        // itself off by up to 1 deg), offsets within 5 cm (measured: 1.4-3.2 cm for the walls,
+        // up to 3.8 cm for floor and ceiling); the layout-constrained registration
+        // (backend/global) removes the remaining error.
+        expectLayoutMatches(est->layout, room.gt, 2.0, 0.05,
                             GetParam() + " perturbed seed " + std::to_string(seed));
         EXPECT_EQ(static_cast<int>(est->layout.walls().size()), room.scene.numWalls());
     }
