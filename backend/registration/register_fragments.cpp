@@ -3,10 +3,12 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <numbers>
 #include <optional>
 #include <utility>
 
 #include "backend/registration/cloud_ops.hpp"
+#include "common/geometry/lie.hpp"
 
 namespace plumb::registration {
 
@@ -31,6 +33,12 @@ void describe(config::Schema& s, RegistrationConfig& c) {
     s.field("min_overlap", c.min_overlap,
             "loop closures need this fraction of the smaller fragment within tau")
         .range(0.0, 1.0);
+    s.field("max_loop_rotation_deviation_deg", c.max_loop_rotation_deviation_deg,
+            "loop closures within a tracking segment that turn further than this from the "
+            "odometry are rejected (a bare room matches itself after a quarter or half turn); "
+            "0 = no check",
+            "deg")
+        .range(0.0, 180.0);
     s.field("loop_icp_iterations", c.loop_icp_iterations,
             "coarse ICP iterations when verifying a RANSAC loop candidate")
         .min(1);
@@ -103,11 +111,12 @@ PoseGraphEdge odometryEdge(const FragmentIndex& s, const FragmentIndex& t,
     return e;
 }
 
-enum class LoopOutcome { kRansacFailed, kRejected, kAccepted };
+enum class LoopOutcome { kRansacFailed, kRejected, kTurned, kAccepted };
 
-/// Loop-closure candidate (s, t): RANSAC, coarse ICP, overlap test, multi-scale refinement.
+/// Loop-closure candidate (s, t): RANSAC, coarse ICP, rotation check against the odometry
+/// `T_odo` (when set), overlap test, multi-scale refinement.
 LoopOutcome loopEdge(const FragmentIndex& s, const FragmentIndex& t, const RegistrationConfig& c,
-                     PoseGraphEdge* out) {
+                     const std::optional<Eigen::Isometry3d>& T_odo, PoseGraphEdge* out) {
     const PairResult ransac = ransacFeatureMatching(s, t, c.ransac, pairSeed(c.seed, s.id, t.id));
     if (!ransac.success) return LoopOutcome::kRansacFailed;
     PoseGraphEdge& e = *out;
@@ -122,6 +131,18 @@ LoopOutcome loopEdge(const FragmentIndex& s, const FragmentIndex& t, const Regis
         if (icp.success) T = icp.T_source_target;
     }
     PairResult eval = evaluateAlignment(s, t, T, tauOf(c), 1);
+    if (T_odo && c.max_loop_rotation_deviation_deg > 0.0) {
+        const double turned_deg =
+            lie::rotationAngle(T_odo->inverse() * T) * 180.0 / std::numbers::pi;
+        if (turned_deg > c.max_loop_rotation_deviation_deg) {
+            setFromPair(e, eval);
+            e.kept = false;
+            e.line_process = 0.0;
+            e.reason = fmt2("rejected: turned %.1f deg from the odometry (max %.0f)", turned_deg,
+                            c.max_loop_rotation_deviation_deg);
+            return LoopOutcome::kTurned;
+        }
+    }
     if (eval.overlap < c.min_overlap) {
         setFromPair(e, eval);
         e.kept = false;
@@ -136,6 +157,12 @@ LoopOutcome loopEdge(const FragmentIndex& s, const FragmentIndex& t, const Regis
     }
     setFromPair(e, eval);
     return LoopOutcome::kAccepted;
+}
+
+/// The device odometry from fragment a to b, when both belong to one tracking segment.
+std::optional<Eigen::Isometry3d> odometryBetween(const Fragment& a, const Fragment& b) {
+    if (a.segment != b.segment) return std::nullopt;
+    return a.T_W_F.inverse() * b.T_W_F;
 }
 
 bool edgeLess(const PoseGraphEdge& a, const PoseGraphEdge& b) {
@@ -260,7 +287,8 @@ Result<PoseGraph> buildPoseGraph(const std::vector<Fragment>& fragments,
             outcome[k] = failed ? 1 : 0;
         } else {
             PoseGraphEdge e;
-            const LoopOutcome o = loopEdge(idx[i], idx[j], inner, &e);
+            const LoopOutcome o =
+                loopEdge(idx[i], idx[j], inner, odometryBetween(fragments[i], fragments[j]), &e);
             outcome[k] = 2 + static_cast<int>(o);
             if (o != LoopOutcome::kRansacFailed) edges[k] = std::move(e);
         }
@@ -285,6 +313,10 @@ Result<PoseGraph> buildPoseGraph(const std::vector<Fragment>& fragments,
             case 2 + static_cast<int>(LoopOutcome::kRejected):
                 ++stats.loop_pairs_tried;
                 ++stats.overlap_rejected;
+                break;
+            case 2 + static_cast<int>(LoopOutcome::kTurned):
+                ++stats.loop_pairs_tried;
+                ++stats.rotation_rejected;
                 break;
             default:
                 ++stats.loop_pairs_tried;
@@ -413,13 +445,16 @@ Status LiveRegistrar::addFragment(Fragment fragment) {
         std::vector<LoopOutcome> outcomes(scored.size(), LoopOutcome::kRansacFailed);
         detail::parallelFor(config_.num_threads, scored.size(), [&](size_t c) {
             PoseGraphEdge e;
-            outcomes[c] = loopEdge(*index_[scored[c].second], *index, inner, &e);
+            const uint32_t j = scored[c].second;
+            outcomes[c] =
+                loopEdge(*index_[j], *index, inner, odometryBetween(fragments_[j], fragment), &e);
             if (outcomes[c] != LoopOutcome::kRansacFailed) loops[c] = std::move(e);
         });
         for (size_t c = 0; c < scored.size(); ++c) {
             ++stats_.loop_pairs_tried;
             if (outcomes[c] == LoopOutcome::kRansacFailed) ++stats_.ransac_failed;
             if (outcomes[c] == LoopOutcome::kRejected) ++stats_.overlap_rejected;
+            if (outcomes[c] == LoopOutcome::kTurned) ++stats_.rotation_rejected;
             if (outcomes[c] == LoopOutcome::kAccepted) ++stats_.loops_accepted;
             if (loops[c]) graph_.edges.push_back(std::move(*loops[c]));
         }

@@ -62,6 +62,13 @@ struct RegistrationConfig {
     LiveConfig live;
     /// Loop closures need at least this overlap (fraction of the smaller fragment; paper: 30 %).
     double min_overlap = 0.3;
+    /// Loop closures between fragments of one tracking segment whose relative rotation differs
+    /// from the device odometry's by more than this are rejected, degrees (0 = no check). Walls,
+    /// floor and ceiling match just as well after a quarter or half turn, so in a bare room
+    /// RANSAC and the overlap test accept such symmetric matches; odometry drifts by a few
+    /// degrees, not by 90. Pairs from different segments (tracking lost in between) are not
+    /// checked: their odometry is unknown.
+    double max_loop_rotation_deviation_deg = 30.0;
     /// ICP iterations at the coarsest level when verifying a RANSAC loop candidate.
     int loop_icp_iterations = 30;
     /// Run the refinement pass (re-ICP of surviving edges, optimise again).
@@ -80,6 +87,7 @@ struct PairStats {
     int loop_pairs_tried = 0;
     int ransac_failed = 0;
     int overlap_rejected = 0;
+    int rotation_rejected = 0;  ///< turned too far from the odometry (max_loop_rotation_...)
     int loops_accepted = 0;
 };
 
