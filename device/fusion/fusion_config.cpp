@@ -66,14 +66,10 @@ void describe(config::Schema& s, IcpConfig& c) {
         .min(0.0);
     s.field("min_normal_spread", c.min_normal_spread,
             "a translation t is unconstrained when mean (n.t)^2 over the inliers is below this; "
-            "along it the constant-velocity prediction is a prior (walking down a corridor, "
-            "along a wall)")
+            "the pose then keeps the prediction along t (walking down a corridor, along a wall) "
+            "instead of following the few pixels that face t (0 = never)")
         .min(0.0)
         .max(1.0);
-    s.field("prediction_weight", c.prediction_weight,
-            "weight of the prediction along unconstrained translations, per inlier in units of "
-            "mean (n.t)^2 (0 = the data alone; large = the prediction alone)")
-        .min(0.0);
     s.field("max_degenerate_directions", c.max_degenerate_directions,
             "tracking fails when more translations than this are unconstrained (a single plane "
             "leaves 2, a wall meeting the floor 1); unconstrained directions follow the "

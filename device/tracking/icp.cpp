@@ -108,38 +108,38 @@ size_t countValidNormals(const PyramidLevel& level) {
     return n;
 }
 
-/// Step 4: (sum J^T J) xi = -sum J^T r with solution remapping (Zhang, Kaess, Singh, ICRA 2016):
-/// eigen-directions whose eigenvalue per inlier is below min_normalized_eigenvalue are not
-/// updated. Translations along axes t of sum n n^T / inliers with mean (n.t)^2 below
-/// min_normal_spread (sliding along a wall, down a corridor) are weakly observed: there the
-/// constant-velocity prediction T_pred enters as a prior, prediction_weight * inliers * (t.(c -
-/// c_pred))^2 added to the cost (c the camera centre), so the few pixels that face t move the
-/// pose only in proportion to how much they constrain it.
-Vector6d solveStep(const Accumulator& sys, const IcpConfig& config, const Eigen::Isometry3d& T,
-                   const Eigen::Isometry3d& T_pred) {
-    const double count = static_cast<double>(sys.count);
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> spread(sys.JtJ.bottomRightCorner<3, 3>() /
-                                                                count);
-    Matrix6d H = sys.JtJ;
-    Vector6d g = -sys.Jtr;
-    // xi = [omega, v]; the twist [0, t] moves the camera centre by t.
-    const Eigen::Vector3d offset = T.translation() - T_pred.translation();
+/// Step 4: (sum J^T J) xi = -sum J^T r, solved with solution remapping (Zhang, Kaess, Singh, ICRA
+/// 2016): directions the data does not constrain keep the prediction instead of following noise.
+/// They are (a) translations along axes t of sum n n^T / inliers with mean (n.t)^2 below
+/// min_normal_spread -- sliding along a wall, down a corridor, along the line where a wall meets
+/// the floor -- removed before the solve, and (b) eigen-directions of the remaining system whose
+/// eigenvalue per inlier is below min_normalized_eigenvalue.
+Vector6d solveStep(const Accumulator& sys, const IcpConfig& config) {
+    const double per_inlier = 1.0 / static_cast<double>(sys.count);
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> spread(sys.JtJ.bottomRightCorner<3, 3>() *
+                                                                per_inlier);
+    // Basis of the directions solved for: the three rotations and the constrained translations
+    // (xi = [omega, v]; a twist [0, t] translates the camera by t).
+    Eigen::Matrix<double, 6, Eigen::Dynamic> basis(6, 6);
+    basis.setZero();
+    int k = 0;
+    for (int i = 0; i < 3; ++i) basis(i, k++) = 1.0;
     for (int i = 0; i < 3; ++i) {
-        if (spread.eigenvalues()(i) >= config.min_normal_spread) continue;
-        const Eigen::Vector3d t = spread.eigenvectors().col(i);
-        const double lambda = config.prediction_weight * count;
-        H.bottomRightCorner<3, 3>() += lambda * t * t.transpose();
-        g.tail<3>() -= lambda * t.dot(offset) * t;
+        if (!(spread.eigenvalues()(i) >= config.min_normal_spread)) continue;
+        basis.block<3, 1>(3, k++) = spread.eigenvectors().col(i);
     }
-    const Eigen::SelfAdjointEigenSolver<Matrix6d> es(H);
-    const Vector6d b = es.eigenvectors().transpose() * g;
-    Vector6d xi = Vector6d::Zero();
-    for (int i = 0; i < 6; ++i) {
+    basis.conservativeResize(6, k);
+    const Eigen::MatrixXd H = basis.transpose() * sys.JtJ * basis;
+    const Eigen::VectorXd g = basis.transpose() * (-sys.Jtr);
+    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(H);
+    const Eigen::VectorXd b = es.eigenvectors().transpose() * g;
+    Eigen::VectorXd y = Eigen::VectorXd::Zero(k);
+    for (int i = 0; i < k; ++i) {
         const double ev = es.eigenvalues()(i);
-        if (!(ev / count >= config.min_normalized_eigenvalue)) continue;
-        xi += es.eigenvectors().col(i) * (b(i) / ev);
+        if (!(ev * per_inlier >= config.min_normalized_eigenvalue)) continue;
+        y += es.eigenvectors().col(i) * (b(i) / ev);
     }
-    return xi;
+    return basis * y;
 }
 
 }  // namespace
@@ -201,9 +201,6 @@ Status IcpConfig::validate() const {
     if (!(min_inlier_fraction >= 0.0 && min_inlier_fraction <= 1.0)) {
         return invalidArgument("icp: min_inlier_fraction must be in [0, 1]");
     }
-    if (!(prediction_weight >= 0.0)) {
-        return invalidArgument("icp: prediction_weight must be non-negative");
-    }
     return Status::ok();
 }
 
@@ -224,7 +221,7 @@ IcpResult alignFrameToModel(const FramePyramid& frame, const std::vector<ModelLe
             Accumulator sys = buildSystem(level, model[static_cast<size_t>(l)], T, T_P_M, config);
             if (sys.count < 6) break;
             ++result.iterations;
-            const Vector6d xi = solveStep(sys, config, T, T_M_C_init);
+            const Vector6d xi = solveStep(sys, config);
             if (!xi.allFinite()) break;
             T = lie::orthonormalized(lie::expSE3(xi) * T);
             if (xi.norm() < config.min_update_norm) break;

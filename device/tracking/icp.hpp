@@ -40,12 +40,11 @@ struct IcpConfig {
     double min_normalized_eigenvalue = 1e-3;
     /// Directions below min_normalized_eigenvalue keep the predicted pose (solution remapping).
     /// A translation t is unconstrained when mean (n.t)^2 over the inliers (an eigenvalue of
-    /// sum n n^T / inliers) is below min_normal_spread. Along such a t the constant-velocity
-    /// prediction is a prior of weight prediction_weight (per inlier, in units of mean (n.t)^2):
-    /// looking down a corridor, the few pixels that face the camera (furniture, the ragged ends
-    /// of surfaces cut by the depth range) would otherwise decide the motion along it alone, and
-    /// their errors, fed back through the prediction, grew into runaway drift (a 600-frame
-    /// l_shape scan: 1.2 m within 25 frames). Tracking fails when more than
+    /// sum n n^T / inliers) is below min_normal_spread. The pose keeps the prediction along such
+    /// a t too: looking down a corridor, the few pixels that face the camera (furniture, the
+    /// ragged ends of surfaces cut by the depth range) would otherwise decide the motion along
+    /// it, and their errors, fed back through the constant-velocity prediction, grew into runaway
+    /// drift (a 600-frame l_shape scan: 1.2 m within 25 frames). Tracking fails when more than
     /// max_degenerate_directions translations are unconstrained (a single plane leaves 2, a wall
     /// meeting the floor 1, a room corner 0). Default 2: a wall filling the view is tracked, its
     /// free directions following the constant-velocity prediction. Declaring such frames lost
@@ -53,11 +52,6 @@ struct IcpConfig {
     /// 600-frame living_room loop: 39 fragments instead of 14, ATE 28.7 cm instead of 8.8 cm),
     /// which costs far more than the drift of a few frames along the wall.
     double min_normal_spread = 0.02;
-    /// Weight of the prediction along unconstrained translations (see above). 0: the data alone;
-    /// large: the prediction alone. At 0.05 a direction seen with mean (n.t)^2 = 0.01 moves a
-    /// sixth of the way the data ask (300 frames of l_shape: fragment drift at most 26 cm against
-    /// 48 cm with the prediction alone and 124 cm with the data alone).
-    double prediction_weight = 0.05;
     int max_degenerate_directions = 2;
     /// Worker threads (0 = TBB default). Results do not depend on it.
     int num_threads = 0;

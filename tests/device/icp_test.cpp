@@ -119,29 +119,22 @@ TEST(Icp, ACorridorKeepsThePredictionAlongItsAxis) {
     const FramePyramid frame = preprocess(moved.render(cam, T_true), cam, {}).value();
     const std::vector<ModelLevel> model = predictModel(volume, frame, T_ref, {});
 
-    // The axis counts as unconstrained (mean (n.z)^2 below min_normal_spread): the prediction is a
-    // prior along it, and the ball moves the pose a fraction of its 5 cm; the sideways step is
-    // corrected.
+    // The axis counts as unconstrained (mean (n.z)^2 below min_normal_spread): the pose keeps the
+    // prediction along it instead of following the ball; the sideways step is corrected.
     const IcpResult r = alignFrameToModel(frame, model, T_ref, T_ref, {});
     ASSERT_TRUE(r.ok) << r.failure;
     EXPECT_EQ(r.num_degenerate_directions, 1) << r.translation_spread.transpose();
     EXPECT_LT(r.translation_spread(0), IcpConfig{}.min_normal_spread);
     EXPECT_GT(std::abs(r.translation_axes_M.col(0).z()), 0.99);
     EXPECT_NEAR(r.T_M_C.translation().x(), 0.01, 0.002);
-    EXPECT_NEAR(r.T_M_C.translation().z(), 0.0, 0.01);
+    EXPECT_NEAR(r.T_M_C.translation().z(), 0.0, 0.002);
 
-    // With the prediction's weight at zero the ball alone decides along the axis and drags the
-    // camera with it; with a large weight the prediction alone does.
-    IcpConfig data_only;
-    data_only.prediction_weight = 0.0;
-    const IcpResult f = alignFrameToModel(frame, model, T_ref, T_ref, data_only);
+    // With the threshold at zero the ball is the only constraint along the axis and drags the
+    // camera with it: the data do carry that (wrong) signal, the remapping is what ignores it.
+    IcpConfig follow;
+    follow.min_normal_spread = 0.0;
+    const IcpResult f = alignFrameToModel(frame, model, T_ref, T_ref, follow);
     EXPECT_LT(f.T_M_C.translation().z(), -0.02);  // backwards, to keep its distance
-    IcpConfig prediction_only;
-    prediction_only.prediction_weight = 1e6;
-    const IcpResult p = alignFrameToModel(frame, model, T_ref, T_ref, prediction_only);
-    EXPECT_NEAR(p.T_M_C.translation().z(), 0.0, 0.001);
-    EXPECT_NEAR(p.T_M_C.translation().x(), 0.01, 0.002);
-    EXPECT_LT(std::abs(r.T_M_C.translation().z()), 0.5 * std::abs(f.T_M_C.translation().z()));
 }
 
 TEST(Icp, DetectsEmptyFrame) {
