@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <numbers>
 #include <optional>
+#include <string>
 #include <utility>
 
 #include "backend/registration/cloud_ops.hpp"
@@ -113,6 +114,14 @@ PoseGraphEdge odometryEdge(const FragmentIndex& s, const FragmentIndex& t,
 
 enum class LoopOutcome { kRansacFailed, kRejected, kTurned, kAccepted };
 
+/// A verified loop candidate that is not kept: its alignment figures, kept = false, the reason.
+void reject(PoseGraphEdge& e, const PairResult& eval, std::string reason) {
+    setFromPair(e, eval);
+    e.kept = false;
+    e.line_process = 0.0;
+    e.reason = std::move(reason);
+}
+
 /// Loop-closure candidate (s, t): RANSAC, coarse ICP, rotation check against the odometry
 /// `T_odo` (when set), overlap test, multi-scale refinement.
 LoopOutcome loopEdge(const FragmentIndex& s, const FragmentIndex& t, const RegistrationConfig& c,
@@ -135,19 +144,14 @@ LoopOutcome loopEdge(const FragmentIndex& s, const FragmentIndex& t, const Regis
         const double turned_deg =
             lie::rotationAngle(T_odo->inverse() * T) * 180.0 / std::numbers::pi;
         if (turned_deg > c.max_loop_rotation_deviation_deg) {
-            setFromPair(e, eval);
-            e.kept = false;
-            e.line_process = 0.0;
-            e.reason = fmt2("rejected: turned %.1f deg from the odometry (max %.0f)", turned_deg,
-                            c.max_loop_rotation_deviation_deg);
+            reject(e, eval,
+                   fmt2("rejected: turned %.1f deg from the odometry (max %.0f)", turned_deg,
+                        c.max_loop_rotation_deviation_deg));
             return LoopOutcome::kTurned;
         }
     }
     if (eval.overlap < c.min_overlap) {
-        setFromPair(e, eval);
-        e.kept = false;
-        e.line_process = 0.0;
-        e.reason = fmt2("rejected: overlap %.3f < %.2f", eval.overlap, c.min_overlap);
+        reject(e, eval, fmt2("rejected: overlap %.3f < %.2f", eval.overlap, c.min_overlap));
         return LoopOutcome::kRejected;
     }
     const PairResult fine = multiScaleIcp(s, t, T, c.icp);

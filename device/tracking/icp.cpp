@@ -108,6 +108,13 @@ size_t countValidNormals(const PyramidLevel& level) {
     return n;
 }
 
+/// Eigen-decomposition of sum n n^T / inliers (the translation block of J^T J per inlier): its
+/// eigenvalues are the mean (n.t)^2 along its axes t, compared with min_normal_spread.
+Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> translationSpread(const Accumulator& sys) {
+    return Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(sys.JtJ.bottomRightCorner<3, 3>() *
+                                                          (1.0 / static_cast<double>(sys.count)));
+}
+
 /// Step 4: (sum J^T J) xi = -sum J^T r, solved with solution remapping (Zhang, Kaess, Singh, ICRA
 /// 2016): directions the data does not constrain keep the prediction instead of following noise.
 /// They are (a) translations along axes t of sum n n^T / inliers with mean (n.t)^2 below
@@ -116,12 +123,13 @@ size_t countValidNormals(const PyramidLevel& level) {
 /// eigenvalue per inlier is below min_normalized_eigenvalue.
 Vector6d solveStep(const Accumulator& sys, const IcpConfig& config) {
     const double per_inlier = 1.0 / static_cast<double>(sys.count);
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> spread(sys.JtJ.bottomRightCorner<3, 3>() *
-                                                                per_inlier);
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> spread = translationSpread(sys);
     // Basis of the directions solved for: the three rotations and the constrained translations
-    // (xi = [omega, v]; a twist [0, t] translates the camera by t).
-    Eigen::Matrix<double, 6, Eigen::Dynamic> basis(6, 6);
-    basis.setZero();
+    // (xi = [omega, v]; a twist [0, t] translates the camera by t). At most 6 columns: no heap.
+    using Basis = Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, 6>;
+    using Square = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 6, 6>;
+    using Vector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 6, 1>;
+    Basis basis = Basis::Zero(6, 6);
     int k = 0;
     for (int i = 0; i < 3; ++i) basis(i, k++) = 1.0;
     for (int i = 0; i < 3; ++i) {
@@ -129,11 +137,11 @@ Vector6d solveStep(const Accumulator& sys, const IcpConfig& config) {
         basis.block<3, 1>(3, k++) = spread.eigenvectors().col(i);
     }
     basis.conservativeResize(6, k);
-    const Eigen::MatrixXd H = basis.transpose() * sys.JtJ * basis;
-    const Eigen::VectorXd g = basis.transpose() * (-sys.Jtr);
-    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(H);
-    const Eigen::VectorXd b = es.eigenvectors().transpose() * g;
-    Eigen::VectorXd y = Eigen::VectorXd::Zero(k);
+    const Square H = basis.transpose() * sys.JtJ * basis;
+    const Vector g = basis.transpose() * (-sys.Jtr);
+    const Eigen::SelfAdjointEigenSolver<Square> es(H);
+    const Vector b = es.eigenvectors().transpose() * g;
+    Vector y = Vector::Zero(k);
     for (int i = 0; i < k; ++i) {
         const double ev = es.eigenvalues()(i);
         if (!(ev * per_inlier >= config.min_normalized_eigenvalue)) continue;
@@ -246,8 +254,7 @@ IcpResult alignFrameToModel(const FramePyramid& frame, const std::vector<ModelLe
     // block of J^T J) below min_normal_spread. A single plane leaves 2, a wall meeting the floor 1.
     result.num_degenerate_directions = 0;
     if (last.count > 0) {
-        const Eigen::Matrix3d nn = last.JtJ.bottomRightCorner<3, 3>() / last.count;
-        const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig_t(nn);
+        const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig_t = translationSpread(last);
         result.translation_spread = eig_t.eigenvalues();
         result.translation_axes_M = eig_t.eigenvectors();
         for (int i = 0; i < 3; ++i) {
