@@ -304,10 +304,23 @@ bool TsdfVolume::interpolate(const Eigen::Vector3f& p, float min_weight, float* 
             c[i] = v.tsdf;
         }
     } else {
+        // The cell straddles block faces: look up each of its (2, 4 or 8) blocks once.
+        const Eigen::Vector3i b0 = blockOf(g);
+        const Eigen::Vector3i step((g.x() & 7) == 7, (g.y() & 7) == 7, (g.z() & 7) == 7);
+        int32_t blocks[8];
         for (int i = 0; i < 8; ++i) {
-            const Voxel* v = voxel(g + Eigen::Vector3i(i & 1, (i >> 1) & 1, (i >> 2) & 1));
-            if (v == nullptr || !(v->weight >= min_weight)) return false;
-            c[i] = v->tsdf;
+            const Eigen::Vector3i d(i & 1, (i >> 1) & 1, (i >> 2) & 1);
+            if ((d.array() > step.array()).any()) continue;  // same block as an earlier corner
+            blocks[i] = hash_.find(b0 + d);
+            if (blocks[i] == BlockHashMap::kNotFound) return false;
+        }
+        for (int i = 0; i < 8; ++i) {
+            const Eigen::Vector3i corner = g + Eigen::Vector3i(i & 1, (i >> 1) & 1, (i >> 2) & 1);
+            const Eigen::Vector3i d = blockOf(corner) - b0;
+            const Voxel& v =
+                blockVoxels(blocks[d.x() + 2 * d.y() + 4 * d.z()])[voxelIndexInBlock(corner)];
+            if (!(v.weight >= min_weight)) return false;
+            c[i] = v.tsdf;
         }
     }
     const float c00 = c[0] + a.x() * (c[1] - c[0]);

@@ -139,8 +139,8 @@ Result<FrameReport> FragmentBuilder::processImpl(const Frame& frame) {
     // Model X: the open fragment's volume (X = M), or the previous one during a handover.
     const tsdf::TsdfVolume& model_volume = handover_ ? previous_volume_ : volume_;
     const Eigen::Isometry3d T_X_M = handover_ ? T_P_M_ : Eigen::Isometry3d::Identity();
-    const std::vector<ModelLevel> model =
-        predictModel(model_volume, pyramid, T_X_M * T_M_last_, config_.raycast);
+    const std::vector<ModelLevel> model = predictModel(model_volume, pyramid, T_X_M * T_M_last_,
+                                                       config_.raycast, config_.model_level);
     // Start from a constant-velocity prediction: along directions the geometry leaves free
     // (solution remapping in the ICP) the camera keeps moving as it did.
     const Eigen::Isometry3d T_M_pred =

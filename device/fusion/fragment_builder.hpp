@@ -48,6 +48,9 @@ struct FusionConfig {
     tsdf::TsdfConfig tsdf;
     /// Model prediction for tracking.
     tsdf::RaycastConfig raycast;
+    /// Pyramid level the model is raycast at (0 = full resolution, 1 = half: 4x fewer rays);
+    /// finer frame levels associate against it.
+    int model_level = 0;
     /// Surface points of a closed fragment.
     tsdf::SurfaceConfig surface;
     /// Frame preprocessing (filter, pyramid).

@@ -36,12 +36,13 @@ void describe(config::Schema& s, PreprocessConfig& c) {
 
 void describe(config::Schema& s, IcpConfig& c) {
     s.field("iterations_fine", c.iterations[0],
-            "Gauss-Newton iterations at full resolution (KinFu 4)")
+            "Gauss-Newton iterations at full resolution (KinFu 10)")
         .range(0, 100);
-    s.field("iterations_mid", c.iterations[1], "Gauss-Newton iterations at half resolution")
+    s.field("iterations_mid", c.iterations[1],
+            "Gauss-Newton iterations at half resolution (KinFu 5)")
         .range(0, 100);
     s.field("iterations_coarse", c.iterations[2],
-            "Gauss-Newton iterations at quarter resolution (run first)")
+            "Gauss-Newton iterations at quarter resolution, run first (KinFu 4)")
         .range(0, 100);
     s.field("max_distance_m", c.max_distance_m, "correspondences further apart are rejected", "m")
         .positive();
@@ -91,6 +92,10 @@ void describe(config::Schema& s, FusionConfig& c) {
             "frames")
         .min(0);
     s.section("tsdf", c.tsdf, "the voxel-hashed TSDF volume of each fragment");
+    s.field("model_level", c.model_level,
+            "pyramid level the tracking model is raycast at (0 = full resolution, 1 = half: 4x "
+            "fewer rays); finer frame levels associate against it")
+        .range(0, 4);
     s.section("raycast", c.raycast, "model prediction (raycast) for tracking");
     s.section("surface", c.surface, "oriented surface points of a closed fragment");
     s.section("preprocess", c.preprocess, "per-frame filtering, vertex/normal maps, pyramid");

@@ -154,19 +154,26 @@ Vector6d solveStep(const Accumulator& sys, const IcpConfig& config) {
 
 std::vector<ModelLevel> predictModel(const tsdf::TsdfVolume& volume, const FramePyramid& frame,
                                      const Eigen::Isometry3d& T_M_P,
-                                     const tsdf::RaycastConfig& config) {
-    // One raycast at full resolution; coarser levels average the valid points (and normals) of
-    // each 2x2 block of the finer level that lie within 3 cm of its first valid point, as the
-    // frame pyramid does for depth (KinFu's resized vertex and normal maps).
+                                     const tsdf::RaycastConfig& config, int raycast_level) {
+    // One raycast at level `raycast_level`; finer levels use it as it is (projective association
+    // looks up the model in its own camera, and a point-to-plane residual does not change when
+    // the model point slides along its plane), coarser levels average the valid points (and
+    // normals) of each 2x2 block of the finer level that lie within 3 cm of its first valid
+    // point, as the frame pyramid does for depth (KinFu's resized vertex and normal maps).
+    PLUMB_CHECK(!frame.levels.empty()) << "empty frame pyramid";
+    const size_t cast =
+        std::min(static_cast<size_t>(std::max(raycast_level, 0)), frame.levels.size() - 1);
     std::vector<ModelLevel> model(frame.levels.size());
-    for (size_t l = 0; l < frame.levels.size(); ++l) {
+    {
+        ModelLevel& m = model[cast];
+        m.camera = frame.levels[cast].camera;
+        tsdf::RaycastResult r = tsdf::raycast(volume, m.camera, T_M_P, config);
+        m.points_M = std::move(r.points_V);
+        m.normals_M = std::move(r.normals_V);
+    }
+    for (size_t l = 0; l < cast; ++l) model[l] = model[cast];
+    for (size_t l = cast + 1; l < frame.levels.size(); ++l) {
         model[l].camera = frame.levels[l].camera;
-        if (l == 0) {
-            tsdf::RaycastResult r = tsdf::raycast(volume, frame.levels[0].camera, T_M_P, config);
-            model[0].points_M = std::move(r.points_V);
-            model[0].normals_M = std::move(r.normals_V);
-            continue;
-        }
         const ModelLevel& finer = model[l - 1];
         const int w = model[l].camera.width, h = model[l].camera.height;
         model[l].points_M = PointImage(w, h, tsdf::invalidPoint());

@@ -66,11 +66,12 @@ struct ModelLevel {
     PointImage normals_M;
 };
 
-/// The model at every level of `frame` (same cameras) seen from pose T_M_P: a raycast at full
-/// resolution, 2x2-averaged for the coarser levels.
+/// The model at every level of `frame` seen from pose T_M_P: one raycast with the camera of
+/// level `raycast_level` (0 = full resolution, 1 = half: 4x fewer rays), used as it is by the
+/// finer levels and 2x2-averaged for the coarser ones.
 std::vector<ModelLevel> predictModel(const tsdf::TsdfVolume& volume, const FramePyramid& frame,
                                      const Eigen::Isometry3d& T_M_P,
-                                     const tsdf::RaycastConfig& config);
+                                     const tsdf::RaycastConfig& config, int raycast_level = 0);
 
 struct IcpResult {
     Eigen::Isometry3d T_M_C = Eigen::Isometry3d::Identity();  ///< estimated camera pose

@@ -43,7 +43,8 @@ Eigen::Isometry3d referencePose() {
 }
 
 IcpResult alignWithOffset(const testing::Scene& scene, const Vector6d& offset,
-                          Eigen::Isometry3d* T_true, const IcpConfig& config = {}) {
+                          Eigen::Isometry3d* T_true, const IcpConfig& config = {},
+                          int model_level = 0) {
     const PinholeCamera cam = cameraPreset("primesense").value().scaled(0.5);
     const Eigen::Isometry3d T_M_ref = referencePose();
     tsdf::TsdfVolume volume(volumeConfig());
@@ -52,7 +53,7 @@ IcpResult alignWithOffset(const testing::Scene& scene, const Vector6d& offset,
     const FramePyramid frame =
         preprocess(scene.render(cam, *T_true), cam, PreprocessConfig{}).value();
     const std::vector<ModelLevel> model =
-        predictModel(volume, frame, T_M_ref, tsdf::RaycastConfig{});
+        predictModel(volume, frame, T_M_ref, tsdf::RaycastConfig{}, model_level);
     return alignFrameToModel(frame, model, T_M_ref, T_M_ref, config);
 }
 
@@ -74,6 +75,31 @@ TEST(Icp, ConvergesFromTwoCentimetresAndTwoDegrees) {
         EXPECT_GT(r.inlier_fraction, 0.8);
         EXPECT_LT(r.rmse_m, 0.001);
     }
+}
+
+TEST(Icp, AHalfResolutionModelServesEveryLevel) {
+    // The model raycast at level 1 only: level 0 associates against the same (coarser) image,
+    // level 2 against its 2x2 average. The corner still converges to sub-millimetre.
+    const double a = 2.0 * kDeg / std::sqrt(3.0), t = 0.02 / std::sqrt(3.0);
+    const Vector6d offset = (Vector6d() << a, -a, a, -t, t, t).finished();
+    Eigen::Isometry3d T_true;
+    const IcpResult r = alignWithOffset(corner(), offset, &T_true, {}, /*model_level=*/1);
+    ASSERT_TRUE(r.ok) << r.failure;
+    const Eigen::Isometry3d err = T_true.inverse() * r.T_M_C;
+    EXPECT_LT(err.translation().norm(), 0.001);
+    EXPECT_LT(lie::rotationAngle(err), 0.05 * kDeg);
+    EXPECT_GT(r.inlier_fraction, 0.8);
+
+    const PinholeCamera cam = cameraPreset("primesense").value().scaled(0.5);
+    tsdf::TsdfVolume volume(volumeConfig());
+    ASSERT_TRUE(
+        volume.integrate(corner().render(cam, referencePose()), cam, referencePose()).isOk());
+    const FramePyramid frame = preprocess(corner().render(cam, referencePose()), cam, {}).value();
+    const std::vector<ModelLevel> model = predictModel(volume, frame, referencePose(), {}, 1);
+    ASSERT_EQ(model.size(), frame.levels.size());
+    EXPECT_EQ(model[0].camera.width, frame.levels[1].camera.width);  // level 0 uses level 1's rays
+    for (size_t l = 1; l < model.size(); ++l)
+        EXPECT_EQ(model[l].camera.width, frame.levels[l].camera.width);
 }
 
 TEST(Icp, ASinglePlaneKeepsThePredictionAlongItOrFailsWhenAskedTo) {

@@ -57,12 +57,14 @@ double mean(const std::vector<double>& v) {
 
 constexpr const char* kUsage =
     "usage: plumb-bench-fusion [--frames N] [--threads N] [--scene NAME] [--noise MODE]\n"
-    "                          [--fragment N] [--repeat N]\n"
+    "                          [--fragment N] [--repeat N] [--model-level L]\n"
     "  --frames N     simulated frames (default 100)\n"
     "  --threads N    worker threads for ours and Open3D (default 2)\n"
     "  --scene NAME   simulated room (default living_room)\n"
     "  --noise MODE   redwood (default), off, parametric, undistorted\n"
     "  --fragment N   frames per fragment (default 50; the volumes restart every N frames)\n"
+    "  --model-level L  pyramid level the tracking model is raycast at (default: the\n"
+    "                 fusion config's default)\n"
     "  --repeat N     integration passes over the frames for the integration-only figures\n"
     "                 (default 2; the median over all is reported)\n";
 
@@ -73,6 +75,7 @@ int main(int argc, char** argv) {
     int threads = 2;
     int fragment = 50;
     int repeat = 2;
+    int model_level = plumb::device::FusionConfig{}.model_level;
     std::string scene = "living_room";
     std::string noise = "redwood";
     for (int i = 1; i < argc; ++i) {
@@ -90,6 +93,8 @@ int main(int argc, char** argv) {
             ok = num(&threads) && threads > 0;
         } else if (a == "--fragment") {
             ok = num(&fragment) && fragment > 0;
+        } else if (a == "--model-level") {
+            ok = num(&model_level) && model_level >= 0 && model_level <= 4;
         } else if (a == "--repeat") {
             ok = num(&repeat) && repeat > 0;
         } else if (a == "--scene" && i + 1 < argc) {
@@ -141,6 +146,7 @@ int main(int argc, char** argv) {
 
     plumb::device::FusionConfig config;
     config.frames_per_fragment = fragment;
+    config.model_level = model_level;
     config.tsdf.voxel_size_m = 3.0f / 512.0f;
     config.tsdf.truncation_m = 0.04f;
     config.tsdf.num_threads = threads;
