@@ -24,12 +24,12 @@ float blockExit(const Eigen::Vector3f& o, const Eigen::Vector3f& r, const Eigen:
     return t_exit;
 }
 
-/// Per-tile camera z-range of the allocated blocks (InfiniTAM's "range image"): rays only march
-/// where some block projects, from the nearest to the farthest block corner of their tile. The
-/// bounds are conservative (block corners, whole tiles), so no crossing is missed; min/max are
-/// order-independent, so the result does not depend on the thread count.
+/// Per-tile (4x4 pixels) camera z-range of the allocated blocks (InfiniTAM's "range image"): rays
+/// only march where some block projects, from the nearest to the farthest block corner of their
+/// tile. The bounds are conservative (block corners, whole tiles), so no crossing is missed;
+/// min/max are order-independent, so the result does not depend on the thread count.
 struct RangeImage {
-    static constexpr int kTile = 8;  ///< tile edge, pixels
+    static constexpr int kTile = 4;  ///< tile edge, pixels
     int tiles_x = 0, tiles_y = 0;
     std::vector<float> z_min, z_max;  ///< per tile; z_min > z_max = no block
 

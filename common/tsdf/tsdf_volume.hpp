@@ -112,7 +112,8 @@ class TsdfVolume {
     /// the 8 voxels has weight < min_weight (pass min_weight > 0: weight 0 = never observed).
     bool interpolate(const Eigen::Vector3f& p, float min_weight, float* tsdf) const;
 
-    /// Gradient of the trilinear TSDF at p by central differences one voxel apart (units 1/m).
+    /// Gradient of the trilinear TSDF at p by central differences one voxel apart (units 1/m),
+    /// from one gather of the 32 voxels the six shifted cells read.
     /// False when a sample is unavailable.
     bool gradient(const Eigen::Vector3f& p, float min_weight, Eigen::Vector3f* grad) const;
 
