@@ -6,6 +6,7 @@
 #include <limits>
 #include <vector>
 
+#include "common/core/check.hpp"
 #include "common/tsdf/parallel.hpp"
 
 namespace plumb::tsdf {
@@ -125,7 +126,8 @@ RangeImage blockRanges(const TsdfVolume& volume, const PinholeCamera& camera,
 }  // namespace
 
 RaycastResult raycast(const TsdfVolume& volume, const PinholeCamera& camera,
-                      const Eigen::Isometry3d& T_V_C, const RaycastConfig& config) {
+                      const Eigen::Isometry3d& T_V_C, const RaycastConfig& config,
+                      const DepthImage* start_hint) {
     RaycastResult out;
     out.points_V = PointImage(camera.width, camera.height, invalidPoint());
     out.normals_V = PointImage(camera.width, camera.height, invalidPoint());
@@ -137,6 +139,20 @@ RaycastResult raycast(const TsdfVolume& volume, const PinholeCamera& camera,
     const float mu = volume.config().truncation_m;
     const float w_min = config.min_weight;
     const RangeImage ranges = blockRanges(volume, camera, T_V_C, config);
+    // The hint may be finer than the camera by an integer factor (a raycast at a coarser
+    // pyramid level): ray (u, v) reads hint pixel (s u, s v).
+    int hint_scale = 0;
+    if (start_hint != nullptr && !start_hint->empty()) {
+        hint_scale = start_hint->width() / camera.width;
+        PLUMB_CHECK(hint_scale >= 1 && start_hint->width() == hint_scale * camera.width &&
+                    start_hint->height() == hint_scale * camera.height)
+            << "raycast start hint is " << start_hint->width() << "x" << start_hint->height()
+            << ", not a multiple of the camera's " << camera.width << "x" << camera.height;
+    }
+
+    /// Where a march ended: a front-face hit, nothing before t_end, or a hinted start that is
+    /// not in observed free space.
+    enum class March { kHit, kMiss, kBadStart };
 
     parallelFor(config.num_threads, camera.height, [&](int v) {
         for (int u = 0; u < camera.width; ++u) {
@@ -146,57 +162,91 @@ RaycastResult raycast(const TsdfVolume& volume, const PinholeCamera& camera,
             const float voxel_dt = vs * inv_len;
             float z_lo = 0.0f, z_hi = 0.0f;
             if (!ranges.bounds(u, v, &z_lo, &z_hi)) continue;  // no block along this ray
-            float t = std::max(config.min_depth_m, z_lo - voxel_dt);
+            const float t_begin = std::max(config.min_depth_m, z_lo - voxel_dt);
             const float t_end = std::min(config.max_depth_m, z_hi + voxel_dt);
-            float t_prev = 0.0f, f_prev = 0.0f;
-            bool prev_valid = false;
-            while (t < t_end) {
-                const Eigen::Vector3f p = o + t * r;
-                float f = 0.0f;
-                if (volume.findBlock(blockOf((p / vs).array().floor().cast<int>())) ==
-                    BlockHashMap::kNotFound) {
-                    // Unallocated: jump to where the ray leaves this block.
-                    t = std::max(blockExit(o, r, p, bs) + 1e-3f * voxel_dt, t + 1e-3f * voxel_dt);
-                    prev_valid = false;
-                    continue;
-                }
-                if (!volume.interpolate(p, w_min, &f)) {
-                    // Unobserved voxels (behind surfaces or never in view): an observed band is
-                    // at least 2 mu thick along the viewing rays that made it, so mu / 2 steps
-                    // cannot jump over one.
-                    t += std::max(voxel_dt, 0.5f * mu * inv_len);
-                    prev_valid = false;
-                    continue;
-                }
-                if (prev_valid && f_prev > 0.0f && f < 0.0f) {
-                    // + to - crossing: linear interpolation, then one secant refinement.
-                    float ta = t_prev, fa = f_prev, tb = t, fb = f;
-                    float ts = ta + (tb - ta) * fa / (fa - fb);
-                    float fs = 0.0f;
-                    if (volume.interpolate(o + ts * r, w_min, &fs) && fs != 0.0f) {
-                        if (fs > 0.0f) {
-                            ta = ts;
-                            fa = fs;
-                        } else {
-                            tb = ts;
-                            fb = fs;
+
+            const auto march = [&](float t, bool hinted) {
+                float t_prev = 0.0f, f_prev = 0.0f;
+                bool prev_valid = false;
+                while (t < t_end) {
+                    const Eigen::Vector3f p = o + t * r;
+                    float f = 0.0f;
+                    const bool allocated =
+                        volume.findBlock(blockOf((p / vs).array().floor().cast<int>())) !=
+                        BlockHashMap::kNotFound;
+                    const bool observed = allocated && volume.interpolate(p, w_min, &f);
+                    if (hinted) {
+                        // The hinted start must lie in observed free space (F > 0).
+                        if (!observed || !(f > 0.0f)) return March::kBadStart;
+                        hinted = false;
+                    }
+                    if (!allocated) {
+                        // Unallocated: jump to where the ray leaves this block.
+                        t = std::max(blockExit(o, r, p, bs) + 1e-3f * voxel_dt,
+                                     t + 1e-3f * voxel_dt);
+                        prev_valid = false;
+                        continue;
+                    }
+                    if (!observed) {
+                        // Unobserved voxels (behind surfaces or never in view): an observed
+                        // band is at least 2 mu thick along the viewing rays that made it, so
+                        // mu / 2 steps cannot jump over one.
+                        t += std::max(voxel_dt, 0.5f * mu * inv_len);
+                        prev_valid = false;
+                        continue;
+                    }
+                    if (prev_valid && f_prev > 0.0f && f < 0.0f) {
+                        // + to - crossing: linear interpolation, then one secant refinement.
+                        float ta = t_prev, fa = f_prev, tb = t, fb = f;
+                        float ts = ta + (tb - ta) * fa / (fa - fb);
+                        float fs = 0.0f;
+                        if (volume.interpolate(o + ts * r, w_min, &fs) && fs != 0.0f) {
+                            if (fs > 0.0f) {
+                                ta = ts;
+                                fa = fs;
+                            } else {
+                                tb = ts;
+                                fb = fs;
+                            }
+                            ts = ta + (tb - ta) * fa / (fa - fb);
                         }
-                        ts = ta + (tb - ta) * fa / (fa - fb);
+                        const Eigen::Vector3f hit = o + ts * r;
+                        Eigen::Vector3f grad;
+                        if (volume.gradient(hit, w_min, &grad) && grad.squaredNorm() > 0.0f) {
+                            out.points_V(u, v) = hit;
+                            out.normals_V(u, v) = grad.normalized();
+                            out.depth(u, v) = ts;
+                        }
+                        return March::kHit;
                     }
-                    const Eigen::Vector3f hit = o + ts * r;
-                    Eigen::Vector3f grad;
-                    if (volume.gradient(hit, w_min, &grad) && grad.squaredNorm() > 0.0f) {
-                        out.points_V(u, v) = hit;
-                        out.normals_V(u, v) = grad.normalized();
-                        out.depth(u, v) = ts;
-                    }
-                    break;
+                    t_prev = t;
+                    f_prev = f;
+                    prev_valid = true;
+                    t += std::max(voxel_dt, config.step_fraction * mu * std::abs(f) * inv_len);
                 }
-                t_prev = t;
-                f_prev = f;
-                prev_valid = true;
-                t += std::max(voxel_dt, config.step_fraction * mu * std::abs(f) * inv_len);
+                return March::kMiss;
+            };
+
+            if (hint_scale > 0) {
+                // The depth this camera saw where the model was last fused: its zero crossing
+                // lies near it, and the space in front was just carved free. March from one
+                // truncation and one voxel in front of it (z units, as the projective SDF;
+                // the nearest valid depth of the s x s hint pixels under a coarser ray); unless
+                // that first sample is observed free space, march the whole ray.
+                float d = std::numeric_limits<float>::infinity();
+                for (int j = 0; j < hint_scale; ++j) {
+                    for (int i = 0; i < hint_scale; ++i) {
+                        const float h = (*start_hint)(u * hint_scale + i, v * hint_scale + j);
+                        if (h > 0.0f) d = std::min(d, h);
+                    }
+                }
+                const float t_hint = d - (mu + vs);
+                if (std::isfinite(t_hint) && t_hint > t_begin && t_hint < t_end &&
+                    march(t_hint, /*hinted=*/true) != March::kBadStart) {
+                    continue;
+                }
             }
+            march(t_begin, /*hinted=*/false);
         }
     });
     return out;

@@ -47,7 +47,16 @@ struct RaycastResult {
 
 /// Casts one ray per pixel of `camera` placed at T_V_C (camera -> volume). Only + to - crossings
 /// (front faces) are reported; - to + crossings are ignored.
+///
+/// `start_hint` (optional) is depth this camera measured at this pose and fused into the volume,
+/// at the camera's resolution or an integer multiple of it: the frame tracking has just
+/// integrated. Each ray then marches from one truncation and one voxel in front of its hinted
+/// depth (the nearest of the hint pixels under it) instead of from the nearest block, and
+/// marches the whole ray unless that first sample is observed free space (F > 0). A surface the
+/// model still holds in front of that free space (seen by older frames, not by the hinted one)
+/// is skipped.
 RaycastResult raycast(const TsdfVolume& volume, const PinholeCamera& camera,
-                      const Eigen::Isometry3d& T_V_C, const RaycastConfig& config = {});
+                      const Eigen::Isometry3d& T_V_C, const RaycastConfig& config = {},
+                      const DepthImage* start_hint = nullptr);
 
 }  // namespace plumb::tsdf

@@ -51,6 +51,10 @@ struct FusionConfig {
     /// Pyramid level the model is raycast at (0 = full resolution, 1 = half: 4x fewer rays);
     /// finer frame levels associate against it.
     int model_level = 0;
+    /// Rays of the model prediction march from the depth last fused from the same pose (a
+    /// truncation in front of it) instead of from the nearest block: fewer samples per ray, the
+    /// same hits unless the model holds a surface that frame saw as free space.
+    bool raycast_from_last_depth = true;
     /// Surface points of a closed fragment.
     tsdf::SurfaceConfig surface;
     /// Frame preprocessing (filter, pyramid).
@@ -124,6 +128,10 @@ class FragmentBuilder {
     bool lost_ = false;        ///< the last tracking attempt failed
     Eigen::Isometry3d T_W_M_ = Eigen::Isometry3d::Identity();     ///< frame of volume_
     Eigen::Isometry3d T_M_last_ = Eigen::Isometry3d::Identity();  ///< last good camera in M
+    /// The depth last integrated into volume_ and the pose (in M) it was integrated at: the
+    /// raycast's start hint when tracking predicts the model from that pose.
+    DepthImage last_depth_;
+    Eigen::Isometry3d T_M_last_depth_ = Eigen::Isometry3d::Identity();
     Eigen::Isometry3d T_W_C_ = Eigen::Isometry3d::Identity();
     /// Last frame-to-frame motion T_Cprev_C (identity after a loss), for the prediction.
     Eigen::Isometry3d velocity_ = Eigen::Isometry3d::Identity();

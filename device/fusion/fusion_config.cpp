@@ -96,6 +96,9 @@ void describe(config::Schema& s, FusionConfig& c) {
             "pyramid level the tracking model is raycast at (0 = full resolution, 1 = half: 4x "
             "fewer rays); finer frame levels associate against it")
         .range(0, 4);
+    s.field("raycast_from_last_depth", c.raycast_from_last_depth,
+            "model rays march from the depth last fused from the same pose (a truncation in "
+            "front of it) instead of from the nearest block");
     s.section("raycast", c.raycast, "model prediction (raycast) for tracking");
     s.section("surface", c.surface, "oriented surface points of a closed fragment");
     s.section("preprocess", c.preprocess, "per-frame filtering, vertex/normal maps, pyramid");

@@ -154,7 +154,8 @@ Vector6d solveStep(const Accumulator& sys, const IcpConfig& config) {
 
 std::vector<ModelLevel> predictModel(const tsdf::TsdfVolume& volume, const FramePyramid& frame,
                                      const Eigen::Isometry3d& T_M_P,
-                                     const tsdf::RaycastConfig& config, int raycast_level) {
+                                     const tsdf::RaycastConfig& config, int raycast_level,
+                                     const DepthImage* start_hint) {
     // One raycast at level `raycast_level`; finer levels use it as it is (projective association
     // looks up the model in its own camera, and a point-to-plane residual does not change when
     // the model point slides along its plane), coarser levels average the valid points (and
@@ -167,7 +168,7 @@ std::vector<ModelLevel> predictModel(const tsdf::TsdfVolume& volume, const Frame
     {
         ModelLevel& m = model[cast];
         m.camera = frame.levels[cast].camera;
-        tsdf::RaycastResult r = tsdf::raycast(volume, m.camera, T_M_P, config);
+        tsdf::RaycastResult r = tsdf::raycast(volume, m.camera, T_M_P, config, start_hint);
         m.points_M = std::move(r.points_V);
         m.normals_M = std::move(r.normals_V);
     }

@@ -68,10 +68,12 @@ struct ModelLevel {
 
 /// The model at every level of `frame` seen from pose T_M_P: one raycast with the camera of
 /// level `raycast_level` (0 = full resolution, 1 = half: 4x fewer rays), used as it is by the
-/// finer levels and 2x2-averaged for the coarser ones.
+/// finer levels and 2x2-averaged for the coarser ones. `start_hint`: the full-resolution depth
+/// last fused from pose T_M_P, if any (tsdf::raycast marches from it).
 std::vector<ModelLevel> predictModel(const tsdf::TsdfVolume& volume, const FramePyramid& frame,
                                      const Eigen::Isometry3d& T_M_P,
-                                     const tsdf::RaycastConfig& config, int raycast_level = 0);
+                                     const tsdf::RaycastConfig& config, int raycast_level = 0,
+                                     const DepthImage* start_hint = nullptr);
 
 struct IcpResult {
     Eigen::Isometry3d T_M_C = Eigen::Isometry3d::Identity();  ///< estimated camera pose
