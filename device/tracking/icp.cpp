@@ -8,6 +8,7 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <optional>
 #include <string>
 #include <utility>
 
@@ -229,7 +230,9 @@ IcpResult alignFrameToModel(const FramePyramid& frame, const std::vector<ModelLe
     Eigen::Isometry3d T = T_M_C_init;
     const Eigen::Isometry3d T_P_M = T_M_P.inverse();
     const int num_levels = static_cast<int>(frame.levels.size());
-    Accumulator last;
+    // The finest level's system of the last iteration, when that iteration converged: the pose
+    // then moved by less than min_update_norm and the system is the final statistics.
+    std::optional<Accumulator> converged;
     for (int l = num_levels - 1; l >= 0; --l) {
         const int iterations = l < 3 ? config.iterations[static_cast<size_t>(l)] : 4;
         const PyramidLevel& level = frame.levels[static_cast<size_t>(l)];
@@ -240,11 +243,15 @@ IcpResult alignFrameToModel(const FramePyramid& frame, const std::vector<ModelLe
             const Vector6d xi = solveStep(sys, config);
             if (!xi.allFinite()) break;
             T = lie::orthonormalized(lie::expSE3(xi) * T);
-            if (xi.norm() < config.min_update_norm) break;
+            if (xi.norm() < config.min_update_norm) {
+                if (l == 0) converged = std::move(sys);
+                break;
+            }
         }
     }
     // Final statistics at the finest level, at the final pose.
-    last = buildSystem(frame.levels[0], model[0], T, T_P_M, config);
+    const Accumulator last =
+        converged ? *converged : buildSystem(frame.levels[0], model[0], T, T_P_M, config);
     result.T_M_C = T;
     result.num_inliers = last.count;
     result.num_valid = countValidNormals(frame.levels[0]);
