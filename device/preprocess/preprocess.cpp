@@ -69,11 +69,32 @@ DepthImage bilateralFilter(const DepthImage& depth, const PreprocessConfig& conf
     }
     const float lut_scale = kRangeBins / max_diff;
     DepthImage out(w, h, 0.0f);
+    const int side = 2 * r + 1;
     tsdf::parallelFor(config.num_threads, h, [&](int v) {
+        const bool interior_row = v >= r && v < h - r;
         for (int u = 0; u < w; ++u) {
             const float dc = depth(u, v);
             if (dc <= 0.0f) continue;
             float sum = 0.0f, wsum = 0.0f;
+            if (interior_row && u >= r && u < w - r) {
+                // Whole window inside the image: no bounds tests, and no branch per tap (holes
+                // and depth edges would mispredict it); a skipped tap adds an exact zero.
+                for (int dy = -r; dy <= r; ++dy) {
+                    const float* row = &depth(u - r, v + dy);
+                    const float* sw = &spatial[static_cast<size_t>((dy + r) * side)];
+                    for (int i = 0; i < side; ++i) {
+                        const float d = row[i];
+                        const float ad = std::abs(d - dc);
+                        const bool valid = d > 0.0f && ad <= max_diff;
+                        const int bin = static_cast<int>(std::min(ad, max_diff) * lut_scale + 0.5f);
+                        const float wt = valid ? sw[i] * range_lut[static_cast<size_t>(bin)] : 0.0f;
+                        sum += wt * (valid ? d : 0.0f);
+                        wsum += wt;
+                    }
+                }
+                out(u, v) = sum / wsum;  // wsum >= 1 (the centre pixel)
+                continue;
+            }
             for (int dy = -r; dy <= r; ++dy) {
                 const int y = v + dy;
                 if (y < 0 || y >= h) continue;
@@ -84,7 +105,7 @@ DepthImage bilateralFilter(const DepthImage& depth, const PreprocessConfig& conf
                     const float diff = d - dc;
                     if (d <= 0.0f || std::abs(diff) > max_diff) continue;
                     const float wt =
-                        spatial[static_cast<size_t>((dy + r) * (2 * r + 1) + dx + r)] *
+                        spatial[static_cast<size_t>((dy + r) * side + dx + r)] *
                         range_lut[static_cast<size_t>(std::abs(diff) * lut_scale + 0.5f)];
                     sum += wt * d;
                     wsum += wt;

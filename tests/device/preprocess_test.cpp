@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "device/preprocess/preprocess.hpp"
@@ -59,6 +60,50 @@ TEST(Preprocess, MaskedFilterNeverMixesInInvalidPixelsOrOtherSurfaces) {
     const DepthImage half = downsampleDepth(depth, 0.03f);
     EXPECT_EQ(half.width(), cam.width / 2);
     for (float d : half.pixels()) EXPECT_TRUE(d == 0.0f || d == 1.0f || d == 2.0f) << d;
+}
+
+TEST(Preprocess, BilateralFilterMatchesItsDefinitionInsideAndAtTheBorder) {
+    // Noisy depth with holes and a 4 cm step (within 3 sigma_r, so both sides mix): every pixel,
+    // interior or within the radius of the border, against the filter written out with exp().
+    const PinholeCamera cam = smallCamera();
+    testing::Scene scene;
+    scene.planes = {{Eigen::Vector3d(0.1, 0.2, -1.0).normalized(), 1.5}};
+    DepthImage depth = scene.render(cam, Eigen::Isometry3d::Identity(), 3);
+    for (int v = 0; v < cam.height; ++v) {
+        for (int u = 0; u < cam.width; ++u) {
+            if ((u * 7 + v * 13) % 11 == 0) depth(u, v) = 0.0f;  // holes
+            if (u > cam.width / 2 && depth(u, v) > 0.0f) depth(u, v) += 0.04f;
+        }
+    }
+    const PreprocessConfig config;
+    const DepthImage f = bilateralFilter(depth, config);
+    const int r = config.bilateral_radius_px;
+    const double sigma_s = config.bilateral_sigma_space_px * cam.width / 640.0;
+    const double sigma_r = config.bilateral_sigma_depth_m;
+    double max_err = 0.0;
+    for (int v = 0; v < cam.height; ++v) {
+        for (int u = 0; u < cam.width; ++u) {
+            const double dc = depth(u, v);
+            if (dc <= 0.0) {
+                ASSERT_EQ(f(u, v), 0.0f);
+                continue;
+            }
+            double sum = 0.0, wsum = 0.0;
+            for (int y = std::max(0, v - r); y <= std::min(cam.height - 1, v + r); ++y) {
+                for (int x = std::max(0, u - r); x <= std::min(cam.width - 1, u + r); ++x) {
+                    const double d = depth(x, y), diff = d - dc;
+                    if (d <= 0.0 || std::abs(diff) > 3.0 * sigma_r) continue;
+                    const double wt = std::exp(-((x - u) * (x - u) + (y - v) * (y - v)) /
+                                                   (2 * sigma_s * sigma_s) -
+                                               diff * diff / (2 * sigma_r * sigma_r));
+                    sum += wt * d;
+                    wsum += wt;
+                }
+            }
+            max_err = std::max(max_err, std::abs(f(u, v) - sum / wsum));
+        }
+    }
+    EXPECT_LT(max_err, 2e-4);  // the tabulated range kernel: 256 bins over 3 sigma_r
 }
 
 TEST(Preprocess, PyramidNormalsMatchATiltedPlane) {
