@@ -6,6 +6,7 @@
 #include <atomic>
 #include <climits>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <string>
 
@@ -14,6 +15,58 @@
 
 namespace plumb::tsdf {
 namespace {
+
+/// Four float or int lanes (GCC vector extensions: SSE2 on x86-64, NEON on aarch64).
+using Float4 = float __attribute__((vector_size(16)));
+using Int4 = int32_t __attribute__((vector_size(16)));
+
+/// What one integration pass needs per voxel row, in the camera frame.
+struct RowIntegrator {
+    const float* depth;
+    int width, height;
+    float fx, fy, cx, cy;
+    float mu, inv_mu, min_d, max_d, max_w;
+
+    /// Fuses the 4 voxels row[0..3], whose centres are p + k dx (k = lane), §2.3: the projective
+    /// distance sdf = D(u) - z, truncated to min(1, sdf / mu), skipped below -mu, running
+    /// average with unit weight saturating at max_w. Lanes are independent; no branch per voxel
+    /// except the depth lookups.
+    void fuse4(Voxel* row, const Eigen::Vector3f& p, const Eigen::Vector3f& dx,
+               const Float4& lane) const {
+        const Float4 px = p.x() + lane * dx.x();
+        const Float4 py = p.y() + lane * dx.y();
+        const Float4 pz = p.z() + lane * dx.z();
+        const Float4 inv_z = 1.0f / pz;
+        const Float4 uf = fx * px * inv_z + cx + 0.5f;
+        const Float4 vf = fy * py * inv_z + cy + 0.5f;
+        // In front of the camera and inside the image (uf, vf >= 0: truncation is floor).
+        const Int4 in = (pz > 0.0f) & (uf >= 0.0f) & (vf >= 0.0f) &
+                        (uf < static_cast<float>(width)) & (vf < static_cast<float>(height));
+        Float4 d = {0.0f, 0.0f, 0.0f, 0.0f};
+        for (int k = 0; k < 4; ++k) {
+            if (in[k]) {
+                d[k] = depth[static_cast<size_t>(static_cast<int>(vf[k])) * width +
+                             static_cast<int>(uf[k])];
+            }
+        }
+        const Float4 sdf = d - pz;  // + in front of the surface
+        const Int4 ok = in & (d >= min_d) & (d <= max_d) & (sdf >= -mu);
+        const Float4 f_raw = sdf * inv_mu;
+        const Float4 f = f_raw < 1.0f ? f_raw : 1.0f;
+        Float4 a, b;  // {t0, w0, t1, w1}, {t2, w2, t3, w3}
+        std::memcpy(&a, row, sizeof(a));
+        std::memcpy(&b, row + 2, sizeof(b));
+        const Float4 tsdf = __builtin_shuffle(a, b, Int4{0, 2, 4, 6});
+        const Float4 w = __builtin_shuffle(a, b, Int4{1, 3, 5, 7});
+        const Float4 w1 = w + 1.0f;
+        const Float4 new_tsdf = ok ? (w * tsdf + f) / w1 : tsdf;
+        const Float4 new_w = ok ? (max_w < w1 ? Float4{max_w, max_w, max_w, max_w} : w1) : w;
+        a = __builtin_shuffle(new_tsdf, new_w, Int4{0, 4, 1, 5});
+        b = __builtin_shuffle(new_tsdf, new_w, Int4{2, 6, 3, 7});
+        std::memcpy(static_cast<void*>(row), &a, sizeof(a));
+        std::memcpy(static_cast<void*>(row + 2), &b, sizeof(b));
+    }
+};
 
 bool keyLess(const BlockKey& a, const BlockKey& b) {
     if (a.z() != b.z()) return a.z() < b.z();
@@ -229,13 +282,20 @@ Result<IntegrationStats> TsdfVolume::integrate(const DepthImage& depth, const Pi
     const Eigen::Vector3f dx = R.col(0) * vs;
     const Eigen::Vector3f dy = R.col(1) * vs;
     const Eigen::Vector3f dz = R.col(2) * vs;
-    const float fx = static_cast<float>(camera.fx), fy = static_cast<float>(camera.fy);
-    const float cx = static_cast<float>(camera.cx), cy = static_cast<float>(camera.cy);
-    const float mu = config_.truncation_m;
-    const float inv_mu = 1.0f / mu;
-    const int width = depth.width(), height = depth.height();
-    const float min_d = config_.min_depth_m, max_d = config_.max_depth_m;
-    const float max_w = config_.max_weight;
+    RowIntegrator fuse;
+    fuse.depth = depth.data();
+    fuse.width = depth.width();
+    fuse.height = depth.height();
+    fuse.fx = static_cast<float>(camera.fx);
+    fuse.fy = static_cast<float>(camera.fy);
+    fuse.cx = static_cast<float>(camera.cx);
+    fuse.cy = static_cast<float>(camera.cy);
+    fuse.mu = config_.truncation_m;
+    fuse.inv_mu = 1.0f / config_.truncation_m;
+    fuse.min_d = config_.min_depth_m;
+    fuse.max_d = config_.max_depth_m;
+    fuse.max_w = config_.max_weight;
+    static_assert(kBlockSide == 8, "rows are fused as two groups of 4 voxels");
 
     parallelFor(config_.num_threads, static_cast<int>(indices.size()), [&](int i) {
         const int32_t index = indices[static_cast<size_t>(i)];
@@ -243,26 +303,14 @@ Result<IntegrationStats> TsdfVolume::integrate(const DepthImage& depth, const Pi
         Voxel* voxels = blockVoxels(index);
         const Eigen::Vector3f origin_V = (key * kBlockSide).cast<float>() * vs;
         const Eigen::Vector3f base = R * origin_V + t;
+        const Float4 lanes_lo = {0.0f, 1.0f, 2.0f, 3.0f}, lanes_hi = {4.0f, 5.0f, 6.0f, 7.0f};
         for (int z = 0; z < kBlockSide; ++z) {
             for (int y = 0; y < kBlockSide; ++y) {
-                Eigen::Vector3f p = base + static_cast<float>(z) * dz + static_cast<float>(y) * dy;
+                const Eigen::Vector3f p =
+                    base + static_cast<float>(z) * dz + static_cast<float>(y) * dy;
                 Voxel* row = voxels + z * 64 + y * 8;
-                for (int x = 0; x < kBlockSide; ++x, p += dx) {
-                    if (p.z() <= 0.0f) continue;
-                    const float inv_z = 1.0f / p.z();
-                    const int u = static_cast<int>(std::floor(fx * p.x() * inv_z + cx + 0.5f));
-                    const int v = static_cast<int>(std::floor(fy * p.y() * inv_z + cy + 0.5f));
-                    if (u < 0 || v < 0 || u >= width || v >= height) continue;
-                    const float d = depth(u, v);
-                    if (!(d >= min_d && d <= max_d)) continue;
-                    const float sdf = d - p.z();  // §2.3 projective distance, + in front
-                    if (sdf < -mu) continue;
-                    const float f = std::min(1.0f, sdf * inv_mu);
-                    Voxel& vox = row[x];
-                    const float w = vox.weight;
-                    vox.tsdf = (w * vox.tsdf + f) / (w + 1.0f);
-                    vox.weight = std::min(w + 1.0f, max_w);
-                }
+                fuse.fuse4(row, p, dx, lanes_lo);
+                fuse.fuse4(row + 4, p, dx, lanes_hi);
             }
         }
     });
