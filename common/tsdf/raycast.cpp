@@ -123,6 +123,42 @@ RangeImage blockRanges(const TsdfVolume& volume, const PinholeCamera& camera,
     return r;
 }
 
+/// Normals of the hits from their 4-neighbourhood, n = (P(u+1) - P(u-1)) x (P(v+1) - P(v-1)),
+/// facing the camera at o; hits without all four neighbours within max_normal_depth_jump_m in
+/// depth are dropped (every returned hit has a normal).
+void normalsFromNeighbours(const Eigen::Vector3f& o, const RaycastConfig& config,
+                           RaycastResult* out) {
+    const int w = out->depth.width(), h = out->depth.height();
+    const PointImage points = out->points_V;
+    const DepthImage depth = out->depth;
+    const float max_jump = config.max_normal_depth_jump_m;
+    parallelFor(config.num_threads, h, [&](int v) {
+        for (int u = 0; u < w; ++u) {
+            const float z = depth(u, v);
+            if (!(z > 0.0f)) continue;
+            Eigen::Vector3f n = Eigen::Vector3f::Zero();
+            if (u > 0 && v > 0 && u + 1 < w && v + 1 < h) {
+                const float zs[4] = {depth(u - 1, v), depth(u + 1, v), depth(u, v - 1),
+                                     depth(u, v + 1)};
+                bool ok = true;
+                for (const float zn : zs) ok = ok && zn > 0.0f && std::abs(zn - z) <= max_jump;
+                if (ok) {
+                    n = (points(u + 1, v) - points(u - 1, v))
+                            .cross(points(u, v + 1) - points(u, v - 1));
+                }
+            }
+            const float len = n.norm();
+            if (len > 0.0f) {
+                n /= len;
+                out->normals_V(u, v) = n.dot(o - points(u, v)) < 0.0f ? Eigen::Vector3f(-n) : n;
+            } else {
+                out->points_V(u, v) = invalidPoint();
+                out->depth(u, v) = 0.0f;
+            }
+        }
+    });
+}
+
 }  // namespace
 
 RaycastResult raycast(const TsdfVolume& volume, const PinholeCamera& camera,
@@ -212,7 +248,11 @@ RaycastResult raycast(const TsdfVolume& volume, const PinholeCamera& camera,
                         }
                         const Eigen::Vector3f hit = o + ts * r;
                         Eigen::Vector3f grad;
-                        if (volume.gradient(hit, w_min, &grad) && grad.squaredNorm() > 0.0f) {
+                        if (config.normals_from_neighbours) {
+                            out.points_V(u, v) = hit;  // normal from the neighbours, below
+                            out.depth(u, v) = ts;
+                        } else if (volume.gradient(hit, w_min, &grad) &&
+                                   grad.squaredNorm() > 0.0f) {
                             out.points_V(u, v) = hit;
                             out.normals_V(u, v) = grad.normalized();
                             out.depth(u, v) = ts;
@@ -249,6 +289,7 @@ RaycastResult raycast(const TsdfVolume& volume, const PinholeCamera& camera,
             march(t_begin, /*hinted=*/false);
         }
     });
+    if (config.normals_from_neighbours) normalsFromNeighbours(o, config, &out);
     return out;
 }
 

@@ -37,6 +37,13 @@ void describe(config::Schema& s, RaycastConfig& c) {
         .max(1.0);
     s.field("min_weight", c.min_weight, "voxels with a smaller weight count as unobserved")
         .greaterThan(0.0);
+    s.field("normals_from_neighbours", c.normals_from_neighbours,
+            "normals from the cross product of the neighbouring hits (as for the frames) instead "
+            "of the TSDF gradient; border hits and hits next to a depth jump are dropped");
+    s.field("max_normal_depth_jump_m", c.max_normal_depth_jump_m,
+            "with normals_from_neighbours: no normal where a neighbour's depth differs by more",
+            "m")
+        .positive();
     s.field("num_threads", c.num_threads, "worker threads (0 = all); results do not depend on it")
         .min(0);
 }
