@@ -123,33 +123,17 @@ RangeImage blockRanges(const TsdfVolume& volume, const PinholeCamera& camera,
     return r;
 }
 
-/// Normals of the hits from their 4-neighbourhood, n = (P(u+1) - P(u-1)) x (P(v+1) - P(v-1)),
-/// facing the camera at o; hits without all four neighbours within max_normal_depth_jump_m in
-/// depth are dropped (every returned hit has a normal).
+/// Normals of the hits from their 4-neighbourhood (neighbourNormal), facing the camera at o;
+/// hits without one are dropped (every returned hit has a normal).
 void normalsFromNeighbours(const Eigen::Vector3f& o, const RaycastConfig& config,
                            RaycastResult* out) {
-    const int w = out->depth.width(), h = out->depth.height();
     const PointImage points = out->points_V;
     const DepthImage depth = out->depth;
-    const float max_jump = config.max_normal_depth_jump_m;
-    parallelFor(config.num_threads, h, [&](int v) {
-        for (int u = 0; u < w; ++u) {
-            const float z = depth(u, v);
-            if (!(z > 0.0f)) continue;
-            Eigen::Vector3f n = Eigen::Vector3f::Zero();
-            if (u > 0 && v > 0 && u + 1 < w && v + 1 < h) {
-                const float zs[4] = {depth(u - 1, v), depth(u + 1, v), depth(u, v - 1),
-                                     depth(u, v + 1)};
-                bool ok = true;
-                for (const float zn : zs) ok = ok && zn > 0.0f && std::abs(zn - z) <= max_jump;
-                if (ok) {
-                    n = (points(u + 1, v) - points(u - 1, v))
-                            .cross(points(u, v + 1) - points(u, v - 1));
-                }
-            }
-            const float len = n.norm();
-            if (len > 0.0f) {
-                n /= len;
+    parallelFor(config.num_threads, depth.height(), [&](int v) {
+        for (int u = 0; u < depth.width(); ++u) {
+            if (!(depth(u, v) > 0.0f)) continue;
+            Eigen::Vector3f n;
+            if (neighbourNormal(points, depth, u, v, config.max_normal_depth_jump_m, &n)) {
                 out->normals_V(u, v) = n.dot(o - points(u, v)) < 0.0f ? Eigen::Vector3f(-n) : n;
             } else {
                 out->points_V(u, v) = invalidPoint();

@@ -26,6 +26,25 @@ inline Eigen::Vector3f invalidPoint() {
     return Eigen::Vector3f::Constant(std::numeric_limits<float>::quiet_NaN());
 }
 
+/// Unit normal of the point at pixel (u, v) from its 4-neighbourhood,
+/// (P(u+1) - P(u-1)) x (P(v+1) - P(v-1)), unoriented. False on the image border, where the pixel
+/// or a neighbour has no depth (<= 0), or where a neighbour's depth differs by more than
+/// max_depth_jump (a depth edge). `points` and `depth` are images of the same size.
+inline bool neighbourNormal(const PointImage& points, const Image<float>& depth, int u, int v,
+                            float max_depth_jump, Eigen::Vector3f* n) {
+    if (u < 1 || v < 1 || u + 1 >= depth.width() || v + 1 >= depth.height()) return false;
+    const float z = depth(u, v);
+    if (!(z > 0.0f)) return false;
+    for (const float zn : {depth(u - 1, v), depth(u + 1, v), depth(u, v - 1), depth(u, v + 1)}) {
+        if (!(zn > 0.0f) || std::abs(zn - z) > max_depth_jump) return false;
+    }
+    *n = (points(u + 1, v) - points(u - 1, v)).cross(points(u, v + 1) - points(u, v - 1));
+    const float len = n->norm();
+    if (!(len > 0.0f)) return false;
+    *n /= len;
+    return true;
+}
+
 struct RaycastConfig {
     /// Marching starts at this z-depth in the camera frame, metres.
     float min_depth_m = 0.1f;

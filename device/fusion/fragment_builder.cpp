@@ -94,10 +94,7 @@ bool FragmentBuilder::integrate(const FramePyramid& pyramid, const Eigen::Isomet
         return false;
     }
     have_model_ = true;
-    if (config_.raycast_from_last_depth) {
-        last_depth_ = pyramid.depth;
-        T_M_last_depth_ = T_F_C;
-    }
+    if (config_.raycast_from_last_depth) last_depth_ = pyramid.depth;
     return true;
 }
 
@@ -144,11 +141,9 @@ Result<FrameReport> FragmentBuilder::processImpl(const Frame& frame) {
     // Model X: the open fragment's volume (X = M), or the previous one during a handover.
     const tsdf::TsdfVolume& model_volume = handover_ ? previous_volume_ : volume_;
     const Eigen::Isometry3d T_X_M = handover_ ? T_P_M_ : Eigen::Isometry3d::Identity();
-    const bool hinted = config_.raycast_from_last_depth && !last_depth_.empty() &&
-                        T_M_last_depth_.matrix() == T_M_last_.matrix();
     const std::vector<ModelLevel> model =
         predictModel(model_volume, pyramid, T_X_M * T_M_last_, config_.raycast, config_.model_level,
-                     hinted ? &last_depth_ : nullptr);
+                     last_depth_.empty() ? nullptr : &last_depth_);
     // Start from a constant-velocity prediction: along directions the geometry leaves free
     // (solution remapping in the ICP) the camera keeps moving as it did.
     const Eigen::Isometry3d T_M_pred =

@@ -128,10 +128,10 @@ class FragmentBuilder {
     bool lost_ = false;        ///< the last tracking attempt failed
     Eigen::Isometry3d T_W_M_ = Eigen::Isometry3d::Identity();     ///< frame of volume_
     Eigen::Isometry3d T_M_last_ = Eigen::Isometry3d::Identity();  ///< last good camera in M
-    /// The depth last integrated into volume_ and the pose (in M) it was integrated at: the
-    /// raycast's start hint when tracking predicts the model from that pose.
+    /// The depth last integrated into volume_, at T_M_last_ (every successful integration sets
+    /// both; openFragment clears it): the raycast's start hint, since tracking predicts the
+    /// model from T_M_last_. Empty when raycast_from_last_depth is off.
     DepthImage last_depth_;
-    Eigen::Isometry3d T_M_last_depth_ = Eigen::Isometry3d::Identity();
     Eigen::Isometry3d T_W_C_ = Eigen::Isometry3d::Identity();
     /// Last frame-to-frame motion T_Cprev_C (identity after a loss), for the prediction.
     Eigen::Isometry3d velocity_ = Eigen::Isometry3d::Identity();

@@ -160,23 +160,9 @@ void computeVertexNormalMaps(const DepthImage& depth, const PinholeCamera& camer
         }
     });
     tsdf::parallelFor(num_threads, h, [&](int v) {
-        if (v < 1 || v + 1 >= h) return;
-        for (int u = 1; u + 1 < w; ++u) {
-            const float d = depth(u, v);
-            if (d <= 0.0f) continue;
-            const float dl = depth(u - 1, v), dr = depth(u + 1, v);
-            const float du = depth(u, v - 1), dd = depth(u, v + 1);
-            if (dl <= 0.0f || dr <= 0.0f || du <= 0.0f || dd <= 0.0f) continue;
-            if (std::abs(dl - d) > max_depth_jump_m || std::abs(dr - d) > max_depth_jump_m ||
-                std::abs(du - d) > max_depth_jump_m || std::abs(dd - d) > max_depth_jump_m) {
-                continue;
-            }
-            const Eigen::Vector3f dx = (*points_C)(u + 1, v) - (*points_C)(u - 1, v);
-            const Eigen::Vector3f dy = (*points_C)(u, v + 1) - (*points_C)(u, v - 1);
-            Eigen::Vector3f n = dx.cross(dy);
-            const float len = n.norm();
-            if (!(len > 0.0f)) continue;
-            n /= len;
+        for (int u = 0; u < w; ++u) {
+            Eigen::Vector3f n;
+            if (!tsdf::neighbourNormal(*points_C, depth, u, v, max_depth_jump_m, &n)) continue;
             if (n.dot((*points_C)(u, v)) > 0.0f) n = -n;  // face the camera
             (*normals_C)(u, v) = n;
         }
