@@ -76,6 +76,11 @@ void describe(config::Schema& s, IcpConfig& c) {
             "leaves 2, a wall meeting the floor 1); unconstrained directions follow the "
             "constant-velocity prediction")
         .range(0, 3);
+    s.field("weak_motion_decay", c.weak_motion_decay,
+            "along directions below min_normalized_eigenvalue the pose takes the predicted motion "
+            "scaled by this (1 = the constant-velocity prediction); a roll about the normal of the "
+            "only plane in view then dies out instead of being carried on")
+        .range(0.0, 1.0);
     s.field("num_threads", c.num_threads, "worker threads (0 = all); results do not depend on it")
         .min(0);
 }

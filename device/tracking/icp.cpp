@@ -121,8 +121,10 @@ Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> translationSpread(const Accumulat
 /// They are (a) translations along axes t of sum n n^T / inliers with mean (n.t)^2 below
 /// min_normal_spread -- sliding along a wall, down a corridor, along the line where a wall meets
 /// the floor -- removed before the solve, and (b) eigen-directions of the remaining system whose
-/// eigenvalue per inlier is below min_normalized_eigenvalue.
-Vector6d solveStep(const Accumulator& sys, const IcpConfig& config) {
+/// eigenvalue per inlier is below min_normalized_eigenvalue. The (a) translations keep the current
+/// pose; the (b) directions move to `xi_prior`, the left twist from the current pose to the prior
+/// pose (the prediction with its weakly observed motion decayed, see IcpConfig).
+Vector6d solveStep(const Accumulator& sys, const Vector6d& xi_prior, const IcpConfig& config) {
     const double per_inlier = 1.0 / static_cast<double>(sys.count);
     const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> spread = translationSpread(sys);
     // Basis of the directions solved for: the three rotations and the constrained translations
@@ -142,11 +144,12 @@ Vector6d solveStep(const Accumulator& sys, const IcpConfig& config) {
     const Vector g = basis.transpose() * (-sys.Jtr);
     const Eigen::SelfAdjointEigenSolver<Square> es(H);
     const Vector b = es.eigenvectors().transpose() * g;
+    const Vector prior = es.eigenvectors().transpose() * (basis.transpose() * xi_prior);
     Vector y = Vector::Zero(k);
     for (int i = 0; i < k; ++i) {
         const double ev = es.eigenvalues()(i);
-        if (!(ev * per_inlier >= config.min_normalized_eigenvalue)) continue;
-        y += es.eigenvectors().col(i) * (b(i) / ev);
+        const bool constrained = ev * per_inlier >= config.min_normalized_eigenvalue;
+        y += es.eigenvectors().col(i) * (constrained ? b(i) / ev : prior(i));
     }
     return basis * y;
 }
@@ -218,6 +221,9 @@ Status IcpConfig::validate() const {
     if (!(min_inlier_fraction >= 0.0 && min_inlier_fraction <= 1.0)) {
         return invalidArgument("icp: min_inlier_fraction must be in [0, 1]");
     }
+    if (!(weak_motion_decay >= 0.0 && weak_motion_decay <= 1.0)) {
+        return invalidArgument("icp: weak_motion_decay must be in [0, 1]");
+    }
     return Status::ok();
 }
 
@@ -229,6 +235,10 @@ IcpResult alignFrameToModel(const FramePyramid& frame, const std::vector<ModelLe
     IcpResult result;
     Eigen::Isometry3d T = T_M_C_init;
     const Eigen::Isometry3d T_P_M = T_M_P.inverse();
+    // The prior of the weakly observed directions: the predicted motion from the model pose,
+    // scaled by weak_motion_decay (left twists, as the updates).
+    const Eigen::Isometry3d T_prior =
+        lie::expSE3(config.weak_motion_decay * lie::logSE3(T_M_C_init * T_P_M)) * T_M_P;
     const int num_levels = static_cast<int>(frame.levels.size());
     // The finest level's system of the last iteration, when that iteration converged: the pose
     // then moved by less than min_update_norm and the system is the final statistics.
@@ -240,7 +250,7 @@ IcpResult alignFrameToModel(const FramePyramid& frame, const std::vector<ModelLe
             Accumulator sys = buildSystem(level, model[static_cast<size_t>(l)], T, T_P_M, config);
             if (sys.count < 6) break;
             ++result.iterations;
-            const Vector6d xi = solveStep(sys, config);
+            const Vector6d xi = solveStep(sys, lie::logSE3(T_prior * T.inverse()), config);
             if (!xi.allFinite()) break;
             T = lie::orthonormalized(lie::expSE3(xi) * T);
             if (xi.norm() < config.min_update_norm) {
