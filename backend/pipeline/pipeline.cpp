@@ -133,6 +133,7 @@ nlohmann::json edgeSummary(const registration::RegistrationOutcome& outcome) {
             {"ransac_failed", s.ransac_failed},
             {"overlap_rejected", s.overlap_rejected},
             {"rotation_rejected", s.rotation_rejected},
+            {"translation_rejected", s.translation_rejected},
             {"pose_graph_iterations", outcome.first.iterations + outcome.refined.iterations},
             {"line_process_mu", outcome.refined_ran ? outcome.refined.mu : outcome.first.mu}};
 }

@@ -29,6 +29,7 @@ void describe(config::Schema& s, RegistrationConfig& c) {
     s.section("prepare", c.prepare, "downsampling, normals and FPFH");
     s.section("icp", c.icp, "multi-scale point-to-plane ICP");
     s.section("ransac", c.ransac, "FPFH matching and RANSAC for loop closures");
+    s.section("guided", c.guided, "odometry-guided loop search within a tracking segment");
     s.section("pose_graph", c.pose_graph, "line-process pose graph");
     s.section("live", c.live, "live mode candidate selection");
     s.field("min_overlap", c.min_overlap,
@@ -112,7 +113,7 @@ PoseGraphEdge odometryEdge(const FragmentIndex& s, const FragmentIndex& t,
     return e;
 }
 
-enum class LoopOutcome { kRansacFailed, kRejected, kTurned, kAccepted };
+enum class LoopOutcome { kRansacFailed, kRejected, kTurned, kMoved, kAccepted };
 
 /// A verified loop candidate that is not kept: its alignment figures, kept = false, the reason.
 void reject(PoseGraphEdge& e, const PairResult& eval, std::string reason) {
@@ -122,44 +123,113 @@ void reject(PoseGraphEdge& e, const PairResult& eval, std::string reason) {
     e.reason = std::move(reason);
 }
 
-/// Loop-closure candidate (s, t): RANSAC, coarse ICP, rotation check against the odometry
-/// `T_odo` (when set), overlap test, multi-scale refinement.
+/// How far T moves the target's centroid from where the odometry puts it, metres.
+Eigen::Vector3d offsetFromOdometry(const FragmentIndex& target, const Eigen::Isometry3d& T,
+                                   const Eigen::Isometry3d& T_odo) {
+    const PointCloud& pts = target.coarse.cloud();
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+    for (const Eigen::Vector3f& p : pts.points) c += p.cast<double>();
+    if (!pts.empty()) c /= static_cast<double>(pts.size());
+    return T * c - T_odo * c;
+}
+
+/// Whether T stays in the guided search's window around the odometry: it turns no further than
+/// max_rotation_deg from it and moves the target's centroid no further than radius_m (per axis,
+/// plus one bin).
+bool withinWindow(const FragmentIndex& target, const Eigen::Isometry3d& T,
+                  const Eigen::Isometry3d& T_odo, const GuidedSearchConfig& g) {
+    return lie::rotationAngle(T_odo.inverse() * T) * 180.0 / std::numbers::pi <=
+               g.max_rotation_deg &&
+           offsetFromOdometry(target, T, T_odo).cwiseAbs().maxCoeff() <= g.radius_m + g.bin_m;
+}
+
+/// Loop-closure candidate (s, t). Starting alignments: FPFH + RANSAC's and, for a pair of one
+/// tracking segment (`T_odo` set), the odometry-guided search's vote peaks. Each is refined by
+/// coarse ICP. Within a segment a candidate must agree with the odometry (turned by at most
+/// max_loop_rotation_deviation_deg, moved by at most guided.max_offset_sigmas deviations of the
+/// drift prior) and they are ranked by overlap times the prior; across segments by overlap. The
+/// best goes on to the overlap test and the multi-scale refinement.
 LoopOutcome loopEdge(const FragmentIndex& s, const FragmentIndex& t, const RegistrationConfig& c,
                      const std::optional<Eigen::Isometry3d>& T_odo, PoseGraphEdge* out) {
+    struct Start {
+        Eigen::Isometry3d T;
+        const char* method;
+        bool guided;
+    };
+    std::vector<Start> starts;
+    const double sigma = odometryPriorSigma(c.guided, t.id > s.id ? t.id - s.id : s.id - t.id);
     const PairResult ransac = ransacFeatureMatching(s, t, c.ransac, pairSeed(c.seed, s.id, t.id));
-    if (!ransac.success) return LoopOutcome::kRansacFailed;
+    if (ransac.success) starts.push_back({ransac.T_source_target, "FPFH + RANSAC", false});
+    if (T_odo && c.guided.enabled) {
+        for (const GuidedCandidate& g : guidedCandidates(s, t, *T_odo, sigma, c.guided)) {
+            starts.push_back({g.T_source_target, "odometry-guided search", true});
+        }
+    }
+    struct Verified {
+        PairResult eval;
+        const char* method = "";
+        bool guided = false;
+        double score = 0.0;        ///< overlap, times the odometry prior within a segment
+        std::string disagreement;  ///< why it disagrees with the odometry (empty: it agrees)
+    };
+    std::optional<Verified> best, first;
+    for (const Start& start : starts) {
+        Eigen::Isometry3d T = start.T;
+        if (!s.levels.empty() && !t.levels.empty() && !c.icp.voxel_sizes_m.empty()) {
+            const PairResult icp = icpPointToPlane(s.levels[0], t.levels[0].cloud(), T,
+                                                   c.icp.distance_factor * c.icp.voxel_sizes_m[0],
+                                                   c.loop_icp_iterations, c.icp.relative_change, 1);
+            if (icp.success) T = icp.T_source_target;
+        }
+        // A guided start that ICP slid out of the search window (along a wall, most often) is
+        // no longer what the votes found.
+        if (start.guided && !withinWindow(t, T, *T_odo, c.guided)) continue;
+        Verified v{evaluateAlignment(s, t, T, tauOf(c), 1), start.method, start.guided, 0.0, {}};
+        v.score = v.eval.overlap;
+        if (T_odo) {
+            // Walls, floor and ceiling match as well after a quarter turn or a slide of a metre,
+            // and the odometry drifts by a few degrees and centimetres per fragment: it is a
+            // prior on the drift (and ranks a slide along a wall below the truth).
+            const double turned_deg =
+                lie::rotationAngle(T_odo->inverse() * T) * 180.0 / std::numbers::pi;
+            const double moved_m = offsetFromOdometry(t, T, *T_odo).norm();
+            const double max_moved_m = c.guided.max_offset_sigmas * sigma;
+            if (c.max_loop_rotation_deviation_deg > 0.0 &&
+                turned_deg > c.max_loop_rotation_deviation_deg) {
+                v.disagreement = fmt2("rejected: turned %.1f deg from the odometry (max %.0f)",
+                                      turned_deg, c.max_loop_rotation_deviation_deg);
+            } else if (c.guided.max_offset_sigmas > 0.0 && moved_m > max_moved_m) {
+                v.disagreement = fmt2("rejected: moved %.2f m from the odometry (max %.2f)",
+                                      moved_m, max_moved_m);
+            }
+            v.score *= std::exp(-0.5 * moved_m * moved_m / (sigma * sigma));
+        }
+        if (!first) first = v;
+        if (v.disagreement.empty() && (!best || v.score > best->score)) best = v;
+    }
+    if (!first) return LoopOutcome::kRansacFailed;  // no start, or every guided start slid away
     PoseGraphEdge& e = *out;
     e.source = s.id;
     e.target = t.id;
     e.kind = PoseGraphEdge::Kind::kLoop;
-    Eigen::Isometry3d T = ransac.T_source_target;
-    if (!s.levels.empty() && !t.levels.empty() && !c.icp.voxel_sizes_m.empty()) {
-        const PairResult icp = icpPointToPlane(s.levels[0], t.levels[0].cloud(), T,
-                                               c.icp.distance_factor * c.icp.voxel_sizes_m[0],
-                                               c.loop_icp_iterations, c.icp.relative_change, 1);
-        if (icp.success) T = icp.T_source_target;
+    if (!best) {
+        reject(e, first->eval, first->disagreement);
+        return first->disagreement.find("turned") != std::string::npos ? LoopOutcome::kTurned
+                                                                       : LoopOutcome::kMoved;
     }
-    PairResult eval = evaluateAlignment(s, t, T, tauOf(c), 1);
-    if (T_odo && c.max_loop_rotation_deviation_deg > 0.0) {
-        const double turned_deg =
-            lie::rotationAngle(T_odo->inverse() * T) * 180.0 / std::numbers::pi;
-        if (turned_deg > c.max_loop_rotation_deviation_deg) {
-            reject(e, eval,
-                   fmt2("rejected: turned %.1f deg from the odometry (max %.0f)", turned_deg,
-                        c.max_loop_rotation_deviation_deg));
-            return LoopOutcome::kTurned;
-        }
-    }
+    PairResult eval = best->eval;
     if (eval.overlap < c.min_overlap) {
         reject(e, eval, fmt2("rejected: overlap %.3f < %.2f", eval.overlap, c.min_overlap));
         return LoopOutcome::kRejected;
     }
-    const PairResult fine = multiScaleIcp(s, t, T, c.icp);
-    if (fine.success) {
+    const PairResult fine = multiScaleIcp(s, t, eval.T_source_target, c.icp);
+    if (fine.success &&
+        (!best->guided || withinWindow(t, fine.T_source_target, *T_odo, c.guided))) {
         const PairResult refined = evaluateAlignment(s, t, fine.T_source_target, tauOf(c), 1);
         if (refined.overlap >= c.min_overlap) eval = refined;
     }
     setFromPair(e, eval);
+    e.reason = std::string("found by ") + best->method;
     return LoopOutcome::kAccepted;
 }
 
@@ -322,6 +392,10 @@ Result<PoseGraph> buildPoseGraph(const std::vector<Fragment>& fragments,
                 ++stats.loop_pairs_tried;
                 ++stats.rotation_rejected;
                 break;
+            case 2 + static_cast<int>(LoopOutcome::kMoved):
+                ++stats.loop_pairs_tried;
+                ++stats.translation_rejected;
+                break;
             default:
                 ++stats.loop_pairs_tried;
                 ++stats.loops_accepted;
@@ -459,6 +533,7 @@ Status LiveRegistrar::addFragment(Fragment fragment) {
             if (outcomes[c] == LoopOutcome::kRansacFailed) ++stats_.ransac_failed;
             if (outcomes[c] == LoopOutcome::kRejected) ++stats_.overlap_rejected;
             if (outcomes[c] == LoopOutcome::kTurned) ++stats_.rotation_rejected;
+            if (outcomes[c] == LoopOutcome::kMoved) ++stats_.translation_rejected;
             if (outcomes[c] == LoopOutcome::kAccepted) ++stats_.loops_accepted;
             if (loops[c]) graph_.edges.push_back(std::move(*loops[c]));
         }

@@ -25,6 +25,7 @@
 #include <vector>
 
 #include "backend/posegraph/pose_graph.hpp"
+#include "backend/registration/guided_search.hpp"
 #include "backend/registration/pair_registration.hpp"
 #include "backend/registration/prepared_fragment.hpp"
 #include "common/config/schema.hpp"
@@ -55,6 +56,8 @@ struct RegistrationConfig {
     IcpConfig icp;
     /// Feature matching and RANSAC (loop closures).
     RansacConfig ransac;
+    /// Odometry-guided loop search between fragments of one tracking segment.
+    GuidedSearchConfig guided;
     /// Line-process pose graph; its max_correspondence_distance_m is also the τ of the overlap
     /// test and of the information matrices.
     posegraph::PoseGraphConfig pose_graph;
@@ -87,7 +90,8 @@ struct PairStats {
     int loop_pairs_tried = 0;
     int ransac_failed = 0;
     int overlap_rejected = 0;
-    int rotation_rejected = 0;  ///< turned too far from the odometry (max_loop_rotation_...)
+    int rotation_rejected = 0;     ///< turned too far from the odometry (max_loop_rotation_...)
+    int translation_rejected = 0;  ///< moved too far from the odometry (guided.max_offset_...)
     int loops_accepted = 0;
 };
 

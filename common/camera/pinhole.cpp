@@ -49,9 +49,11 @@ Result<PinholeCamera> cameraPreset(const std::string& name) {
     if (name == "tum-fr3") return PinholeCamera{640, 480, 535.4, 539.2, 320.1, 247.6};
     if (name == "7-scenes") return PinholeCamera{640, 480, 585.0, 585.0, 320.0, 240.0};
     if (name == "ci") return PinholeCamera{160, 120, 131.25, 131.25, 79.5, 59.5};
+    // PrimeSense at half resolution (QVGA).
+    if (name == "qvga") return PinholeCamera{320, 240, 262.5, 262.5, 159.5, 119.5};
     return notFound("no camera preset named '" + name +
                     "' (known: primesense, redwood, icl-nuim, tum-fr1, tum-fr2, tum-fr3, "
-                    "7-scenes, ci)");
+                    "7-scenes, ci, qvga)");
 }
 
 }  // namespace plumb

@@ -9,6 +9,7 @@
 #include <numbers>
 #include <set>
 
+#include "backend/registration/guided_search.hpp"
 #include "backend/registration/pair_registration.hpp"
 #include "backend/registration/prepared_fragment.hpp"
 #include "tests/backend/registration/sim_fragments.hpp"
@@ -174,6 +175,75 @@ TEST(PairRegistration, RansacRecoversLargeMotionAndOverlapIsFull) {
     Eigen::Isometry3d far = truth;
     far.translation() += Eigen::Vector3d(10, 0, 0);
     EXPECT_LT(evaluateAlignment(p->ia, p->ib, far, 0.07, 0).overlap, 0.01);
+}
+
+TEST(GuidedSearch, FindsTheTranslationDriftUnderTheOdometryRotation) {
+    // The odometry has the rotation to within a degree but the translation 34 cm off: the
+    // strongest vote peak is the truth (to a bin), and ICP from it finishes the job.
+    const Eigen::Isometry3d T_b_a =
+        lie::expSE3((Vector6d() << 0.1, -0.3, 0.05, 0.5, 0.2, -0.3).finished());
+    auto p = makePair(T_b_a);
+    const Eigen::Isometry3d truth = T_b_a.inverse();
+    const Eigen::Isometry3d T_odo =
+        Eigen::Translation3d(0.25, -0.2, 0.1) * truth *
+        Eigen::AngleAxisd(1.0 * kDeg, Eigen::Vector3d(1, 2, 3).normalized());
+    const GuidedSearchConfig config;
+    const std::vector<GuidedCandidate> c = guidedCandidates(p->ia, p->ib, T_odo, 0.3, config);
+    ASSERT_FALSE(c.empty());
+    ASSERT_LE(c.size(), static_cast<size_t>(config.max_peaks));
+    for (size_t k = 1; k < c.size(); ++k) EXPECT_LE(c[k].votes, c[k - 1].votes);
+    // The candidate moves the fragment's centroid to within two bins of where the truth puts it
+    // (votes are binned at 5 cm, and the residual 1-degree turn moves points 2 m out by 3.5 cm).
+    const PointCloud& pts = p->ib.coarse.cloud();
+    Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+    for (const Eigen::Vector3f& q : pts.points) centroid += q.cast<double>();
+    centroid /= static_cast<double>(pts.size());
+    const double before = (T_odo * centroid - truth * centroid).norm();
+    const double after = (c.front().T_source_target * centroid - truth * centroid).norm();
+    std::printf("guided search: centroid %.3f m off at the odometry, %.3f m at the best peak\n",
+                before, after);
+    EXPECT_GT(before, 0.3);
+    EXPECT_LT(after, 0.1);
+    const PairResult icp = multiScaleIcp(p->ia, p->ib, c.front().T_source_target, IcpConfig{});
+    ASSERT_TRUE(icp.success) << icp.reason;
+    EXPECT_LT(translationError(icp.T_source_target, truth), 0.01);
+    EXPECT_LT(lie::rotationAngle(icp.T_source_target.inverse() * truth), 0.2 * kDeg);
+    // Deterministic, and nothing to vote with without normals.
+    const std::vector<GuidedCandidate> again = guidedCandidates(p->ia, p->ib, T_odo, 0.3, config);
+    ASSERT_EQ(again.size(), c.size());
+    for (size_t k = 0; k < c.size(); ++k) {
+        EXPECT_TRUE(again[k].T_source_target.matrix() == c[k].T_source_target.matrix());
+    }
+    FragmentIndex bare;
+    EXPECT_TRUE(guidedCandidates(p->ia, bare, T_odo, 0.3, config).empty());
+}
+
+TEST(GuidedSearch, AFloorAloneKeepsTheOdometryAlongItself) {
+    // Two views of the same 3 m x 3 m floor: any slide along it fits, only the height is
+    // observed. The odometry is 20 cm off along the floor and 8 cm in height: the search
+    // corrects the height and keeps the odometry along the floor (the prior breaks the tie).
+    Fragment floor;
+    for (int i = 0; i < 150; ++i) {
+        for (int j = 0; j < 150; ++j) {
+            floor.points_F.points.emplace_back(0.02f * i - 1.5f, 0.02f * j - 1.5f, 0.0f);
+            floor.points_F.normals.emplace_back(0.0f, 0.0f, 1.0f);
+        }
+    }
+    Fragment other = floor;
+    other.id = 1;
+    const PreparedFragment pa = prepareFragment(floor, {}).value();
+    const PreparedFragment pb = prepareFragment(other, {}).value();
+    const FragmentIndex ia = buildFragmentIndex(floor, pa, IcpConfig{});
+    const FragmentIndex ib = buildFragmentIndex(other, pb, IcpConfig{});
+    const Eigen::Isometry3d T_odo(Eigen::Translation3d(0.2, 0.0, 0.08));
+    const std::vector<GuidedCandidate> c =
+        guidedCandidates(ia, ib, T_odo, 0.2, GuidedSearchConfig{});
+    ASSERT_FALSE(c.empty());
+    const Eigen::Vector3d t = c.front().T_source_target.translation();
+    // Offsets are voted in 5 cm bins: the peak is right to half a bin (ICP refines it).
+    EXPECT_NEAR(t.z(), 0.0, 0.026);
+    EXPECT_NEAR(t.x(), 0.2, 0.026);
+    EXPECT_NEAR(t.y(), 0.0, 0.026);
 }
 
 TEST(PairRegistration, FitRigidIsExact) {

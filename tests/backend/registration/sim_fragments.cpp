@@ -18,15 +18,18 @@ namespace {
 
 std::filesystem::path cacheDir(const SimScanOptions& o) {
     std::ostringstream key;
-    key << "v2-" << o.scene << "-" << o.num_frames << "-" << o.rate_hz << "-"
-        << o.frames_per_fragment << "-" << (o.loop ? "loop" : "open") << "-" << o.seed;
+    key << "v3-" << o.camera << "-" << o.voxel_size_m << "-" << o.truncation_m << "-" << o.scene
+        << "-" << o.num_frames << "-" << o.rate_hz << "-" << o.frames_per_fragment << "-"
+        << (o.loop ? "loop" : "open") << "-" << o.seed;
     return std::filesystem::temp_directory_path() / "plumb-registration-cache" / key.str();
 }
 
 Result<SimScan> generate(const SimScanOptions& o, std::vector<std::vector<uint8_t>>* encoded) {
     sim::SimConfig sc;
     sc.scene = o.scene;
-    sc.camera = cameraPreset("ci").value();
+    Result<PinholeCamera> camera = cameraPreset(o.camera);
+    if (!camera.isOk()) return camera.status();
+    sc.camera = camera.value();
     sc.trajectory.loop = o.loop;
     sc.trajectory.num_frames = o.num_frames;
     sc.trajectory.rate_hz = o.rate_hz;
@@ -36,8 +39,8 @@ Result<SimScan> generate(const SimScanOptions& o, std::vector<std::vector<uint8_
     if (!source.isOk()) return source.status();
     device::FusionConfig fc;
     fc.frames_per_fragment = o.frames_per_fragment;
-    fc.tsdf.voxel_size_m = 0.02f;
-    fc.tsdf.truncation_m = 0.08f;
+    fc.tsdf.voxel_size_m = o.voxel_size_m;
+    fc.tsdf.truncation_m = o.truncation_m;
     device::FragmentBuilder builder((*source)->camera(), fc);
     SimScan scan;
     std::vector<Fragment> raw;

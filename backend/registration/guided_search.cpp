@@ -1,0 +1,195 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "backend/registration/guided_search.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <numbers>
+
+namespace plumb::registration {
+
+void describe(config::Schema& s, GuidedSearchConfig& c) {
+    s.field("enabled", c.enabled,
+            "also search loops between fragments of one tracking segment by translation voting "
+            "under the odometry's rotation (FPFH is ambiguous in bare rooms)");
+    s.field("radius_m", c.radius_m, "largest translation drift searched (per axis)", "m")
+        .positive();
+    s.field("drift_per_fragment_m", c.drift_per_fragment_m,
+            "expected odometry drift from one fragment to the next; the odometry prior's deviation "
+            "is this x sqrt(fragments apart)",
+            "m")
+        .positive();
+    s.field("max_offset_sigmas", c.max_offset_sigmas,
+            "loops of one segment that move further than this many prior deviations from the "
+            "odometry are rejected (0 = no check)")
+        .min(0.0);
+    s.field("max_rotation_deg", c.max_rotation_deg,
+            "guided alignments that ICP turns further than this from the odometry are dropped",
+            "deg")
+        .range(0.0, 180.0);
+    s.field("bin_m", c.bin_m, "edge of a translation vote bin", "m").positive();
+    s.field("max_normal_angle_deg", c.max_normal_angle_deg,
+            "point pairs vote only when their normals agree within this", "deg")
+        .range(0.0, 90.0);
+    s.field("max_peaks", c.max_peaks, "at most this many vote peaks are refined and verified")
+        .min(1);
+}
+
+namespace {
+
+/// Integer cell coordinates packed into one key (21 bits each, offset to be non-negative).
+int64_t cellKey(const Eigen::Vector3i& c) {
+    constexpr int64_t kOffset = 1 << 20;
+    return ((c.x() + kOffset) << 42) | ((c.y() + kOffset) << 21) | (c.z() + kOffset);
+}
+
+Eigen::Vector3i cellOf(const Eigen::Vector3f& p, float inv_cell) {
+    return (p * inv_cell).array().floor().cast<int>();
+}
+
+}  // namespace
+
+double odometryPriorSigma(const GuidedSearchConfig& config, uint32_t apart) {
+    return config.drift_per_fragment_m * std::sqrt(static_cast<double>(std::max(apart, 1u)));
+}
+
+std::vector<GuidedCandidate> guidedCandidates(const FragmentIndex& source,
+                                              const FragmentIndex& target,
+                                              const Eigen::Isometry3d& T_odo, double prior_sigma_m,
+                                              const GuidedSearchConfig& config) {
+    const PointCloud& src = source.coarse.cloud();
+    const PointCloud& tgt = target.coarse.cloud();
+    if (src.empty() || tgt.empty() || !src.hasNormals() || !tgt.hasNormals()) return {};
+    if (!(config.radius_m > 0.0) || !(config.bin_m > 0.0) || config.max_peaks < 1) return {};
+
+    // Source points sorted by cell of edge radius: a target point's partners within the search
+    // box lie in the 27 cells around it.
+    const float radius = static_cast<float>(config.radius_m);
+    const float inv_cell = 1.0f / radius;
+    std::vector<std::pair<int64_t, uint32_t>> cells(src.size());
+    for (size_t i = 0; i < src.size(); ++i) {
+        cells[i] = {cellKey(cellOf(src.points[i], inv_cell)), static_cast<uint32_t>(i)};
+    }
+    std::sort(cells.begin(), cells.end());
+
+    // Vote grid over offsets d in [-h, h]^3 bins.
+    const double bin = config.bin_m;
+    const int h = static_cast<int>(std::ceil(config.radius_m / bin));
+    const int m = 2 * h + 1;
+    auto at = [m](int x, int y, int z) {
+        return (static_cast<size_t>(z) * static_cast<size_t>(m) + static_cast<size_t>(y)) *
+                   static_cast<size_t>(m) +
+               static_cast<size_t>(x);
+    };
+    std::vector<float> votes(static_cast<size_t>(m) * m * m, 0.0f);
+    const float cos_max =
+        static_cast<float>(std::cos(config.max_normal_angle_deg * std::numbers::pi / 180.0));
+    const Eigen::Matrix3f R = T_odo.rotation().cast<float>();
+    const Eigen::Vector3f t = T_odo.translation().cast<float>();
+    const float inv_bin = static_cast<float>(1.0 / bin);
+    for (size_t j = 0; j < tgt.size(); ++j) {
+        const Eigen::Vector3f q = R * tgt.points[j] + t;
+        const Eigen::Vector3f nq = R * tgt.normals[j];
+        const Eigen::Vector3i c = cellOf(q, inv_cell);
+        for (int dz = -1; dz <= 1; ++dz) {
+            for (int dy = -1; dy <= 1; ++dy) {
+                for (int dx = -1; dx <= 1; ++dx) {
+                    const int64_t key = cellKey(c + Eigen::Vector3i(dx, dy, dz));
+                    auto it = std::lower_bound(cells.begin(), cells.end(),
+                                               std::make_pair(key, uint32_t{0}));
+                    for (; it != cells.end() && it->first == key; ++it) {
+                        const uint32_t i = it->second;
+                        if (src.normals[i].dot(nq) < cos_max) continue;
+                        const Eigen::Vector3f d = (src.points[i] - q) * inv_bin;
+                        const Eigen::Vector3i b = d.array().round().cast<int>();
+                        if (b.cwiseAbs().maxCoeff() > h) continue;
+                        votes[at(b.x() + h, b.y() + h, b.z() + h)] += 1.0f;
+                    }
+                }
+            }
+        }
+    }
+
+    // Box-smoothed votes (3x3x3): a peak split across neighbouring bins still counts whole.
+    std::vector<float> smooth(votes.size(), 0.0f);
+    for (int z = 0; z < m; ++z) {
+        for (int y = 0; y < m; ++y) {
+            for (int x = 0; x < m; ++x) {
+                float s = 0.0f;
+                for (int c = std::max(z - 1, 0); c <= std::min(z + 1, m - 1); ++c) {
+                    for (int b = std::max(y - 1, 0); b <= std::min(y + 1, m - 1); ++b) {
+                        for (int a = std::max(x - 1, 0); a <= std::min(x + 1, m - 1); ++a) {
+                            s += votes[at(a, b, c)];
+                        }
+                    }
+                }
+                smooth[at(x, y, z)] = s;
+            }
+        }
+    }
+
+    // The odometry as a prior on the drift. Planes of only one or two directions vote for a ridge
+    // of equal offsets; the prior picks its point nearest the odometry, while a real peak (three
+    // plane directions, furniture) stands out regardless.
+    const double sigma_bins = std::max(prior_sigma_m, bin) / bin;
+    for (size_t k = 0; k < smooth.size(); ++k) {
+        const Eigen::Vector3i o =
+            Eigen::Vector3i(
+                static_cast<int>(k % static_cast<size_t>(m)),
+                static_cast<int>((k / static_cast<size_t>(m)) % static_cast<size_t>(m)),
+                static_cast<int>(k / (static_cast<size_t>(m) * static_cast<size_t>(m)))) -
+            Eigen::Vector3i::Constant(h);
+        smooth[k] *= static_cast<float>(
+            std::exp(-0.5 * static_cast<double>(o.squaredNorm()) / (sigma_bins * sigma_bins)));
+    }
+
+    // Peaks, strongest first; equal scores go to the smaller offset (closer to the odometry).
+    std::vector<size_t> order(smooth.size());
+    for (size_t k = 0; k < order.size(); ++k) order[k] = k;
+    auto offset = [m, h](size_t k) {
+        const int x = static_cast<int>(k % static_cast<size_t>(m)) - h;
+        const int y = static_cast<int>((k / static_cast<size_t>(m)) % static_cast<size_t>(m)) - h;
+        const int z = static_cast<int>(k / (static_cast<size_t>(m) * static_cast<size_t>(m))) - h;
+        return Eigen::Vector3i(x, y, z);
+    };
+    std::sort(order.begin(), order.end(), [&](size_t a, size_t b) {
+        if (smooth[a] != smooth[b]) return smooth[a] > smooth[b];
+        const int na = offset(a).squaredNorm(), nb = offset(b).squaredNorm();
+        return na != nb ? na < nb : a < b;
+    });
+    std::vector<GuidedCandidate> out;
+    std::vector<Eigen::Vector3i> taken;
+    const float best = smooth[order.front()];
+    if (!(best > 0.0f)) return out;
+    for (size_t k : order) {
+        if (static_cast<int>(out.size()) >= config.max_peaks || smooth[k] < 0.5f * best) break;
+        const Eigen::Vector3i o = offset(k);
+        bool near = false;
+        for (const Eigen::Vector3i& p : taken) near = near || (p - o).cwiseAbs().maxCoeff() < 3;
+        if (near) continue;
+        taken.push_back(o);
+        // Sub-bin offset: the vote-weighted mean over the 3x3x3 neighbourhood.
+        Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+        double w = 0.0;
+        for (int c = -1; c <= 1; ++c) {
+            for (int b = -1; b <= 1; ++b) {
+                for (int a = -1; a <= 1; ++a) {
+                    const Eigen::Vector3i n = o + Eigen::Vector3i(a, b, c);
+                    if (n.cwiseAbs().maxCoeff() > h) continue;
+                    const double v = votes[at(n.x() + h, n.y() + h, n.z() + h)];
+                    sum += v * n.cast<double>();
+                    w += v;
+                }
+            }
+        }
+        const Eigen::Vector3d d =
+            (w > 0.0 ? Eigen::Vector3d(sum / w) : Eigen::Vector3d(o.cast<double>())) * bin;
+        GuidedCandidate g;
+        g.T_source_target = Eigen::Translation3d(d) * T_odo;
+        g.votes = smooth[k];
+        out.push_back(g);
+    }
+    return out;
+}
+
+}  // namespace plumb::registration
