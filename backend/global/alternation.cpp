@@ -39,6 +39,9 @@ void describe(config::Schema& s, AlternationConfig& c) {
     s.field("final_margin_m", c.final_margin_m,
             "smallest wall / floor support margin reached by the annealing", "m")
         .min(0.0);
+    s.field("monotone_layout_steps", c.monotone_layout_steps,
+            "keep a re-estimated layout only when it does not raise E_R at the current poses; "
+            "otherwise stop with the previous layout");
     s.section("registration", c.global, "layout-constrained global registration (one outer step)");
 }
 
@@ -117,6 +120,20 @@ Result<AlternationResult> alternate(const std::vector<GlobalCloud>& clouds,
                                     config.global.wall_margin_m * shrink);
         gc.floor_margin_m = std::max(std::min(config.final_margin_m, config.global.floor_margin_m),
                                      config.global.floor_margin_m * shrink);
+        if (outer > 0 && config.monotone_layout_steps) {
+            // Block-coordinate descent: the layout step must not raise E_R at these poses.
+            Result<EnergyTerms> e_prev = evaluateEnergy(clouds, result.T_W_F, priors, previous, gc);
+            Result<EnergyTerms> e_new =
+                evaluateEnergy(clouds, result.T_W_F, priors, rec.layout, gc);
+            if (!e_prev.isOk()) return e_prev.status();
+            if (!e_new.isOk()) return e_new.status();
+            rec.energy_previous_layout = e_prev->total;
+            rec.energy_new_layout = e_new->total;
+            if (e_new->total > e_prev->total) {
+                result.stop_reason = "layout step raised the energy";
+                break;
+            }
+        }
         Result<GlobalResult> step = refinePoses(clouds, result.T_W_F, priors, rec.layout, gc);
         if (!step.isOk()) {
             return Status(step.status().code(),

@@ -742,6 +742,25 @@ Status validateInputs(size_t n, const std::vector<Eigen::Isometry3d>& T_W_F,
     return Status::ok();
 }
 
+/// The problem of refinePoses()/evaluateEnergy(); `prepared` holds the prepared layout it points
+/// to (when the layout is used).
+Result<Problem> makeProblem(const std::vector<GlobalCloud>& clouds,
+                            const std::vector<PairPrior>& priors, const Layout& layout,
+                            const GlobalConfig& config, std::optional<PreparedLayout>* prepared) {
+    if (config.use_layout && !layout.planes.empty()) {
+        Result<PreparedLayout> pl = prepareLayout(layout, config);
+        if (!pl.isOk()) return pl.status();
+        *prepared = std::move(pl).value();
+    }
+    Problem pb;
+    pb.clouds = &clouds;
+    pb.priors = &priors;
+    pb.layout = prepared->has_value() ? &**prepared : nullptr;
+    pb.config = &config;
+    for (const PairPrior& p : priors) pb.info_hat.push_back(normalisedInformation(p.information));
+    return pb;
+}
+
 }  // namespace
 
 std::vector<std::vector<int>> layoutAssignments(const std::vector<GlobalCloud>& clouds,
@@ -773,17 +792,9 @@ Result<GlobalResult> refinePoses(const std::vector<GlobalCloud>& clouds,
         return result;
     }
     std::optional<PreparedLayout> prepared;
-    if (config.use_layout && !layout.planes.empty()) {
-        Result<PreparedLayout> pl = prepareLayout(layout, config);
-        if (!pl.isOk()) return pl.status();
-        prepared = std::move(pl).value();
-    }
-    Problem pb;
-    pb.clouds = &clouds;
-    pb.priors = &priors;
-    pb.layout = prepared ? &*prepared : nullptr;
-    pb.config = &config;
-    for (const PairPrior& p : priors) pb.info_hat.push_back(normalisedInformation(p.information));
+    Result<Problem> problem = makeProblem(clouds, priors, layout, config, &prepared);
+    if (!problem.isOk()) return problem.status();
+    const Problem& pb = problem.value();
 
     for (int round = 0; round < config.rounds; ++round) {
         const Correspondences corr = establish(clouds, T_W_F, priors, pb.layout, config);
@@ -846,6 +857,19 @@ Result<GlobalResult> refinePoses(const std::vector<GlobalCloud>& clouds,
     }
     result.T_W_F = std::move(T_W_F);
     return result;
+}
+
+Result<EnergyTerms> evaluateEnergy(const std::vector<GlobalCloud>& clouds,
+                                   const std::vector<Eigen::Isometry3d>& T_W_F,
+                                   const std::vector<PairPrior>& priors, const Layout& layout,
+                                   const GlobalConfig& config) {
+    PLUMB_RETURN_IF_ERROR(validateInputs(clouds.size(), T_W_F, priors, config));
+    std::optional<PreparedLayout> prepared;
+    Result<Problem> problem = makeProblem(clouds, priors, layout, config, &prepared);
+    if (!problem.isOk()) return problem.status();
+    const Problem& pb = problem.value();
+    const Correspondences corr = establish(clouds, T_W_F, priors, pb.layout, config);
+    return evaluate(pb, corr, T_W_F, nullptr);
 }
 
 Result<GlobalResult> refinePoses(const std::vector<Fragment>& fragments,

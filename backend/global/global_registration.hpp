@@ -195,6 +195,13 @@ Result<GlobalResult> refinePoses(const std::vector<GlobalCloud>& clouds,
                                  const std::vector<PairPrior>& priors, const Layout& layout,
                                  const GlobalConfig& config);
 
+/// E_R at `T_W_F` with correspondences established there (no optimisation); the same gates,
+/// weights and errors as refinePoses().
+Result<EnergyTerms> evaluateEnergy(const std::vector<GlobalCloud>& clouds,
+                                   const std::vector<Eigen::Isometry3d>& T_W_F,
+                                   const std::vector<PairPrior>& priors, const Layout& layout,
+                                   const GlobalConfig& config);
+
 /// Convenience: prepareClouds() then refinePoses().
 Result<GlobalResult> refinePoses(const std::vector<Fragment>& fragments,
                                  std::vector<Eigen::Isometry3d> T_W_F,

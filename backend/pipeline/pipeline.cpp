@@ -118,10 +118,10 @@ nlohmann::json edgeSummary(const registration::RegistrationOutcome& outcome) {
             ++odometry;
         } else if (e.kept) {
             ++loops;
-        } else if (e.line_process < 1.0 || e.reason.find("line process") != std::string::npos) {
-            ++pruned;
+        } else if (e.reason.rfind("rejected", 0) == 0) {
+            ++rejected;  // a candidate that failed a check before the pose graph
         } else {
-            ++rejected;
+            ++pruned;  // by the line process, or dropped by the refinement pass
         }
     }
     const registration::PairStats& s = outcome.stats;

@@ -245,7 +245,8 @@ std::string renderReportHtml(const nlohmann::json& metrics, const ReportFigures&
         const auto& r = metrics["registration"];
         out << "<h2>Pose graph</h2><p>" << r.value("odometry_edges", 0) << " odometry edges, "
             << r.value("loop_edges", 0) << " loop closures, " << r.value("pruned_edges", 0)
-            << " pruned by the line process.</p>\n";
+            << " pruned by the line process, " << r.value("rejected_edges", 0)
+            << " candidates rejected before it (overlap, or disagreeing with the odometry).</p>\n";
     }
     out << "<h2>Energy per alternation iteration</h2>\n"
         << energyChart(metrics.value("energies", nlohmann::json::array())) << "\n";

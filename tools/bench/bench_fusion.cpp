@@ -20,6 +20,7 @@
 #include "common/tsdf/tsdf_volume.hpp"
 #include "device/fusion/fragment_builder.hpp"
 #include "drivers/sim/sim_source.hpp"
+#include "tools/bench/bench_args.hpp"
 
 #ifdef PLUMB_HAVE_OPEN3D
 #include <open3d/core/Tensor.h>
@@ -80,12 +81,7 @@ int main(int argc, char** argv) {
     std::string noise = "redwood";
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];
-        auto num = [&](auto* out) {
-            if (i + 1 >= argc) return false;
-            const std::string v = argv[++i];
-            const auto [p, ec] = std::from_chars(v.data(), v.data() + v.size(), *out);
-            return ec == std::errc() && p == v.data() + v.size();
-        };
+        auto num = [&](auto* out) { return plumb::bench::nextNumber(argc, argv, &i, out); };
         bool ok = true;
         if (a == "--frames") {
             ok = num(&num_frames) && num_frames > 0;

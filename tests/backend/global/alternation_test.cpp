@@ -25,20 +25,39 @@ const testing::SimFragments& scan() {
     return sim;
 }
 
+/// The scan's clouds (default config), priors from its ground truth and poses perturbed by 1 deg
+/// and 3 cm: the start of Algorithm 1 in these tests.
+struct Start {
+    std::vector<GlobalCloud> clouds;
+    std::vector<PairPrior> priors;
+    std::vector<Eigen::Isometry3d> T0;
+};
+
+const Start& perturbedStart() {
+    static const Start start = [] {
+        Start s;
+        Result<std::vector<GlobalCloud>> clouds = prepareClouds(scan().fragments, GlobalConfig{});
+        PLUMB_CHECK(clouds.isOk()) << clouds.status().toString();
+        s.clouds = std::move(clouds).value();
+        s.priors = testing::makePriors(scan(), s.clouds, 0.3, 0.005);
+        s.T0 = testing::perturbedPoses(scan(), 1.0, 0.03, 41);
+        return s;
+    }();
+    return start;
+}
+
 TEST(Alternation, ConvergesWithTheGroundTruthLayout) {
     const auto& sim = scan();
     AlternationConfig cfg;
-    Result<std::vector<GlobalCloud>> clouds = prepareClouds(sim.fragments, cfg.global);
-    ASSERT_TRUE(clouds.isOk());
-    const auto priors = testing::makePriors(sim, clouds.value(), 0.3, 0.005);
-    const auto T0 = testing::perturbedPoses(sim, 1.0, 0.03, 41);
+    const Start& start = perturbedStart();
+    const std::vector<Eigen::Isometry3d>& T0 = start.T0;
     int calls = 0;
     LayoutEstimator estimator = [&](const std::vector<Eigen::Isometry3d>& T) -> Result<Layout> {
         EXPECT_EQ(T.size(), sim.fragments.size());
         ++calls;
         return sim.layout_gt;
     };
-    Result<AlternationResult> r = alternate(clouds.value(), T0, priors, estimator, cfg);
+    Result<AlternationResult> r = alternate(start.clouds, T0, start.priors, estimator, cfg);
     ASSERT_TRUE(r.isOk()) << r.status().toString();
     const double ate0 = testing::cameraPositionRmse(sim, T0);
     const double ate1 = testing::cameraPositionRmse(sim, r->T_W_F);
@@ -74,6 +93,41 @@ TEST(Alternation, ConvergesWithTheGroundTruthLayout) {
     EXPECT_LT(ate1, 0.01);
     EXPECT_TRUE(r->T_W_F[0].matrix() == T0[0].matrix());
     EXPECT_EQ(r->layout.planes.size(), sim.layout_gt.planes.size());
+}
+
+TEST(Alternation, ALayoutStepThatRaisesTheEnergyIsNotTaken) {
+    // The estimator gives the true layout, then the whole layout moved by 7 cm: at the poses the
+    // first registration step reached, the moved layout fits worse, so Algorithm 1 stops and
+    // keeps the true one. Without the test it registers the fragments onto the moved layout.
+    const auto& sim = scan();
+    AlternationConfig cfg;
+    const Start& start = perturbedStart();
+    const std::vector<Eigen::Isometry3d>& T0 = start.T0;
+    Layout moved = sim.layout_gt;
+    moved.T_W_L = Eigen::Translation3d(0.04, -0.03, 0.05) * moved.T_W_L;
+    int calls = 0;
+    LayoutEstimator estimator = [&](const std::vector<Eigen::Isometry3d>&) -> Result<Layout> {
+        return calls++ == 0 ? sim.layout_gt : moved;
+    };
+    Result<AlternationResult> r = alternate(start.clouds, T0, start.priors, estimator, cfg);
+    ASSERT_TRUE(r.isOk()) << r.status().toString();
+    EXPECT_EQ(r->stop_reason, "layout step raised the energy");
+    ASSERT_EQ(r->iterations.size(), 1U);
+    EXPECT_EQ(calls, 2);
+    EXPECT_TRUE(r->layout.T_W_L.matrix() == sim.layout_gt.T_W_L.matrix());
+    const double ate_kept = testing::cameraPositionRmse(sim, r->T_W_F);
+
+    calls = 0;
+    cfg.monotone_layout_steps = false;
+    Result<AlternationResult> chased = alternate(start.clouds, T0, start.priors, estimator, cfg);
+    ASSERT_TRUE(chased.isOk()) << chased.status().toString();
+    EXPECT_GT(chased->iterations.size(), 1U);
+    EXPECT_TRUE(chased->layout.T_W_L.matrix() == moved.T_W_L.matrix());
+    const double ate_chased = testing::cameraPositionRmse(sim, chased->T_W_F);
+    std::printf("camera RMSE: %.2f cm with the test, %.2f cm chasing the moved layout\n",
+                100 * ate_kept, 100 * ate_chased);
+    EXPECT_LT(ate_kept, 0.01);
+    EXPECT_GT(ate_chased, ate_kept);
 }
 
 TEST(Alternation, LayoutErrorsNameTheIteration) {
