@@ -72,8 +72,10 @@ std::vector<GuidedCandidate> guidedCandidates(const FragmentIndex& source,
     }
     std::sort(cells.begin(), cells.end());
 
-    // Vote grid over offsets d in [-h, h]^3 bins.
-    const double bin = config.bin_m;
+    // Vote grid over offsets d in [-h, h]^3 bins (at most 201 per axis: a wider window gets
+    // coarser bins rather than gigabytes of votes).
+    constexpr double kMaxHalfBins = 100.0;
+    const double bin = std::max(config.bin_m, config.radius_m / kMaxHalfBins);
     const int h = static_cast<int>(std::ceil(config.radius_m / bin));
     const int m = 2 * h + 1;
     auto at = [m](int x, int y, int z) {

@@ -42,7 +42,7 @@ struct GuidedSearchConfig {
     /// fragments of a segment), degrees.
     double max_rotation_deg = 5.0;
     /// Edge of a vote bin, metres (the prepared clouds' voxel: one source point per bin and
-    /// surface).
+    /// surface); at least radius_m / 100.
     double bin_m = 0.05;
     /// Point pairs vote only when their normals agree within this, degrees.
     double max_normal_angle_deg = 20.0;
