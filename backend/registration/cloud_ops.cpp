@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <numeric>
 
 namespace plumb::registration::detail {
@@ -32,6 +33,9 @@ size_t KdTree3::knnWithin(const Eigen::Vector3f& q, size_t k, float radius_sq, u
     if (size() == 0 || k == 0) return 0;
     nanoflann::KNNResultSet<float, uint32_t, size_t> result(k);
     result.init(indices, dists_sq);
+    // The search prunes at the worst distance so far: starting it at the radius keeps it from
+    // visiting points beyond (same neighbours, same order).
+    dists_sq[k - 1] = std::nextafter(radius_sq, std::numeric_limits<float>::infinity());
     tree_->findNeighbors(result, q.data(), nanoflann::SearchParams());
     size_t n = result.size();
     while (n > 0 && dists_sq[n - 1] > radius_sq) --n;
