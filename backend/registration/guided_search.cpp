@@ -133,27 +133,22 @@ std::vector<GuidedCandidate> guidedCandidates(const FragmentIndex& source,
     // The odometry as a prior on the drift. Planes of only one or two directions vote for a ridge
     // of equal offsets; the prior picks its point nearest the odometry, while a real peak (three
     // plane directions, furniture) stands out regardless.
-    const double sigma_bins = std::max(prior_sigma_m, bin) / bin;
-    for (size_t k = 0; k < smooth.size(); ++k) {
-        const Eigen::Vector3i o =
-            Eigen::Vector3i(
-                static_cast<int>(k % static_cast<size_t>(m)),
-                static_cast<int>((k / static_cast<size_t>(m)) % static_cast<size_t>(m)),
-                static_cast<int>(k / (static_cast<size_t>(m) * static_cast<size_t>(m)))) -
-            Eigen::Vector3i::Constant(h);
-        smooth[k] *= static_cast<float>(
-            std::exp(-0.5 * static_cast<double>(o.squaredNorm()) / (sigma_bins * sigma_bins)));
-    }
-
-    // Peaks, strongest first; equal scores go to the smaller offset (closer to the odometry).
-    std::vector<size_t> order(smooth.size());
-    for (size_t k = 0; k < order.size(); ++k) order[k] = k;
+    // The offset (in bins) of grid index k.
     auto offset = [m, h](size_t k) {
         const int x = static_cast<int>(k % static_cast<size_t>(m)) - h;
         const int y = static_cast<int>((k / static_cast<size_t>(m)) % static_cast<size_t>(m)) - h;
         const int z = static_cast<int>(k / (static_cast<size_t>(m) * static_cast<size_t>(m))) - h;
         return Eigen::Vector3i(x, y, z);
     };
+    const double sigma_bins = std::max(prior_sigma_m, bin) / bin;
+    for (size_t k = 0; k < smooth.size(); ++k) {
+        smooth[k] *= static_cast<float>(std::exp(
+            -0.5 * static_cast<double>(offset(k).squaredNorm()) / (sigma_bins * sigma_bins)));
+    }
+
+    // Peaks, strongest first; equal scores go to the smaller offset (closer to the odometry).
+    std::vector<size_t> order(smooth.size());
+    for (size_t k = 0; k < order.size(); ++k) order[k] = k;
     std::sort(order.begin(), order.end(), [&](size_t a, size_t b) {
         if (smooth[a] != smooth[b]) return smooth[a] > smooth[b];
         const int na = offset(a).squaredNorm(), nb = offset(b).squaredNorm();

@@ -123,24 +123,23 @@ void reject(PoseGraphEdge& e, const PairResult& eval, std::string reason) {
     e.reason = std::move(reason);
 }
 
-/// How far T moves the target's centroid from where the odometry puts it, metres.
-Eigen::Vector3d offsetFromOdometry(const FragmentIndex& target, const Eigen::Isometry3d& T,
-                                   const Eigen::Isometry3d& T_odo) {
-    const PointCloud& pts = target.coarse.cloud();
+/// Mean of the fragment's prepared points (its frame).
+Eigen::Vector3d centroidOf(const FragmentIndex& f) {
+    const PointCloud& pts = f.coarse.cloud();
     Eigen::Vector3d c = Eigen::Vector3d::Zero();
     for (const Eigen::Vector3f& p : pts.points) c += p.cast<double>();
     if (!pts.empty()) c /= static_cast<double>(pts.size());
-    return T * c - T_odo * c;
+    return c;
 }
 
 /// Whether T stays in the guided search's window around the odometry: it turns no further than
-/// max_rotation_deg from it and moves the target's centroid no further than radius_m (per axis,
-/// plus one bin).
-bool withinWindow(const FragmentIndex& target, const Eigen::Isometry3d& T,
+/// max_rotation_deg from it and moves the target's centroid `c` no further than radius_m (per
+/// axis, plus one bin).
+bool withinWindow(const Eigen::Vector3d& c, const Eigen::Isometry3d& T,
                   const Eigen::Isometry3d& T_odo, const GuidedSearchConfig& g) {
     return lie::rotationAngle(T_odo.inverse() * T) * 180.0 / std::numbers::pi <=
                g.max_rotation_deg &&
-           offsetFromOdometry(target, T, T_odo).cwiseAbs().maxCoeff() <= g.radius_m + g.bin_m;
+           (T * c - T_odo * c).cwiseAbs().maxCoeff() <= g.radius_m + g.bin_m;
 }
 
 /// Loop-closure candidate (s, t). Starting alignments: FPFH + RANSAC's and, for a pair of one
@@ -157,6 +156,7 @@ LoopOutcome loopEdge(const FragmentIndex& s, const FragmentIndex& t, const Regis
         bool guided;
     };
     std::vector<Start> starts;
+    const Eigen::Vector3d centroid = centroidOf(t);
     const double sigma = odometryPriorSigma(c.guided, t.id > s.id ? t.id - s.id : s.id - t.id);
     const PairResult ransac = ransacFeatureMatching(s, t, c.ransac, pairSeed(c.seed, s.id, t.id));
     if (ransac.success) starts.push_back({ransac.T_source_target, "FPFH + RANSAC", false});
@@ -171,6 +171,7 @@ LoopOutcome loopEdge(const FragmentIndex& s, const FragmentIndex& t, const Regis
         bool guided = false;
         double score = 0.0;        ///< overlap, times the odometry prior within a segment
         std::string disagreement;  ///< why it disagrees with the odometry (empty: it agrees)
+        LoopOutcome outcome = LoopOutcome::kAccepted;  ///< kTurned / kMoved when it disagrees
     };
     std::optional<Verified> best, first;
     for (const Start& start : starts) {
@@ -183,8 +184,13 @@ LoopOutcome loopEdge(const FragmentIndex& s, const FragmentIndex& t, const Regis
         }
         // A guided start that ICP slid out of the search window (along a wall, most often) is
         // no longer what the votes found.
-        if (start.guided && !withinWindow(t, T, *T_odo, c.guided)) continue;
-        Verified v{evaluateAlignment(s, t, T, tauOf(c), 1), start.method, start.guided, 0.0, {}};
+        if (start.guided && !withinWindow(centroid, T, *T_odo, c.guided)) continue;
+        Verified v{evaluateAlignment(s, t, T, tauOf(c), 1),
+                   start.method,
+                   start.guided,
+                   0.0,
+                   {},
+                   LoopOutcome::kAccepted};
         v.score = v.eval.overlap;
         if (T_odo) {
             // Walls, floor and ceiling match as well after a quarter turn or a slide of a metre,
@@ -192,15 +198,17 @@ LoopOutcome loopEdge(const FragmentIndex& s, const FragmentIndex& t, const Regis
             // prior on the drift (and ranks a slide along a wall below the truth).
             const double turned_deg =
                 lie::rotationAngle(T_odo->inverse() * T) * 180.0 / std::numbers::pi;
-            const double moved_m = offsetFromOdometry(t, T, *T_odo).norm();
+            const double moved_m = (T * centroid - *T_odo * centroid).norm();
             const double max_moved_m = c.guided.max_offset_sigmas * sigma;
             if (c.max_loop_rotation_deviation_deg > 0.0 &&
                 turned_deg > c.max_loop_rotation_deviation_deg) {
                 v.disagreement = fmt2("rejected: turned %.1f deg from the odometry (max %.0f)",
                                       turned_deg, c.max_loop_rotation_deviation_deg);
+                v.outcome = LoopOutcome::kTurned;
             } else if (c.guided.max_offset_sigmas > 0.0 && moved_m > max_moved_m) {
                 v.disagreement = fmt2("rejected: moved %.2f m from the odometry (max %.2f)",
                                       moved_m, max_moved_m);
+                v.outcome = LoopOutcome::kMoved;
             }
             v.score *= std::exp(-0.5 * moved_m * moved_m / (sigma * sigma));
         }
@@ -214,8 +222,7 @@ LoopOutcome loopEdge(const FragmentIndex& s, const FragmentIndex& t, const Regis
     e.kind = PoseGraphEdge::Kind::kLoop;
     if (!best) {
         reject(e, first->eval, first->disagreement);
-        return first->disagreement.find("turned") != std::string::npos ? LoopOutcome::kTurned
-                                                                       : LoopOutcome::kMoved;
+        return first->outcome;
     }
     PairResult eval = best->eval;
     if (eval.overlap < c.min_overlap) {
@@ -224,7 +231,7 @@ LoopOutcome loopEdge(const FragmentIndex& s, const FragmentIndex& t, const Regis
     }
     const PairResult fine = multiScaleIcp(s, t, eval.T_source_target, c.icp);
     if (fine.success &&
-        (!best->guided || withinWindow(t, fine.T_source_target, *T_odo, c.guided))) {
+        (!best->guided || withinWindow(centroid, fine.T_source_target, *T_odo, c.guided))) {
         const PairResult refined = evaluateAlignment(s, t, fine.T_source_target, tauOf(c), 1);
         if (refined.overlap >= c.min_overlap) eval = refined;
     }
