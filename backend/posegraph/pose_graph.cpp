@@ -4,8 +4,10 @@
 #include <Eigen/Sparse>
 #include <Eigen/SparseCholesky>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <numeric>
 
 namespace plumb::posegraph {
@@ -32,6 +34,18 @@ void describe(config::Schema& s, PoseGraphConfig& c) {
         .min(0.0);
     s.field("initial_lambda", c.initial_lambda, "initial LM damping (relative to the diagonal)")
         .positive();
+    s.field("cg_relative_tolerance", c.cg_relative_tolerance,
+            "forcing term of the inexact LM steps: conjugate gradients stop at this relative "
+            "residual")
+        .range(1e-12, 0.5);
+    s.field("chain_max_cg_iterations", c.chain_max_cg_iterations,
+            "conjugate-gradient iterations with the odometry-chain preconditioner before the "
+            "step is factorised (0: factorise from the first step)")
+        .min(0);
+    s.field("factor_max_cg_iterations", c.factor_max_cg_iterations,
+            "conjugate-gradient iterations with an earlier factorisation as preconditioner "
+            "before the step is factorised afresh")
+        .min(0);
     s.field("reference_node", c.reference_node, "node held fixed (the gauge)").min(0);
 }
 
@@ -98,82 +112,297 @@ double lineProcess(double mu, double f) {
     return s * s;
 }
 
+/// The Gauss-Newton system of one linearisation, kept per edge: H_e = J^T w Λ J and g_e = J^T w Λ e
+/// with J_source = -J, J_target = +J. It is applied matrix-free by the conjugate-gradient solve and
+/// assembled into a sparse matrix only when it is factorised.
+struct LinearSystem {
+    std::vector<Matrix6d> H;  ///< per active edge
+    Eigen::VectorXd b;        ///< right-hand side -Σ J^T w Λ e
+    Eigen::VectorXd diag;     ///< diagonal of the assembled matrix (the LM damping scale)
+};
+
+LinearSystem linearise(const Problem& p, const std::vector<Eigen::Isometry3d>& T,
+                       const std::vector<double>& f) {
+    const int n = 6 * p.num_vars;
+    LinearSystem s;
+    s.H.resize(p.active.size());
+    s.b = Eigen::VectorXd::Zero(n);
+    s.diag = Eigen::VectorXd::Zero(n);
+    for (size_t k = 0; k < p.active.size(); ++k) {
+        const PoseGraphEdge& e = p.graph->edges[p.active[k]];
+        const double w = e.kind == PoseGraphEdge::Kind::kLoop ? lineProcess(p.mu, f[k]) : 1.0;
+        if (w <= 0.0) {
+            s.H[k].setZero();
+            continue;
+        }
+        // e ≈ e0 + J_l^-1(e0) Ad(A) (δ_t - δ_s), A = T_st^-1 T_W_s^-1 (left perturbations).
+        const Eigen::Isometry3d A = e.T_source_target.inverse() * T[e.source].inverse();
+        const Vector6d r = edgeResidual(e, T[e.source], T[e.target]);
+        const Matrix6d J = (Matrix6d::Identity() - 0.5 * smallAdjoint(r)) * adjoint(A);
+        const Matrix6d JtL = J.transpose() * (w * e.information);
+        s.H[k] = JtL * J;
+        const Vector6d g = JtL * r;
+        const int vs = p.var[e.source], vt = p.var[e.target];
+        if (vs >= 0) {
+            s.b.segment<6>(6 * vs) += g;
+            s.diag.segment<6>(6 * vs) += s.H[k].diagonal();
+        }
+        if (vt >= 0) {
+            s.b.segment<6>(6 * vt) -= g;
+            s.diag.segment<6>(6 * vt) += s.H[k].diagonal();
+        }
+    }
+    return s;
+}
+
+/// y = (H + λ D) x without assembling H.
+Eigen::VectorXd applyDamped(const Problem& p, const LinearSystem& s, const Eigen::VectorXd& damping,
+                            const Eigen::VectorXd& x) {
+    Eigen::VectorXd y = damping.cwiseProduct(x);
+    for (size_t k = 0; k < p.active.size(); ++k) {
+        const PoseGraphEdge& e = p.graph->edges[p.active[k]];
+        const int vs = p.var[e.source], vt = p.var[e.target];
+        // H_e acts on (x_t - x_s): rows of the source get -H_e d, rows of the target +H_e d.
+        Vector6d d = Vector6d::Zero();
+        if (vt >= 0) d += x.segment<6>(6 * vt);
+        if (vs >= 0) d -= x.segment<6>(6 * vs);
+        const Vector6d hd = s.H[k] * d;
+        if (vt >= 0) y.segment<6>(6 * vt) += hd;
+        if (vs >= 0) y.segment<6>(6 * vs) -= hd;
+    }
+    return y;
+}
+
+/// The sparsity pattern of a round's normal equations (lower triangle, column-major) and, per
+/// active edge, where each of its three 6x6 blocks (ss, tt, ts) starts in every column, so that a
+/// linearisation is assembled by adding into the value array without sorting triplets.
+struct Assembly {
+    Eigen::SparseMatrix<double> matrix;
+    /// Per active edge and block (0: ss, 1: tt, 2: lower off-diagonal), the value index of the
+    /// block's first row in each of its 6 columns; -1 when the block does not exist.
+    std::vector<std::array<std::array<int, 6>, 3>> offsets;
+    std::vector<std::array<int, 6>> diagonal;  ///< per variable block: its diagonal block
+};
+
+Assembly buildAssembly(const Problem& p) {
+    const int n = 6 * p.num_vars;
+    std::vector<Eigen::Triplet<double>> pattern;
+    auto block = [&](int vi, int vj) {  // lower triangle: vi >= vj
+        for (int c = 0; c < 6; ++c) {
+            for (int r = vi == vj ? c : 0; r < 6; ++r) pattern.emplace_back(6 * vi + r, 6 * vj + c);
+        }
+    };
+    for (int v = 0; v < p.num_vars; ++v) block(v, v);
+    for (int k : p.active) {
+        const PoseGraphEdge& e = p.graph->edges[k];
+        const int vs = p.var[e.source], vt = p.var[e.target];
+        if (vs >= 0 && vt >= 0) block(std::max(vs, vt), std::min(vs, vt));
+    }
+    Assembly a;
+    a.matrix.resize(n, n);
+    a.matrix.setFromTriplets(pattern.begin(), pattern.end());
+    a.matrix.makeCompressed();
+    // Row indices within a column are sorted, so a block's 6 rows are contiguous from its first.
+    auto first = [&](int vi, int vj, int c) {
+        const int col = 6 * vj + c;
+        const int* rows = a.matrix.innerIndexPtr();
+        const int* begin = rows + a.matrix.outerIndexPtr()[col];
+        const int* end = rows + a.matrix.outerIndexPtr()[col + 1];
+        return static_cast<int>(std::lower_bound(begin, end, 6 * vi) - rows);
+    };
+    a.diagonal.resize(p.num_vars);
+    for (int v = 0; v < p.num_vars; ++v) {
+        for (int c = 0; c < 6; ++c) a.diagonal[v][c] = first(v, v, c);
+    }
+    a.offsets.resize(p.active.size());
+    for (size_t k = 0; k < p.active.size(); ++k) {
+        const PoseGraphEdge& e = p.graph->edges[p.active[k]];
+        const int vs = p.var[e.source], vt = p.var[e.target];
+        for (int c = 0; c < 6; ++c) {
+            a.offsets[k][0][c] = vs >= 0 ? first(vs, vs, c) : -1;
+            a.offsets[k][1][c] = vt >= 0 ? first(vt, vt, c) : -1;
+            a.offsets[k][2][c] =
+                vs >= 0 && vt >= 0 ? first(std::max(vs, vt), std::min(vs, vt), c) : -1;
+        }
+    }
+    return a;
+}
+
+/// Writes H + λ D into the assembly's value array (lower triangle).
+void assemble(const Problem& p, const LinearSystem& s, const Eigen::VectorXd& damping,
+              Assembly& a) {
+    double* values = a.matrix.valuePtr();
+    std::fill(values, values + a.matrix.nonZeros(), 0.0);
+    // A diagonal block stores rows c..5 of column c from its first index; an off-diagonal block
+    // all 6 rows.
+    auto addDiagonal = [&](const std::array<int, 6>& at, const Matrix6d& M) {
+        for (int c = 0; c < 6; ++c) {
+            for (int r = c; r < 6; ++r) values[at[c] + r - c] += M(r, c);
+        }
+    };
+    for (size_t k = 0; k < p.active.size(); ++k) {
+        const Matrix6d& H = s.H[k];
+        const auto& at = a.offsets[k];
+        if (at[0][0] >= 0) addDiagonal(at[0], H);
+        if (at[1][0] >= 0) addDiagonal(at[1], H);
+        if (at[2][0] >= 0) {
+            // Block (row var, column var) = -H_e for (s, t) or (t, s); H_e is symmetric.
+            for (int c = 0; c < 6; ++c) {
+                for (int r = 0; r < 6; ++r) values[at[2][c] + r] -= H(r, c);
+            }
+        }
+    }
+    for (int v = 0; v < p.num_vars; ++v) {
+        for (int c = 0; c < 6; ++c) values[a.diagonal[v][c]] += damping[6 * v + c];
+    }
+}
+
+/// The chain preconditioner: H + λD restricted to its block diagonal and the blocks between
+/// consecutive variables (the odometry chain), factorised by block Gaussian elimination in O(n).
+/// Loop edges keep only their diagonal blocks. It is positive definite whenever H + λD is.
+class ChainPreconditioner {
+  public:
+    ChainPreconditioner(const Problem& p, const LinearSystem& s, const Eigen::VectorXd& damping) {
+        const int m = p.num_vars;
+        std::vector<Matrix6d> D(m, Matrix6d::Zero());
+        lower_.assign(m, Matrix6d::Zero());
+        for (int v = 0; v < m; ++v) D[v].diagonal() = damping.segment<6>(6 * v);
+        for (size_t k = 0; k < p.active.size(); ++k) {
+            const PoseGraphEdge& e = p.graph->edges[p.active[k]];
+            const int vs = p.var[e.source], vt = p.var[e.target];
+            if (vs >= 0) D[vs] += s.H[k];
+            if (vt >= 0) D[vt] += s.H[k];
+            if (vs >= 0 && vt >= 0 && std::abs(vs - vt) == 1) lower_[std::min(vs, vt)] -= s.H[k];
+        }
+        // Pivots U_0 = D_0, U_v = D_v - L_{v-1} U_{v-1}^-1 L_{v-1}^T (L_v: block (v+1, v)).
+        pivot_inverse_.resize(m);
+        for (int v = 0; v < m; ++v) {
+            if (v > 0) D[v] -= lower_[v - 1] * pivot_inverse_[v - 1] * lower_[v - 1].transpose();
+            Eigen::LLT<Matrix6d> llt(D[v]);
+            valid_ = valid_ && llt.info() == Eigen::Success;
+            pivot_inverse_[v] = llt.solve(Matrix6d::Identity());
+        }
+    }
+    bool valid() const { return valid_; }
+    Eigen::VectorXd solve(const Eigen::VectorXd& r) const {
+        const int m = static_cast<int>(pivot_inverse_.size());
+        Eigen::VectorXd y = r;
+        for (int v = 1; v < m; ++v) {
+            y.segment<6>(6 * v) -=
+                lower_[v - 1] * (pivot_inverse_[v - 1] * y.segment<6>(6 * v - 6));
+        }
+        Eigen::VectorXd x(r.size());
+        for (int v = m - 1; v >= 0; --v) {
+            Vector6d rhs = y.segment<6>(6 * v);
+            if (v + 1 < m) rhs -= lower_[v].transpose() * x.segment<6>(6 * v + 6);
+            x.segment<6>(6 * v) = pivot_inverse_[v] * rhs;
+        }
+        return x;
+    }
+
+  private:
+    std::vector<Matrix6d> lower_;
+    std::vector<Matrix6d> pivot_inverse_;
+    bool valid_ = true;
+};
+
+/// Preconditioned conjugate gradients on (H + λ D) δ = b, stopping at |r| <= tolerance |b|.
+/// Returns false when `max_iterations` are not enough. Every iterate lowers the quadratic model,
+/// so a step cut short is still a descent step.
+template <typename Preconditioner>
+bool solvePreconditioned(const Problem& p, const LinearSystem& s, const Eigen::VectorXd& damping,
+                         const Preconditioner& preconditioner, double tolerance, int max_iterations,
+                         Eigen::VectorXd* delta, int* iterations) {
+    const double b_norm = s.b.norm();
+    Eigen::VectorXd x = Eigen::VectorXd::Zero(s.b.size());
+    if (b_norm == 0.0) {
+        *delta = x;
+        return true;
+    }
+    Eigen::VectorXd r = s.b;
+    Eigen::VectorXd z = preconditioner.solve(r);
+    Eigen::VectorXd d = z;
+    double rz = r.dot(z);
+    for (int it = 0; it < max_iterations; ++it) {
+        ++*iterations;
+        const Eigen::VectorXd Ad = applyDamped(p, s, damping, d);
+        const double dAd = d.dot(Ad);
+        if (!(dAd > 0.0)) return false;
+        const double alpha = rz / dAd;
+        x += alpha * d;
+        r -= alpha * Ad;
+        if (r.norm() <= tolerance * b_norm) {
+            *delta = x;
+            return x.allFinite();
+        }
+        z = preconditioner.solve(r);
+        const double rz_next = r.dot(z);
+        d = z + (rz_next / rz) * d;
+        rz = rz_next;
+    }
+    return false;
+}
+
+/// The LM solver state that outlives one iteration: the assembled pattern of the round and the
+/// latest factorisation, reused as the preconditioner of later iterations (and rounds).
+struct Factorisation {
+    /// Sparse LDL^T of the lower triangle (AMD ordering).
+    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt;
+    bool valid = false;
+    int count = 0;          ///< factorisations computed
+    int cg_iterations = 0;  ///< conjugate-gradient iterations run
+};
+
 /// One round of iteratively re-weighted LM. Returns iterations; sets *converged.
 int optimiseRound(const Problem& p, std::vector<Eigen::Isometry3d>& T,
-                  const PoseGraphConfig& config, bool* converged) {
+                  const PoseGraphConfig& config, Factorisation& factor, bool* converged) {
     *converged = false;
     if (p.num_vars == 0) {
         *converged = true;
         return 0;
     }
-    const int n = 6 * p.num_vars;
     double lambda = config.initial_lambda;
     std::vector<double> f = edgeCosts(p, T);
     double cost = robustCost(p, f);
-    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver;
+    Assembly assembly = buildAssembly(p);
     bool analysed = false;
     int it = 0;
     for (; it < config.max_iterations; ++it) {
-        // Normal equations of Σ w e^T Λ e with w = l (loop) or 1 (odometry), e linearised as
-        // e ≈ e0 + J_l^-1(e0) Ad(A) (δ_t - δ_s), A = T_st^-1 T_W_s^-1 (left perturbations).
-        std::vector<Eigen::Triplet<double>> triplets;
-        triplets.reserve(p.active.size() * 4 * 36 + static_cast<size_t>(n));
-        Eigen::VectorXd b = Eigen::VectorXd::Zero(n);
-        for (size_t k = 0; k < p.active.size(); ++k) {
-            const PoseGraphEdge& e = p.graph->edges[p.active[k]];
-            const double w = e.kind == PoseGraphEdge::Kind::kLoop ? lineProcess(p.mu, f[k]) : 1.0;
-            if (w <= 0.0) continue;
-            const Eigen::Isometry3d A = e.T_source_target.inverse() * T[e.source].inverse();
-            const Vector6d r = edgeResidual(e, T[e.source], T[e.target]);
-            const Matrix6d J = (Matrix6d::Identity() - 0.5 * smallAdjoint(r)) * adjoint(A);
-            const Matrix6d JtL = J.transpose() * (w * e.information);
-            const Matrix6d H = JtL * J;
-            const Vector6d g = JtL * r;
-            const int vs = p.var[e.source], vt = p.var[e.target];
-            // J_s = -J, J_t = +J.
-            auto add = [&](int vi, int vj, const Matrix6d& M) {
-                for (int c = 0; c < 6; ++c) {
-                    for (int rr = 0; rr < 6; ++rr) {
-                        triplets.emplace_back(6 * vi + rr, 6 * vj + c, M(rr, c));
-                    }
-                }
-            };
-            if (vs >= 0) {
-                add(vs, vs, H);
-                b.segment<6>(6 * vs) -= g;
-            }
-            if (vt >= 0) {
-                add(vt, vt, H);
-                b.segment<6>(6 * vt) += g;
-            }
-            if (vs >= 0 && vt >= 0) {
-                add(vs, vt, -H);
-                add(vt, vs, -H);
-            }
-        }
-        for (int i = 0; i < n; ++i) triplets.emplace_back(i, i, 0.0);  // keep the diagonal
-        Eigen::SparseMatrix<double> H(n, n);
-        H.setFromTriplets(triplets.begin(), triplets.end());
-        const Eigen::VectorXd diag = H.diagonal();
-        if (!analysed) {
-            solver.analyzePattern(H);
-            analysed = true;
-        }
+        const LinearSystem system = linearise(p, T, f);
         bool accepted = false;
         double new_cost = cost;
         double step_norm = 0.0;
         for (int attempt = 0; attempt < 12 && !accepted; ++attempt) {
-            Eigen::SparseMatrix<double> A = H;
-            for (int i = 0; i < n; ++i) {
-                A.coeffRef(i, i) += lambda * std::max(diag[i], 1e-9);
+            const Eigen::VectorXd damping = lambda * system.diag.cwiseMax(1e-9);
+            Eigen::VectorXd delta;
+            // An inexact Newton step: conjugate gradients to the forcing tolerance, preconditioned
+            // by the latest factorisation or, before there is one, by the odometry chain. Only
+            // when that does not converge is this step's system factorised.
+            bool solved = false;
+            if (factor.valid) {
+                solved = solvePreconditioned(
+                    p, system, damping, factor.ldlt, config.cg_relative_tolerance,
+                    config.factor_max_cg_iterations, &delta, &factor.cg_iterations);
+            } else {
+                const ChainPreconditioner chain(p, system, damping);
+                solved = chain.valid() && solvePreconditioned(p, system, damping, chain,
+                                                              config.cg_relative_tolerance,
+                                                              config.chain_max_cg_iterations,
+                                                              &delta, &factor.cg_iterations);
             }
-            solver.factorize(A);
-            if (solver.info() != Eigen::Success) {
-                lambda *= 10.0;
-                continue;
+            if (!solved) {
+                assemble(p, system, damping, assembly);
+                if (!analysed) {
+                    factor.ldlt.analyzePattern(assembly.matrix);
+                    analysed = true;
+                }
+                factor.ldlt.factorize(assembly.matrix);
+                ++factor.count;
+                factor.valid = factor.ldlt.info() == Eigen::Success;
+                if (factor.valid) delta = factor.ldlt.solve(system.b);
+                solved = factor.valid && delta.allFinite();
             }
-            const Eigen::VectorXd delta = -solver.solve(b);
-            if (!delta.allFinite()) {
+            if (!solved) {
                 lambda *= 10.0;
                 continue;
             }
@@ -299,10 +528,11 @@ Result<PoseGraphReport> optimisePoseGraph(PoseGraph& graph, const PoseGraphConfi
     report.initial_cost = robustCost(p, edgeCosts(p, graph.T_W_F));
 
     std::vector<Eigen::Isometry3d> T = graph.T_W_F;
+    Factorisation factor;
     // Optimise, prune, and optimise again while pruning changes the graph (at most 3 rounds).
     for (int round = 0; round < 3; ++round) {
         bool converged = false;
-        report.iterations += optimiseRound(p, T, config, &converged);
+        report.iterations += optimiseRound(p, T, config, factor, &converged);
         report.converged = converged;
         ++report.rounds;
         const std::vector<double> f = edgeCosts(p, T);
@@ -330,6 +560,8 @@ Result<PoseGraphReport> optimisePoseGraph(PoseGraph& graph, const PoseGraphConfi
         collectActive();
     }
     graph.T_W_F = T;
+    report.factorisations = factor.count;
+    report.cg_iterations = factor.cg_iterations;
     return report;
 }
 

@@ -82,6 +82,18 @@ struct PoseGraphConfig {
     double step_tolerance = 1e-9;
     /// Initial LM damping (relative to the diagonal of the normal equations).
     double initial_lambda = 1e-6;
+    /// Forcing term of the inexact LM steps: each step's normal equations are solved by
+    /// preconditioned conjugate gradients to this relative residual |r| / |b|. An inexact Newton
+    /// step with forcing term η converges linearly at rate about η, so 1e-2 costs one or two
+    /// more LM iterations than exact steps and saves the factorisations.
+    double cg_relative_tolerance = 1e-2;
+    /// Conjugate-gradient iterations with the odometry-chain preconditioner (block tridiagonal,
+    /// loops reduced to their diagonal blocks) before the step is factorised; 0 factorises
+    /// every graph from its first step.
+    int chain_max_cg_iterations = 200;
+    /// Conjugate-gradient iterations with an earlier step's factorisation as preconditioner
+    /// before the step is factorised afresh (near the solution 1-3 are enough).
+    int factor_max_cg_iterations = 10;
     /// Node whose pose is held fixed (the gauge); Choi and the paper fix T_0.
     int reference_node = 0;
 };
@@ -96,13 +108,18 @@ struct PoseGraphReport {
     int num_loop_edges = 0;     ///< loop edges that entered (kept on input)
     int num_pruned = 0;         ///< loop edges pruned by the line process
     bool converged = false;     ///< the last round met a tolerance before max_iterations
+    int factorisations = 0;     ///< sparse Cholesky factorisations over all rounds
+    int cg_iterations = 0;      ///< preconditioned conjugate-gradient iterations over all rounds
 };
 
 /// Optimises `graph.T_W_F` in place (reference node fixed) with line processes on loop edges,
 /// prunes loop edges with l < edge_prune_threshold (kept = false, reason set), and optimises again
 /// without them (Open3D GlobalOptimization: optimise, prune, optimise). Edges already not kept on
-/// input are ignored. Odometry edges are never pruned. Sparse normal equations (Eigen
-/// SimplicialLDLT); deterministic.
+/// input are ignored. Odometry edges are never pruned. Each LM step is an inexact Newton step:
+/// matrix-free preconditioned conjugate gradients on the normal equations, preconditioned by the
+/// odometry chain (block tridiagonal, O(n)) or, once one exists, by a sparse LDL^T factorisation
+/// (Eigen SimplicialLDLT) of an earlier step; a step is factorised only when conjugate gradients
+/// do not converge. Single-threaded and deterministic.
 /// Errors: fewer than one node, an edge naming a missing node, a non-finite pose or information
 /// matrix, a reference node out of range, or a graph whose kept edges do not connect every node
 /// to the reference (the gauge would be free).

@@ -874,9 +874,10 @@ int main(int argc, char** argv) {
     }
     const double pg_ate = ate(ours_graph.T_W_F, sg.truth);
     std::printf(
-        "ours   pose graph: %.1f ms (%d LM iterations, %d rounds); ATE %.4f m; pruned %d/%d "
-        "wrong loops and %d right ones\n",
-        pg_ms, report.iterations, report.rounds, pg_ate, pruned_wrong, sg.num_wrong, pruned_right);
+        "ours   pose graph: %.1f ms (%d LM iterations, %d rounds, %d factorisations, %d CG "
+        "iterations, final cost %.9g); ATE %.4f m; pruned %d/%d wrong loops and %d right ones\n",
+        pg_ms, report.iterations, report.rounds, report.factorisations, report.cg_iterations,
+        report.final_cost, pg_ate, pruned_wrong, sg.num_wrong, pruned_right);
     double o3d_pg_ms = 0.0, o3d_pg_ate = 0.0;
 #ifdef PLUMB_HAVE_OPEN3D
     {

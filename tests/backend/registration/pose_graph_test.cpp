@@ -165,6 +165,43 @@ TEST(PoseGraph, WrongLoopClosuresArePrunedAndDoNotMoveTheSolution) {
     }
 }
 
+TEST(PoseGraph, InexactStepsReachTheOptimumOfFactorisedSteps) {
+    // The default solver takes inexact LM steps (conjugate gradients to a 1e-2 forcing term); it
+    // must land where exact steps (a factorisation every step) land, also when the chain
+    // preconditioner gives up and a factorisation preconditions the later steps.
+    PoseGraphConfig exact;
+    exact.cg_relative_tolerance = 1e-12;
+    exact.chain_max_cg_iterations = 0;
+    exact.factor_max_cg_iterations = 0;
+    PoseGraphConfig mixed;
+    mixed.chain_max_cg_iterations = 2;
+    for (uint64_t seed = 1; seed <= 3; ++seed) {
+        const DriftScenario s = driftScenario(60, 6, seed);
+        PoseGraph reference = s.graph;
+        Result<PoseGraphReport> r_exact = optimisePoseGraph(reference, exact);
+        ASSERT_TRUE(r_exact.isOk()) << r_exact.status().toString();
+        EXPECT_EQ(r_exact->cg_iterations, 0);
+        EXPECT_GE(r_exact->factorisations, r_exact->iterations);
+        for (const PoseGraphConfig& config : {PoseGraphConfig{}, mixed}) {
+            PoseGraph g = s.graph;
+            Result<PoseGraphReport> r = optimisePoseGraph(g, config);
+            ASSERT_TRUE(r.isOk()) << r.status().toString();
+            EXPECT_GT(r->cg_iterations, 0);
+            EXPECT_LT(maxPositionError(g.T_W_F, reference.T_W_F), 1e-6) << "seed " << seed;
+            EXPECT_NEAR(r->final_cost, r_exact->final_cost, 1e-8 * r_exact->final_cost);
+            for (size_t k = 0; k < g.edges.size(); ++k) {
+                EXPECT_EQ(g.edges[k].kept, reference.edges[k].kept) << "edge " << k;
+            }
+            EXPECT_EQ(r->num_pruned, 6) << "seed " << seed;
+        }
+        PoseGraph g = s.graph;
+        Result<PoseGraphReport> r_mixed = optimisePoseGraph(g, mixed);
+        ASSERT_TRUE(r_mixed.isOk());
+        EXPECT_GE(r_mixed->factorisations, 1);                        // the fallback ran
+        EXPECT_LT(r_mixed->factorisations, r_exact->factorisations);  // and preconditioned
+    }
+}
+
 TEST(PoseGraph, LineProcessIsTheClosedFormMinimiser) {
     // l = (mu / (mu + f))^2 minimises l f + mu (sqrt(l) - 1)^2 over l in [0, 1].
     DriftScenario s = driftScenario(10, 1, 3);
