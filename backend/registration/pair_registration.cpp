@@ -38,6 +38,9 @@ void describe(config::Schema& s, RansacConfig& c) {
     s.field("max_iterations", c.max_iterations, "RANSAC iteration cap").min(1);
     s.field("confidence", c.confidence, "RANSAC early-exit confidence").range(0.0, 1.0);
     s.field("min_inliers", c.min_inliers, "fewer inlier correspondences is a failure").min(3);
+    s.field("num_threads", c.num_threads,
+            "worker threads of the feature matching, 0 = all; results do not depend on it")
+        .min(0);
 }
 
 // ---- IndexedCloud ----
@@ -293,34 +296,71 @@ Eigen::Isometry3d fitRigid(const std::vector<Eigen::Vector3d>& p,
 namespace {
 
 /// Nearest neighbours in feature space both ways by blocked dense products:
-/// |a - b|^2 = |a|^2 + |b|^2 - 2 a·b. Ties go to the lower index.
-void matchFeatures(const FragmentIndex& source, const FragmentIndex& target,
+/// |a - b|^2 = |a|^2 + |b|^2 - 2 a·b. Ties go to the lower index. The target columns are cut into
+/// fixed chunks (independent of the thread count); each chunk finds its columns' nearest sources
+/// and its own best target per source, and the chunks' bests are merged in chunk order, so the
+/// result equals the serial scan. Source rows are blocked so a block of products stays in cache.
+void matchFeatures(const FragmentIndex& source, const FragmentIndex& target, int num_threads,
                    std::vector<int>* target_to_source, std::vector<int>* source_to_target) {
     const Eigen::Index ns = source.features.cols(), nt = target.features.cols();
     target_to_source->assign(static_cast<size_t>(nt), -1);
     source_to_target->assign(static_cast<size_t>(ns), -1);
-    std::vector<float> best_s(static_cast<size_t>(ns), std::numeric_limits<float>::max());
-    constexpr Eigen::Index kBlock = 256;
-    Eigen::MatrixXf dots;
-    for (Eigen::Index b0 = 0; b0 < nt; b0 += kBlock) {
-        const Eigen::Index bn = std::min(kBlock, nt - b0);
-        dots.noalias() = source.features.transpose() * target.features.middleCols(b0, bn);
-        for (Eigen::Index c = 0; c < bn; ++c) {
-            const float tn = target.feature_sq_norms[b0 + c];
-            float best = std::numeric_limits<float>::max();
-            int best_i = -1;
-            for (Eigen::Index r = 0; r < ns; ++r) {
-                const float d = source.feature_sq_norms[r] + tn - 2.0f * dots(r, c);
-                if (d < best) {
-                    best = d;
-                    best_i = static_cast<int>(r);
+    constexpr Eigen::Index kColumns = 256, kRows = 512;
+    const size_t num_chunks = static_cast<size_t>((nt + kColumns - 1) / kColumns);
+    struct Best {
+        std::vector<float> d;
+        std::vector<int> index;
+    };
+    std::vector<Best> chunk_best(num_chunks);
+    detail::parallelFor(num_threads, num_chunks, [&](size_t chunk) {
+        const Eigen::Index c0 = static_cast<Eigen::Index>(chunk) * kColumns;
+        const Eigen::Index cn = std::min(kColumns, nt - c0);
+        Best& best_s = chunk_best[chunk];
+        best_s.d.assign(static_cast<size_t>(ns), std::numeric_limits<float>::max());
+        best_s.index.assign(static_cast<size_t>(ns), -1);
+        std::vector<float> best_t(static_cast<size_t>(cn), std::numeric_limits<float>::max());
+        std::vector<int> best_t_index(static_cast<size_t>(cn), -1);
+        std::vector<float> column(static_cast<size_t>(kRows));
+        Eigen::MatrixXf dots;
+        for (Eigen::Index r0 = 0; r0 < ns; r0 += kRows) {
+            const int rn = static_cast<int>(std::min(kRows, ns - r0));
+            dots.noalias() =
+                source.features.middleCols(r0, rn).transpose() * target.features.middleCols(c0, cn);
+            const float* __restrict source_norms = source.feature_sq_norms.data() + r0;
+            float* __restrict best_d = best_s.d.data() + r0;
+            int* __restrict best_index = best_s.index.data() + r0;
+            float* __restrict d = column.data();
+            for (Eigen::Index c = 0; c < cn; ++c) {
+                const float tn = target.feature_sq_norms[c0 + c];
+                const float* __restrict dot = &dots(0, c);
+                const int target_index = static_cast<int>(c0 + c);
+                // Branch-free so that it vectorises: the source's best is replaced only by a
+                // strictly smaller distance (the lower target index keeps a tie).
+                for (int r = 0; r < rn; ++r) {
+                    d[r] = source_norms[r] + tn - 2.0f * dot[r];
+                    const int closer = -static_cast<int>(d[r] < best_d[r]);
+                    best_d[r] = std::min(best_d[r], d[r]);
+                    best_index[r] = (target_index & closer) | (best_index[r] & ~closer);
                 }
-                if (d < best_s[static_cast<size_t>(r)]) {
-                    best_s[static_cast<size_t>(r)] = d;
-                    (*source_to_target)[static_cast<size_t>(r)] = static_cast<int>(b0 + c);
+                // The column's nearest source: the first row at the minimum.
+                const float m = Eigen::Map<const Eigen::VectorXf>(d, rn).minCoeff();
+                if (m < best_t[static_cast<size_t>(c)]) {
+                    int r = 0;
+                    while (r + 1 < rn && d[r] != m) ++r;
+                    best_t[static_cast<size_t>(c)] = m;
+                    best_t_index[static_cast<size_t>(c)] = static_cast<int>(r0) + r;
                 }
             }
-            (*target_to_source)[static_cast<size_t>(b0 + c)] = best_i;
+        }
+        std::copy(best_t_index.begin(), best_t_index.end(), target_to_source->begin() + c0);
+    });
+    std::vector<float> best(static_cast<size_t>(ns), std::numeric_limits<float>::max());
+    for (const Best& chunk : chunk_best) {
+        for (size_t r = 0; r < static_cast<size_t>(ns); ++r) {
+            if (chunk.d[r] < best[r]) {
+                best[r] = chunk.d[r];
+                (*source_to_target)[r] = chunk.index[r];
+            }
         }
     }
 }
@@ -339,7 +379,7 @@ PairResult ransacFeatureMatching(const FragmentIndex& source, const FragmentInde
         return out;
     }
     std::vector<int> t2s, s2t;
-    matchFeatures(source, target, &t2s, &s2t);
+    matchFeatures(source, target, config.num_threads, &t2s, &s2t);
     // Correspondences (p = source point, q = target point).
     std::vector<std::pair<int, int>> corr;
     for (size_t i = 0; i < t2s.size(); ++i) {

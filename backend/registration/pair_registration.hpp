@@ -49,6 +49,8 @@ struct RansacConfig {
     double confidence = 0.999;
     /// Fewer inlier correspondences than this is a failure.
     int min_inliers = 10;
+    /// Worker threads of the feature matching (0 = all); results do not depend on it.
+    int num_threads = 0;
 };
 void describe(config::Schema& s, RansacConfig& c);
 

@@ -75,6 +75,7 @@ RegistrationConfig innerConfig(const RegistrationConfig& c) {
     RegistrationConfig inner = c;
     inner.icp.num_threads = 1;
     inner.prepare.num_threads = 1;
+    inner.ransac.num_threads = 1;
     return inner;
 }
 
@@ -176,16 +177,21 @@ LoopOutcome loopEdge(const FragmentIndex& s, const FragmentIndex& t, const Regis
     std::optional<Verified> best, first;
     for (const Start& start : starts) {
         Eigen::Isometry3d T = start.T;
-        if (!s.levels.empty() && !t.levels.empty() && !c.icp.voxel_sizes_m.empty()) {
-            const PairResult icp = icpPointToPlane(s.levels[0], t.levels[0].cloud(), T,
-                                                   c.icp.distance_factor * c.icp.voxel_sizes_m[0],
-                                                   c.loop_icp_iterations, c.icp.relative_change, 1);
+        // A start turned from the odometry by more than twice the allowed deviation is not one
+        // ICP turns back: it is verified where it is, and the odometry check rejects it.
+        const bool hopeless = T_odo && c.max_loop_rotation_deviation_deg > 0.0 &&
+                              lie::rotationAngle(T_odo->inverse() * T) * 180.0 / std::numbers::pi >
+                                  2.0 * c.max_loop_rotation_deviation_deg;
+        if (!hopeless && !s.levels.empty() && !t.levels.empty() && !c.icp.voxel_sizes_m.empty()) {
+            const PairResult icp = icpPointToPlane(
+                s.levels[0], t.levels[0].cloud(), T, c.icp.distance_factor * c.icp.voxel_sizes_m[0],
+                c.loop_icp_iterations, c.icp.relative_change, c.icp.num_threads);
             if (icp.success) T = icp.T_source_target;
         }
         // A guided start that ICP slid out of the search window (along a wall, most often) is
         // no longer what the votes found.
         if (start.guided && !withinWindow(centroid, T, *T_odo, c.guided)) continue;
-        Verified v{evaluateAlignment(s, t, T, tauOf(c), 1),
+        Verified v{evaluateAlignment(s, t, T, tauOf(c), c.icp.num_threads),
                    start.method,
                    start.guided,
                    0.0,
@@ -232,13 +238,33 @@ LoopOutcome loopEdge(const FragmentIndex& s, const FragmentIndex& t, const Regis
     const PairResult fine = multiScaleIcp(s, t, eval.T_source_target, c.icp);
     if (fine.success &&
         (!best->guided || withinWindow(centroid, fine.T_source_target, *T_odo, c.guided))) {
-        const PairResult refined = evaluateAlignment(s, t, fine.T_source_target, tauOf(c), 1);
+        const PairResult refined =
+            evaluateAlignment(s, t, fine.T_source_target, tauOf(c), c.icp.num_threads);
         if (refined.overlap >= c.min_overlap) eval = refined;
     }
     setFromPair(e, eval);
     e.reason = std::string("found by ") + best->method;
     return LoopOutcome::kAccepted;
 }
+
+}  // namespace
+
+PoseGraphEdge registerLoopPair(const FragmentIndex& source, const FragmentIndex& target,
+                               const RegistrationConfig& config,
+                               const std::optional<Eigen::Isometry3d>& T_odometry) {
+    PoseGraphEdge e;
+    e.source = source.id;
+    e.target = target.id;
+    e.kind = PoseGraphEdge::Kind::kLoop;
+    if (loopEdge(source, target, config, T_odometry, &e) == LoopOutcome::kRansacFailed) {
+        e.kept = false;
+        e.line_process = 0.0;
+        e.reason = "rejected: no alignment to verify (RANSAC failed, no guided start)";
+    }
+    return e;
+}
+
+namespace {
 
 /// The device odometry from fragment a to b, when both belong to one tracking segment.
 std::optional<Eigen::Isometry3d> odometryBetween(const Fragment& a, const Fragment& b) {
@@ -302,7 +328,8 @@ void refineWithIndex(PoseGraph& graph, const std::vector<const FragmentIndex*>& 
         const Eigen::Isometry3d init = graph.T_W_F[e.source].inverse() * graph.T_W_F[e.target];
         const PairResult icp = multiScaleIcp(s, t, init, inner.icp);
         if (icp.success) {
-            const PairResult eval = evaluateAlignment(s, t, icp.T_source_target, tauOf(inner), 1);
+            const PairResult eval =
+                evaluateAlignment(s, t, icp.T_source_target, tauOf(inner), inner.icp.num_threads);
             if (e.kind == PoseGraphEdge::Kind::kLoop && eval.overlap < c.min_overlap) {
                 setFromPair(e, eval);
                 e.kept = false;

@@ -21,6 +21,7 @@
 #include <cstdint>
 #include <future>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -94,6 +95,16 @@ struct PairStats {
     int translation_rejected = 0;  ///< moved too far from the odometry (guided.max_offset_...)
     int loops_accepted = 0;
 };
+
+/// One loop-closure candidate (source, target) registered exactly as the registration stage does
+/// it: FPFH + RANSAC and, with `T_odometry` (the device odometry between two fragments of one
+/// tracking segment), the odometry-guided starts; coarse ICP from every start, the odometry
+/// checks, the overlap test, and multi-scale ICP of the accepted alignment. Returns the loop edge;
+/// when nothing was accepted it is not kept and `reason` says why. The stage runs its pairs in
+/// parallel and each pair single-threaded; here `config`'s thread counts apply to the pair.
+PoseGraphEdge registerLoopPair(const FragmentIndex& source, const FragmentIndex& target,
+                               const RegistrationConfig& config,
+                               const std::optional<Eigen::Isometry3d>& T_odometry);
 
 /// Builds the pose graph of `fragments` (ids must be 0..n-1 in order; `prepared[i]` must belong
 /// to fragment i). Nodes start at the odometry poses T_W_F (re-anchored so node 0 is where

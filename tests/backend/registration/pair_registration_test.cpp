@@ -164,6 +164,15 @@ TEST(PairRegistration, RansacRecoversLargeMotionAndOverlapIsFull) {
     // Same seed, same answer; evaluation at the truth: full overlap, Λ(5,5) = correspondences.
     const PairResult again = ransacFeatureMatching(p->ia, p->ib, RansacConfig{}, 42);
     EXPECT_TRUE(again.T_source_target.matrix() == r.T_source_target.matrix());
+    // The feature matching's chunks (256 target points) merge to the serial scan's answer.
+    ASSERT_GT(p->ib.features.cols(), 2 * 256);
+    for (int threads : {1, 2}) {
+        RansacConfig c;
+        c.num_threads = threads;
+        const PairResult t = ransacFeatureMatching(p->ia, p->ib, c, 42);
+        EXPECT_TRUE(t.T_source_target.matrix() == r.T_source_target.matrix()) << threads;
+        EXPECT_EQ(t.ransac_inliers, r.ransac_inliers);
+    }
     const PairResult e = evaluateAlignment(p->ia, p->ib, truth, 0.07, 0);
     EXPECT_GT(e.overlap, 0.99);
     EXPECT_EQ(e.information(5, 5), e.num_correspondences);
