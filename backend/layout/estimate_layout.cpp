@@ -463,6 +463,7 @@ Result<LayoutEstimate> estimateLayout(const std::vector<Fragment>& fragments,
         WallDecision wd;
         wd.plane_id = p.id;
         wd.abs_dot_base = std::abs(p.n.dot(n_b));
+        wd.top_gap_m = reach_gap;
         if (static_cast<int>(k) == base) {
             wd.reason = "base plane";
             diag.walls.push_back(wd);
@@ -866,6 +867,7 @@ nlohmann::json toJson(const LayoutDiagnostics& d) {
                               {"kept", w.kept},
                               {"abs_dot_base", w.abs_dot_base},
                               {"boundary_distance_m", w.boundary_distance_m},
+                              {"top_gap_m", w.top_gap_m},
                               {"reason", w.reason}});
     }
     j["snapping"] = nlohmann::json::array();
