@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <numeric>
+#include <optional>
 
 namespace plumb::posegraph {
 
@@ -343,8 +344,8 @@ bool solvePreconditioned(const Problem& p, const LinearSystem& s, const Eigen::V
     return false;
 }
 
-/// The LM solver state that outlives one iteration: the assembled pattern of the round and the
-/// latest factorisation, reused as the preconditioner of later iterations (and rounds).
+/// The LM solver state that outlives one iteration: the latest factorisation, reused as the
+/// preconditioner of later iterations (and rounds).
 struct Factorisation {
     /// Sparse LDL^T of the lower triangle (AMD ordering).
     Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt;
@@ -364,8 +365,9 @@ int optimiseRound(const Problem& p, std::vector<Eigen::Isometry3d>& T,
     double lambda = config.initial_lambda;
     std::vector<double> f = edgeCosts(p, T);
     double cost = robustCost(p, f);
-    Assembly assembly = buildAssembly(p);
-    bool analysed = false;
+    // The round's sparsity pattern, built (and its ordering analysed) at its first factorisation:
+    // most rounds never factorise.
+    std::optional<Assembly> assembly;
     int it = 0;
     for (; it < config.max_iterations; ++it) {
         const LinearSystem system = linearise(p, T, f);
@@ -391,12 +393,12 @@ int optimiseRound(const Problem& p, std::vector<Eigen::Isometry3d>& T,
                                                               &delta, &factor.cg_iterations);
             }
             if (!solved) {
-                assemble(p, system, damping, assembly);
-                if (!analysed) {
-                    factor.ldlt.analyzePattern(assembly.matrix);
-                    analysed = true;
+                if (!assembly) {
+                    assembly = buildAssembly(p);
+                    factor.ldlt.analyzePattern(assembly->matrix);
                 }
-                factor.ldlt.factorize(assembly.matrix);
+                assemble(p, system, damping, *assembly);
+                factor.ldlt.factorize(assembly->matrix);
                 ++factor.count;
                 factor.valid = factor.ldlt.info() == Eigen::Success;
                 if (factor.valid) delta = factor.ldlt.solve(system.b);

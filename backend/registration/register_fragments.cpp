@@ -133,13 +133,17 @@ Eigen::Vector3d centroidOf(const FragmentIndex& f) {
     return c;
 }
 
+/// The angle between two rotations, degrees.
+double turnedDeg(const Eigen::Isometry3d& from, const Eigen::Isometry3d& to) {
+    return lie::rotationAngle(from.inverse() * to) * 180.0 / std::numbers::pi;
+}
+
 /// Whether T stays in the guided search's window around the odometry: it turns no further than
 /// max_rotation_deg from it and moves the target's centroid `c` no further than radius_m (per
 /// axis, plus one bin).
 bool withinWindow(const Eigen::Vector3d& c, const Eigen::Isometry3d& T,
                   const Eigen::Isometry3d& T_odo, const GuidedSearchConfig& g) {
-    return lie::rotationAngle(T_odo.inverse() * T) * 180.0 / std::numbers::pi <=
-               g.max_rotation_deg &&
+    return turnedDeg(T_odo, T) <= g.max_rotation_deg &&
            (T * c - T_odo * c).cwiseAbs().maxCoeff() <= g.radius_m + g.bin_m;
 }
 
@@ -180,8 +184,7 @@ LoopOutcome loopEdge(const FragmentIndex& s, const FragmentIndex& t, const Regis
         // A start turned from the odometry by more than twice the allowed deviation is not one
         // ICP turns back: it is verified where it is, and the odometry check rejects it.
         const bool hopeless = T_odo && c.max_loop_rotation_deviation_deg > 0.0 &&
-                              lie::rotationAngle(T_odo->inverse() * T) * 180.0 / std::numbers::pi >
-                                  2.0 * c.max_loop_rotation_deviation_deg;
+                              turnedDeg(*T_odo, T) > 2.0 * c.max_loop_rotation_deviation_deg;
         if (!hopeless && !s.levels.empty() && !t.levels.empty() && !c.icp.voxel_sizes_m.empty()) {
             const PairResult icp = icpPointToPlane(
                 s.levels[0], t.levels[0].cloud(), T, c.icp.distance_factor * c.icp.voxel_sizes_m[0],
@@ -202,8 +205,7 @@ LoopOutcome loopEdge(const FragmentIndex& s, const FragmentIndex& t, const Regis
             // Walls, floor and ceiling match as well after a quarter turn or a slide of a metre,
             // and the odometry drifts by a few degrees and centimetres per fragment: it is a
             // prior on the drift (and ranks a slide along a wall below the truth).
-            const double turned_deg =
-                lie::rotationAngle(T_odo->inverse() * T) * 180.0 / std::numbers::pi;
+            const double turned_deg = turnedDeg(*T_odo, T);
             const double moved_m = (T * centroid - *T_odo * centroid).norm();
             const double max_moved_m = c.guided.max_offset_sigmas * sigma;
             if (c.max_loop_rotation_deviation_deg > 0.0 &&
@@ -264,13 +266,12 @@ PoseGraphEdge registerLoopPair(const FragmentIndex& source, const FragmentIndex&
     return e;
 }
 
-namespace {
-
-/// The device odometry from fragment a to b, when both belong to one tracking segment.
 std::optional<Eigen::Isometry3d> odometryBetween(const Fragment& a, const Fragment& b) {
     if (a.segment != b.segment) return std::nullopt;
     return a.T_W_F.inverse() * b.T_W_F;
 }
+
+namespace {
 
 bool edgeLess(const PoseGraphEdge& a, const PoseGraphEdge& b) {
     return a.source != b.source ? a.source < b.source : a.target < b.target;

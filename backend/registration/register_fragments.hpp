@@ -96,6 +96,10 @@ struct PairStats {
     int loops_accepted = 0;
 };
 
+/// The device odometry from fragment a to fragment b (T_a_b = T_W_a^-1 T_W_b), when both belong
+/// to one tracking segment; across segments there is none.
+std::optional<Eigen::Isometry3d> odometryBetween(const Fragment& a, const Fragment& b);
+
 /// One loop-closure candidate (source, target) registered exactly as the registration stage does
 /// it: FPFH + RANSAC and, with `T_odometry` (the device odometry between two fragments of one
 /// tracking segment), the odometry-guided starts; coarse ICP from every start, the odometry
