@@ -143,6 +143,23 @@ void normalsFromNeighbours(const Eigen::Vector3f& o, const RaycastConfig& config
     });
 }
 
+/// Nearest valid depth of `hint` under ray (u, v) of a camera `scale` times coarser, widened by
+/// `radius` hint pixels on every side; infinity when there is none.
+float nearestHint(const DepthImage& hint, int u, int v, int scale, int radius) {
+    const int x0 = std::max(0, u * scale - radius),
+              x1 = std::min(hint.width(), (u + 1) * scale + radius);
+    const int y0 = std::max(0, v * scale - radius),
+              y1 = std::min(hint.height(), (v + 1) * scale + radius);
+    float d = std::numeric_limits<float>::infinity();
+    for (int y = y0; y < y1; ++y) {
+        for (int x = x0; x < x1; ++x) {
+            const float h = hint(x, y);
+            if (h > 0.0f) d = std::min(d, h);
+        }
+    }
+    return d;
+}
+
 }  // namespace
 
 RaycastResult raycast(const TsdfVolume& volume, const PinholeCamera& camera,
@@ -246,23 +263,40 @@ RaycastResult raycast(const TsdfVolume& volume, const PinholeCamera& camera,
                     t_prev = t;
                     f_prev = f;
                     prev_valid = true;
-                    t += std::max(voxel_dt, config.step_fraction * mu * std::abs(f) * inv_len);
+                    // Near a surface in front (F mu, the projective distance of the fused
+                    // views, within two voxels) aim half a voxel past the crossing it predicts:
+                    // the next sample then mostly brackets it. Elsewhere the conservative step.
+                    const float predicted = f * mu;
+                    t +=
+                        f > 0.0f && predicted < 2.0f * vs
+                            ? predicted + 0.5f * voxel_dt
+                            : std::max(voxel_dt, config.step_fraction * mu * std::abs(f) * inv_len);
                 }
                 return March::kMiss;
             };
 
             if (hint_scale > 0) {
                 // The depth this camera saw where the model was last fused: its zero crossing
-                // lies near it, and the space in front was just carved free. March from one
-                // truncation and one voxel in front of it (z units, as the projective SDF;
-                // the nearest valid depth of the s x s hint pixels under a coarser ray); unless
-                // that first sample is observed free space, march the whole ray.
-                float d = std::numeric_limits<float>::infinity();
-                for (int j = 0; j < hint_scale; ++j) {
-                    for (int i = 0; i < hint_scale; ++i) {
-                        const float h = (*start_hint)(u * hint_scale + i, v * hint_scale + j);
-                        if (h > 0.0f) d = std::min(d, h);
+                // lies near it, and the space in front was just carved free (z units, as the
+                // projective SDF; the nearest valid depth of the s x s hint pixels under a
+                // coarser ray).
+                float d = nearestHint(*start_hint, u, v, hint_scale, 0);
+                if (std::isfinite(d)) {
+                    // March from close in front of it: mostly the crossing is one or two
+                    // samples away. Where the model surface lies nearer than that (noise in the
+                    // hint) that start is not free space, so march from one truncation and one
+                    // voxel in front, and if that is not free space either, the whole ray.
+                    const float t_near = d - config.hint_near_voxels * vs;
+                    if (config.hint_near_voxels > 0.0f && t_near > t_begin && t_near < t_end &&
+                        march(t_near, /*hinted=*/true) != March::kBadStart) {
+                        continue;
                     }
+                } else if (config.hint_hole_radius_px >= 0) {
+                    // A hole in the hint: the nearest depth around it (a depth edge, a dropout)
+                    // starts the march; where the hinted frame saw nothing at all around the
+                    // ray, neither will the frame being tracked, and the ray is not cast.
+                    d = nearestHint(*start_hint, u, v, hint_scale, config.hint_hole_radius_px);
+                    if (!std::isfinite(d)) continue;
                 }
                 const float t_hint = d - (mu + vs);
                 if (std::isfinite(t_hint) && t_hint > t_begin && t_hint < t_end &&

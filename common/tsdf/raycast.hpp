@@ -50,8 +50,20 @@ struct RaycastConfig {
     float min_depth_m = 0.1f;
     /// Marching stops at this z-depth, metres.
     float max_depth_m = 4.0f;
-    /// Step in free space = step_fraction * truncation * F (at least one voxel), §2.4.
+    /// Step in free space = step_fraction * truncation * F (at least one voxel), §2.4. Within
+    /// two voxels in front of a surface (F * truncation, the fused views' projective distance)
+    /// the step instead aims half a voxel past the crossing that distance predicts, so the next
+    /// sample mostly brackets it.
     float step_fraction = 0.8f;
+    /// With a start hint: rays first march from this many voxels in front of the hinted depth,
+    /// and from one truncation in front only when that sample is not observed free space
+    /// (0 = always from one truncation in front).
+    float hint_near_voxels = 2.0f;
+    /// With a start hint: a ray with no hinted depth under it starts from the nearest hinted
+    /// depth within this many hint pixels, and is not cast when there is none (the hinted frame
+    /// saw nothing around it; nor, from nearly the same pose, will the frame being tracked).
+    /// Negative: such rays march in full, from the nearest block.
+    int hint_hole_radius_px = 2;
     /// Voxels with a smaller weight count as unobserved.
     float min_weight = 1.0f;
     /// Normals from the cross product of the neighbouring hits, (P(u+1) - P(u-1)) x
@@ -82,11 +94,12 @@ struct RaycastResult {
 ///
 /// `start_hint` (optional) is depth this camera measured at this pose and fused into the volume,
 /// at the camera's resolution or an integer multiple of it: the frame tracking has just
-/// integrated. Each ray then marches from one truncation and one voxel in front of its hinted
-/// depth (the nearest of the hint pixels under it) instead of from the nearest block, and
-/// marches the whole ray unless that first sample is observed free space (F > 0). A surface the
-/// model still holds in front of that free space (seen by older frames, not by the hinted one)
-/// is skipped.
+/// integrated. Each ray then marches from hint_near_voxels in front of its hinted depth (the
+/// nearest of the hint pixels under it), else from one truncation and one voxel in front,
+/// instead of from the nearest block, and marches the whole ray unless one of those first
+/// samples is observed free space (F > 0). A surface the model still holds in front of that free
+/// space (seen by older frames, not by the hinted one) is skipped. Rays over holes in the hint
+/// follow hint_hole_radius_px.
 RaycastResult raycast(const TsdfVolume& volume, const PinholeCamera& camera,
                       const Eigen::Isometry3d& T_V_C, const RaycastConfig& config = {},
                       const DepthImage* start_hint = nullptr);

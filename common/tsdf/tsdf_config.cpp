@@ -32,9 +32,23 @@ void describe(config::Schema& s, RaycastConfig& c) {
     s.field("min_depth_m", c.min_depth_m, "rays start at this camera z-depth", "m").min(0.0);
     s.field("max_depth_m", c.max_depth_m, "rays stop at this camera z-depth", "m").positive();
     s.field("step_fraction", c.step_fraction,
-            "free-space step = step_fraction * truncation * |F| (at least one voxel)")
+            "free-space step = step_fraction * truncation * |F| (at least one voxel); within "
+            "two voxels in front of a surface the step aims half a voxel past the crossing "
+            "F * truncation predicts")
         .positive()
         .max(1.0);
+    s.field("hint_near_voxels", c.hint_near_voxels,
+            "with a start hint (the depth last fused from this pose), rays march from this many "
+            "voxels in front of it first, from one truncation in front when that sample is not "
+            "free space (0 = always from one truncation in front)",
+            "voxels")
+        .min(0.0);
+    s.field("hint_hole_radius_px", c.hint_hole_radius_px,
+            "with a start hint: a ray over a hole in it starts from the nearest hinted depth "
+            "within this many pixels and is not cast when there is none (-1 = such rays march in "
+            "full)",
+            "px")
+        .min(-1);
     s.field("min_weight", c.min_weight, "voxels with a smaller weight count as unobserved")
         .greaterThan(0.0);
     s.field("normals_from_neighbours", c.normals_from_neighbours,

@@ -393,30 +393,43 @@ bool TsdfVolume::gradient(const Eigen::Vector3f& p, float min_weight, Eigen::Vec
     const Eigen::Vector3f a = q - fl;
     const Eigen::Vector3i lo = g - Eigen::Vector3i::Ones();
     const BlockKey b_lo = blockOf(lo);
-    int32_t blocks[8];
+    // Per axis and neighbourhood coordinate i in [0, 3]: the block step from b_lo (0 or 1) and the
+    // voxel offset inside that block, so a voxel's address is two table reads away.
+    int step[3][4], offset[3][4];
+    for (int axis = 0; axis < 3; ++axis) {
+        for (int i = 0; i < 4; ++i) {
+            const int c = lo[axis] + i;
+            step[axis][i] = (c >> 3) - b_lo[axis];
+            offset[axis][i] = (c & 7) << (3 * axis);
+        }
+    }
+    const Voxel* blocks[8] = {nullptr, nullptr, nullptr, nullptr,
+                              nullptr, nullptr, nullptr, nullptr};
     bool looked_up[8] = {false, false, false, false, false, false, false, false};
     // n[x][y][z]: TSDF at lo + (x, y, z), x, y, z in [0, 3]; only the 32 voxels used are filled.
     float n[4][4][4];
     const auto load = [&](int x, int y, int z) {
-        const Eigen::Vector3i v = lo + Eigen::Vector3i(x, y, z);
-        const Eigen::Vector3i d = blockOf(v) - b_lo;
-        const int k = d.x() + 2 * d.y() + 4 * d.z();
+        const int k = step[0][x] + 2 * step[1][y] + 4 * step[2][z];
         if (!looked_up[k]) {
-            blocks[k] = hash_.find(b_lo + d);
+            const int32_t b =
+                hash_.find(b_lo.x() + step[0][x], b_lo.y() + step[1][y], b_lo.z() + step[2][z]);
+            blocks[k] = b == BlockHashMap::kNotFound ? nullptr : blockVoxels(b);
             looked_up[k] = true;
         }
-        if (blocks[k] == BlockHashMap::kNotFound) return false;
-        const Voxel& vx = blockVoxels(blocks[k])[voxelIndexInBlock(v)];
+        if (blocks[k] == nullptr) return false;
+        const Voxel& vx = blocks[k][offset[0][x] + offset[1][y] + offset[2][z]];
         if (!(vx.weight >= min_weight)) return false;
         n[x][y][z] = vx.tsdf;
         return true;
     };
-    // The voxels with at most one coordinate outside the central cell {1, 2}^3.
-    for (int x = 0; x < 4; ++x) {
-        for (int y = 0; y < 4; ++y) {
-            for (int z = 0; z < 4; ++z) {
-                const int outside = (x == 0 || x == 3) + (y == 0 || y == 3) + (z == 0 || z == 3);
-                if (outside <= 1 && !load(x, y, z)) return false;
+    // The voxels with at most one coordinate outside the central cell {1, 2}^3: the central
+    // 2 x 2 x 2 and one voxel beyond each of its faces along each axis.
+    for (int i = 0; i < 4; ++i) {
+        for (int j = 1; j < 3; ++j) {
+            for (int k = 1; k < 3; ++k) {
+                if (!load(i, j, k)) return false;
+                if (i == 1 || i == 2) continue;  // the centre, loaded once, along x
+                if (!load(j, i, k) || !load(j, k, i)) return false;
             }
         }
     }

@@ -17,6 +17,10 @@ double msSince(Clock::time_point t0) {
 }  // namespace
 
 Status FusionConfig::validate() const {
+    if (raycast_interval < 1) {
+        return invalidArgument("fusion: raycast_interval must be >= 1, got " +
+                               std::to_string(raycast_interval));
+    }
     if (frames_per_fragment < 1) {
         return invalidArgument("fusion: frames_per_fragment must be >= 1, got " +
                                std::to_string(frames_per_fragment));
@@ -52,6 +56,7 @@ void FragmentBuilder::openFragment(const Eigen::Isometry3d& T_W_F, bool handover
     current_->voxel_size_m = config_.tsdf.voxel_size_m;
     volume_.clear();
     last_depth_ = DepthImage();
+    model_source_ = nullptr;  // cast the new model afresh
     T_W_M_ = T_W_F;
     T_M_last_ = Eigen::Isometry3d::Identity();
     have_model_ = false;
@@ -137,19 +142,24 @@ Result<FrameReport> FragmentBuilder::processImpl(const Frame& frame) {
         (!current_ || static_cast<int>(current_->frames.size()) >= config_.handover_frames)) {
         handover_ = false;  // the new fragment's own volume is the model from now on
         previous_volume_.clear();
+        model_source_ = nullptr;
     }
     // Model X: the open fragment's volume (X = M), or the previous one during a handover.
     const tsdf::TsdfVolume& model_volume = handover_ ? previous_volume_ : volume_;
     const Eigen::Isometry3d T_X_M = handover_ ? T_P_M_ : Eigen::Isometry3d::Identity();
-    const std::vector<ModelLevel> model =
-        predictModel(model_volume, pyramid, T_X_M * T_M_last_, config_.raycast, config_.model_level,
-                     last_depth_.empty() ? nullptr : &last_depth_);
+    if (model_source_ != &model_volume || model_uses_ >= config_.raycast_interval) {
+        T_X_P_ = T_X_M * T_M_last_;
+        model_ = predictModel(model_volume, pyramid, T_X_P_, config_.raycast, config_.model_level,
+                              last_depth_.empty() ? nullptr : &last_depth_);
+        model_source_ = &model_volume;
+        model_uses_ = 0;
+    }
+    ++model_uses_;
     // Start from a constant-velocity prediction: along directions the geometry leaves free
     // (solution remapping in the ICP) the camera keeps moving as it did.
     const Eigen::Isometry3d T_M_pred =
         config_.constant_velocity && !lost_ ? T_M_last_ * velocity_ : T_M_last_;
-    report.icp =
-        alignFrameToModel(pyramid, model, T_X_M * T_M_last_, T_X_M * T_M_pred, config_.icp);
+    report.icp = alignFrameToModel(pyramid, model_, T_X_P_, T_X_M * T_M_pred, config_.icp);
     if (handover_) report.icp.T_M_C = T_P_M_.inverse() * report.icp.T_M_C;
     report.timing.track_ms = msSince(t_track);
 
@@ -185,6 +195,7 @@ Result<FrameReport> FragmentBuilder::processImpl(const Frame& frame) {
         }
     } else {
         report.message = "tracking failed: " + report.icp.failure;
+        model_source_ = nullptr;
         velocity_ = Eigen::Isometry3d::Identity();
         report.T_W_C = T_W_C_;
         if (current_) {

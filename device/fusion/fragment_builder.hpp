@@ -55,6 +55,12 @@ struct FusionConfig {
     /// truncation in front of it) instead of from the nearest block: fewer samples per ray, the
     /// same hits unless the model holds a surface that frame saw as free space.
     bool raycast_from_last_depth = true;
+    /// Frames tracked against one model raycast (1 = a raycast for every frame). With 2 the
+    /// prediction cast after frame k is integrated also tracks frame k + 2: it lacks only frame
+    /// k + 1's measurements, and projective association looks points up in the camera it was
+    /// cast from, two frames' motion away. A new fragment's volume, a handover ending and a
+    /// tracking failure always cast afresh.
+    int raycast_interval = 1;
     /// Surface points of a closed fragment.
     tsdf::SurfaceConfig surface;
     /// Frame preprocessing (filter, pyramid).
@@ -132,6 +138,12 @@ class FragmentBuilder {
     /// both; openFragment clears it): the raycast's start hint, since tracking predicts the
     /// model from T_M_last_. Empty when raycast_from_last_depth is off.
     DepthImage last_depth_;
+    /// The last model prediction, cast from T_X_P_ in the frame X of the volume it was cast
+    /// from (model_source_), and how many frames have tracked against it (raycast_interval).
+    std::vector<ModelLevel> model_;
+    Eigen::Isometry3d T_X_P_ = Eigen::Isometry3d::Identity();
+    const tsdf::TsdfVolume* model_source_ = nullptr;
+    int model_uses_ = 0;
     Eigen::Isometry3d T_W_C_ = Eigen::Isometry3d::Identity();
     /// Last frame-to-frame motion T_Cprev_C (identity after a loss), for the prediction.
     Eigen::Isometry3d velocity_ = Eigen::Isometry3d::Identity();

@@ -104,6 +104,11 @@ void describe(config::Schema& s, FusionConfig& c) {
     s.field("raycast_from_last_depth", c.raycast_from_last_depth,
             "model rays march from the depth last fused from the same pose (a truncation in "
             "front of it) instead of from the nearest block");
+    s.field("raycast_interval", c.raycast_interval,
+            "frames tracked against one model raycast (1 = cast for every frame; 2 = the "
+            "prediction cast after a frame is integrated also tracks the frame after next)",
+            "frames")
+        .min(1);
     s.section("raycast", c.raycast, "model prediction (raycast) for tracking");
     s.section("surface", c.surface, "oriented surface points of a closed fragment");
     s.section("preprocess", c.preprocess, "per-frame filtering, vertex/normal maps, pyramid");

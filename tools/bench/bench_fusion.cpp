@@ -17,8 +17,10 @@
 #include <string>
 #include <vector>
 
+#include "common/config/config.hpp"
 #include "common/tsdf/tsdf_volume.hpp"
 #include "device/fusion/fragment_builder.hpp"
+#include "device/fusion/fusion_config.hpp"
 #include "drivers/sim/sim_source.hpp"
 #include "tools/bench/bench_args.hpp"
 
@@ -59,6 +61,7 @@ double mean(const std::vector<double>& v) {
 constexpr const char* kUsage =
     "usage: plumb-bench-fusion [--frames N] [--threads N] [--scene NAME] [--noise MODE]\n"
     "                          [--fragment N] [--repeat N] [--model-level L]\n"
+    "                          [--set KEY=VALUE]...\n"
     "  --frames N     simulated frames (default 100)\n"
     "  --threads N    worker threads for ours and Open3D (default 2)\n"
     "  --scene NAME   simulated room (default living_room)\n"
@@ -67,7 +70,9 @@ constexpr const char* kUsage =
     "  --model-level L  pyramid level the tracking model is raycast at (default: the\n"
     "                 fusion config's default)\n"
     "  --repeat N     integration passes over the frames for the integration-only figures\n"
-    "                 (default 2; the median over all is reported)\n";
+    "                 (default 2; the median over all is reported)\n"
+    "  --set KEY=VALUE  a fusion setting for the pipeline run, as `plumb fuse --set` takes\n"
+    "                 it (`plumb config doc fusion` lists them), e.g. raycast_interval=2\n";
 
 }  // namespace
 
@@ -79,6 +84,7 @@ int main(int argc, char** argv) {
     int model_level = plumb::device::FusionConfig{}.model_level;
     std::string scene = "living_room";
     std::string noise = "redwood";
+    std::vector<std::string> overrides;
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];
         auto num = [&](auto* out) { return plumb::bench::nextNumber(argc, argv, &i, out); };
@@ -95,6 +101,8 @@ int main(int argc, char** argv) {
             ok = num(&repeat) && repeat > 0;
         } else if (a == "--scene" && i + 1 < argc) {
             scene = argv[++i];
+        } else if (a == "--set" && i + 1 < argc) {
+            overrides.push_back(argv[++i]);
         } else if (a == "--noise" && i + 1 < argc) {
             noise = argv[++i];
         } else if (a == "-h" || a == "--help") {
@@ -150,6 +158,10 @@ int main(int argc, char** argv) {
     config.surface.num_threads = threads;
     config.preprocess.num_threads = threads;
     config.icp.num_threads = threads;
+    if (const plumb::Status s = plumb::config::applyOverrides(overrides, config); !s.isOk()) {
+        std::fprintf(stderr, "plumb-bench-fusion: %s\n", s.toString().c_str());
+        return 2;
+    }
 
     // 1. The whole device pipeline, frame by frame.
     std::vector<double> frame_ms, track_ms, integrate_pipe_ms, preprocess_ms, extract_ms;
