@@ -166,6 +166,7 @@ int main(int argc, char** argv) {
     // 1. The whole device pipeline, frame by frame.
     std::vector<double> frame_ms, track_ms, integrate_pipe_ms, preprocess_ms, extract_ms;
     size_t tracking_failures = 0;
+    long icp_iterations = 0;
     const double cpu_pipeline_start = processCpuMs();
     {
         plumb::device::FragmentBuilder builder(camera, config);
@@ -181,6 +182,7 @@ int main(int argc, char** argv) {
             integrate_pipe_ms.push_back(r->timing.integrate_ms);
             extract_ms.push_back(r->timing.extract_ms);
             tracking_failures += r->tracked ? 0 : 1;
+            icp_iterations += r->icp.iterations;
         }
     }
 
@@ -285,11 +287,14 @@ int main(int argc, char** argv) {
     const double integrate = median(ours_ms);
     const double track = median(track_ms);
     const double frame = median(frame_ms);
+    const double icp_per_frame = track_ms.empty() ? 0.0
+                                                  : static_cast<double>(icp_iterations) /
+                                                        static_cast<double>(track_ms.size());
     std::printf(
         "frames %zu (%dx%d), threads %d, voxel %.2f mm, truncation %.0f mm, up to %zu "
-        "blocks, tracking failures %zu\n",
+        "blocks, tracking failures %zu, ICP iterations per tracked frame %.1f (all levels)\n",
         frames.size(), camera.width, camera.height, threads, config.tsdf.voxel_size_m * 1e3,
-        config.tsdf.truncation_m * 1e3, blocks, tracking_failures);
+        config.tsdf.truncation_m * 1e3, blocks, tracking_failures, icp_per_frame);
     std::printf("ours integrate (GT poses): median %.2f ms/frame, mean %.2f\n", integrate,
                 mean(ours_ms));
     std::printf(
@@ -308,8 +313,9 @@ int main(int argc, char** argv) {
         "{\"integrate_ms\":%.3f,\"track_ms\":%.3f,\"frame_ms\":%.3f,\"open3d_integrate_ms\":%.3f,"
         "\"ratio\":%.3f,\"preprocess_ms\":%.3f,\"frame_mean_ms\":%.3f,\"frames\":%zu,"
         "\"threads\":%d,\"frame_cpu_ms\":%.3f,\"integrate_cpu_ms\":%.3f,"
-        "\"open3d_integrate_cpu_ms\":%.3f}\n",
+        "\"open3d_integrate_cpu_ms\":%.3f,\"track_mean_ms\":%.3f,\"icp_iterations\":%.2f}\n",
         integrate, track, frame, o3d_ms, ratio, median(preprocess_ms), mean(frame_ms),
-        frames.size(), threads, pipeline_cpu_ms, ours_cpu_ms, o3d_cpu_ms);
+        frames.size(), threads, pipeline_cpu_ms, ours_cpu_ms, o3d_cpu_ms, mean(track_ms),
+        icp_per_frame);
     return 0;
 }
