@@ -56,7 +56,7 @@ void FragmentBuilder::openFragment(const Eigen::Isometry3d& T_W_F, bool handover
     current_->voxel_size_m = config_.tsdf.voxel_size_m;
     volume_.clear();
     last_depth_ = DepthImage();
-    model_source_ = nullptr;  // cast the new model afresh
+    model_.clear();  // cast the new model afresh
     T_W_M_ = T_W_F;
     T_M_last_ = Eigen::Isometry3d::Identity();
     have_model_ = false;
@@ -142,16 +142,15 @@ Result<FrameReport> FragmentBuilder::processImpl(const Frame& frame) {
         (!current_ || static_cast<int>(current_->frames.size()) >= config_.handover_frames)) {
         handover_ = false;  // the new fragment's own volume is the model from now on
         previous_volume_.clear();
-        model_source_ = nullptr;
+        model_.clear();
     }
     // Model X: the open fragment's volume (X = M), or the previous one during a handover.
     const tsdf::TsdfVolume& model_volume = handover_ ? previous_volume_ : volume_;
     const Eigen::Isometry3d T_X_M = handover_ ? T_P_M_ : Eigen::Isometry3d::Identity();
-    if (model_source_ != &model_volume || model_uses_ >= config_.raycast_interval) {
+    if (model_.empty() || model_uses_ >= config_.raycast_interval) {
         T_X_P_ = T_X_M * T_M_last_;
         model_ = predictModel(model_volume, pyramid, T_X_P_, config_.raycast, config_.model_level,
                               last_depth_.empty() ? nullptr : &last_depth_);
-        model_source_ = &model_volume;
         model_uses_ = 0;
     }
     ++model_uses_;
@@ -195,7 +194,7 @@ Result<FrameReport> FragmentBuilder::processImpl(const Frame& frame) {
         }
     } else {
         report.message = "tracking failed: " + report.icp.failure;
-        model_source_ = nullptr;
+        model_.clear();
         velocity_ = Eigen::Isometry3d::Identity();
         report.T_W_C = T_W_C_;
         if (current_) {

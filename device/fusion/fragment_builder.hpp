@@ -138,11 +138,11 @@ class FragmentBuilder {
     /// both; openFragment clears it): the raycast's start hint, since tracking predicts the
     /// model from T_M_last_. Empty when raycast_from_last_depth is off.
     DepthImage last_depth_;
-    /// The last model prediction, cast from T_X_P_ in the frame X of the volume it was cast
-    /// from (model_source_), and how many frames have tracked against it (raycast_interval).
+    /// The last model prediction, cast from T_X_P_ in the frame X of the tracking volume, and
+    /// how many frames have tracked against it (raycast_interval). Cleared whenever the
+    /// tracking volume changes or tracking fails: the next frame casts afresh.
     std::vector<ModelLevel> model_;
     Eigen::Isometry3d T_X_P_ = Eigen::Isometry3d::Identity();
-    const tsdf::TsdfVolume* model_source_ = nullptr;
     int model_uses_ = 0;
     Eigen::Isometry3d T_W_C_ = Eigen::Isometry3d::Identity();
     /// Last frame-to-frame motion T_Cprev_C (identity after a loss), for the prediction.

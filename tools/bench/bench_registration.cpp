@@ -631,7 +631,6 @@ int main(int argc, char** argv) {
     registration::RegistrationConfig stage_config;
     stage_config.icp = icp;
     stage_config.ransac = rc;
-    stage_config.ransac.num_threads = o.threads;
     stage_config.num_threads = o.threads;
     std::vector<double> gt_overlap(pairs.size());
     size_t gt_overlapping = 0;

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "backend/global/global_registration.hpp"
+#include "tests/backend/global/overlap_information.hpp"
 #include "tests/backend/global/sim_fragments.hpp"
 
 namespace plumb::testing {
@@ -28,16 +29,8 @@ inline std::vector<global::PairPrior> makePriors(
         p.j = j;
         p.T_i_j = sim.T_W_F_gt[i].inverse() * sim.T_W_F_gt[j] *
                   randomPerturbation(noise_deg, noise_m, seed++);
-        p.information.setZero();
-        const Eigen::Isometry3d T_i_j_gt = sim.T_W_F_gt[i].inverse() * sim.T_W_F_gt[j];
-        for (const Eigen::Vector3d& q : clouds[j].points()) {
-            uint32_t idx = 0;
-            double d_sq = 0.0;
-            if (!clouds[i].nearest(T_i_j_gt * q, &idx, &d_sq) || d_sq > 0.03 * 0.03) continue;
-            Eigen::Matrix<double, 3, 6> G = lie::pointJacobian(q);
-            p.information += G.transpose() * G;
-        }
-        p.information = 0.5 * (p.information + p.information.transpose()).eval();
+        p.information = overlapInformation(clouds[i], clouds[j],
+                                           sim.T_W_F_gt[i].inverse() * sim.T_W_F_gt[j], 0.03);
         priors.push_back(p);
     }
     return priors;

@@ -20,6 +20,7 @@
 #include "common/eval/layout_metrics.hpp"
 #include "common/geometry/lie.hpp"
 #include "drivers/sim/sim_source.hpp"
+#include "tests/backend/global/overlap_information.hpp"
 #include "tests/backend/layout/layout_fixtures.hpp"
 #include "tests/testing/shared_data.hpp"
 
@@ -212,14 +213,7 @@ std::vector<global::PairPrior> pairPriors(const SimRoom& room,
                              .toRotationMatrix();
         noise.translation() = 0.005 * Eigen::Vector3d(g(rng), g(rng), g(rng)).normalized();
         p.T_i_j = T_i_j * noise;
-        p.information.setZero();
-        for (const Eigen::Vector3d& q : clouds[p.j].points()) {
-            uint32_t idx = 0;
-            double d_sq = 0.0;
-            if (!clouds[p.i].nearest(T_i_j * q, &idx, &d_sq) || d_sq > 0.03 * 0.03) continue;
-            const Eigen::Matrix<double, 3, 6> G = lie::pointJacobian(q);
-            p.information += G.transpose() * G;
-        }
+        p.information = testing::overlapInformation(clouds[p.i], clouds[p.j], T_i_j, 0.03);
         priors.push_back(p);
     }
     return priors;
