@@ -192,6 +192,7 @@ RaycastResult raycast(const TsdfVolume& volume, const PinholeCamera& camera,
     enum class March { kHit, kMiss, kBadStart };
 
     parallelFor(config.num_threads, camera.height, [&](int v) {
+        BlockCache cache(volume);  // neighbouring rays mostly read the same blocks
         for (int u = 0; u < camera.width; ++u) {
             // Ray with unit z in the camera frame: the parameter t is the camera z-depth.
             const Eigen::Vector3f r = R * camera.ray(u, v).cast<float>();
@@ -208,10 +209,9 @@ RaycastResult raycast(const TsdfVolume& volume, const PinholeCamera& camera,
                 while (t < t_end) {
                     const Eigen::Vector3f p = o + t * r;
                     float f = 0.0f;
-                    const bool allocated =
-                        volume.findBlock(blockOf((p / vs).array().floor().cast<int>())) !=
-                        BlockHashMap::kNotFound;
-                    const bool observed = allocated && volume.interpolate(p, w_min, &f);
+                    const Sample s = volume.sample(p, w_min, &cache, &f);
+                    const bool allocated = s != Sample::kUnallocated;
+                    const bool observed = s == Sample::kObserved;
                     if (hinted) {
                         // The hinted start must lie in observed free space (F > 0).
                         if (!observed || !(f > 0.0f)) return March::kBadStart;
@@ -237,7 +237,8 @@ RaycastResult raycast(const TsdfVolume& volume, const PinholeCamera& camera,
                         float ta = t_prev, fa = f_prev, tb = t, fb = f;
                         float ts = ta + (tb - ta) * fa / (fa - fb);
                         float fs = 0.0f;
-                        if (volume.interpolate(o + ts * r, w_min, &fs) && fs != 0.0f) {
+                        if (volume.sample(o + ts * r, w_min, &cache, &fs) == Sample::kObserved &&
+                            fs != 0.0f) {
                             if (fs > 0.0f) {
                                 ta = ts;
                                 fa = fs;
@@ -252,7 +253,7 @@ RaycastResult raycast(const TsdfVolume& volume, const PinholeCamera& camera,
                         if (config.normals_from_neighbours) {
                             out.points_V(u, v) = hit;  // normal from the neighbours, below
                             out.depth(u, v) = ts;
-                        } else if (volume.gradient(hit, w_min, &grad) &&
+                        } else if (volume.gradient(hit, w_min, &cache, &grad) &&
                                    grad.squaredNorm() > 0.0f) {
                             out.points_V(u, v) = hit;
                             out.normals_V(u, v) = grad.normalized();

@@ -335,39 +335,60 @@ const Voxel* TsdfVolume::voxel(const Eigen::Vector3i& g) const {
     return blockVoxels(b) + voxelIndexInBlock(g);
 }
 
-bool TsdfVolume::interpolate(const Eigen::Vector3f& p, float min_weight, float* tsdf) const {
-    const Eigen::Vector3f q = p / config_.voxel_size_m;
+namespace {
+
+/// Block lookups straight from the volume's hash.
+struct HashFind {
+    const TsdfVolume* volume;
+    const Voxel* operator()(int x, int y, int z) const {
+        const int32_t b = volume->findBlock(BlockKey(x, y, z));
+        return b == BlockHashMap::kNotFound ? nullptr : volume->blockVoxels(b);
+    }
+};
+
+/// Block lookups through a thread's cache.
+struct CacheFind {
+    BlockCache* cache;
+    const Voxel* operator()(int x, int y, int z) const { return cache->find(x, y, z); }
+};
+
+template <typename Find>
+Sample interpolateWith(const Eigen::Vector3f& p, float voxel_size, float min_weight, Find&& find,
+                       float* tsdf) {
+    const Eigen::Vector3f q = p / voxel_size;
     const Eigen::Vector3f f = q.array().floor();
     const Eigen::Vector3i g = f.cast<int>();
     const Eigen::Vector3f a = q - f;
     float c[8];
     if ((g.x() & 7) < 7 && (g.y() & 7) < 7 && (g.z() & 7) < 7) {
         // Fast path: all 8 voxels in one block.
-        const int32_t b = hash_.find(blockOf(g));
-        if (b == BlockHashMap::kNotFound) return false;
-        const Voxel* base = blockVoxels(b) + voxelIndexInBlock(g);
+        const BlockKey b = blockOf(g);
+        const Voxel* block = find(b.x(), b.y(), b.z());
+        if (block == nullptr) return Sample::kUnallocated;
+        const Voxel* base = block + voxelIndexInBlock(g);
+        bool observed = true;
         for (int i = 0; i < 8; ++i) {
             const Voxel& v = base[(i & 1) + ((i >> 1) & 1) * 8 + ((i >> 2) & 1) * 64];
-            if (!(v.weight >= min_weight)) return false;
+            observed &= v.weight >= min_weight;
             c[i] = v.tsdf;
         }
+        if (!observed) return Sample::kUnobserved;
     } else {
         // The cell straddles block faces: look up each of its (2, 4 or 8) blocks once.
         const Eigen::Vector3i b0 = blockOf(g);
         const Eigen::Vector3i step((g.x() & 7) == 7, (g.y() & 7) == 7, (g.z() & 7) == 7);
-        int32_t blocks[8];
+        const Voxel* blocks[8];
         for (int i = 0; i < 8; ++i) {
             const Eigen::Vector3i d(i & 1, (i >> 1) & 1, (i >> 2) & 1);
             if ((d.array() > step.array()).any()) continue;  // same block as an earlier corner
-            blocks[i] = hash_.find(b0 + d);
-            if (blocks[i] == BlockHashMap::kNotFound) return false;
+            blocks[i] = find(b0.x() + d.x(), b0.y() + d.y(), b0.z() + d.z());
+            if (blocks[i] == nullptr) return i == 0 ? Sample::kUnallocated : Sample::kUnobserved;
         }
         for (int i = 0; i < 8; ++i) {
             const Eigen::Vector3i corner = g + Eigen::Vector3i(i & 1, (i >> 1) & 1, (i >> 2) & 1);
             const Eigen::Vector3i d = blockOf(corner) - b0;
-            const Voxel& v =
-                blockVoxels(blocks[d.x() + 2 * d.y() + 4 * d.z()])[voxelIndexInBlock(corner)];
-            if (!(v.weight >= min_weight)) return false;
+            const Voxel& v = blocks[d.x() + 2 * d.y() + 4 * d.z()][voxelIndexInBlock(corner)];
+            if (!(v.weight >= min_weight)) return Sample::kUnobserved;
             c[i] = v.tsdf;
         }
     }
@@ -378,15 +399,17 @@ bool TsdfVolume::interpolate(const Eigen::Vector3f& p, float min_weight, float* 
     const float c0 = c00 + a.y() * (c10 - c00);
     const float c1 = c01 + a.y() * (c11 - c01);
     *tsdf = c0 + a.z() * (c1 - c0);
-    return true;
+    return Sample::kObserved;
 }
 
-bool TsdfVolume::gradient(const Eigen::Vector3f& p, float min_weight, Eigen::Vector3f* grad) const {
+template <typename Find>
+bool gradientWith(const Eigen::Vector3f& p, float voxel_size, float min_weight, Find&& find,
+                  Eigen::Vector3f* grad) {
     // Central differences of the trilinear interpolant, (F(p + h e_i) - F(p - h e_i)) / 2h. The
     // six shifted cells share the fractional offset of p's cell g and together read 32 voxels of
     // the 4^3 neighbourhood [g - 1, g + 2]: gather those once, looking each block up once (at
     // most 2 per axis), instead of six independent interpolations.
-    const float h = config_.voxel_size_m;
+    const float h = voxel_size;
     const Eigen::Vector3f q = p / h;
     const Eigen::Vector3f fl = q.array().floor();
     const Eigen::Vector3i g = fl.cast<int>();
@@ -403,36 +426,40 @@ bool TsdfVolume::gradient(const Eigen::Vector3f& p, float min_weight, Eigen::Vec
             offset[axis][i] = (c & 7) << (3 * axis);
         }
     }
-    const Voxel* blocks[8] = {nullptr, nullptr, nullptr, nullptr,
-                              nullptr, nullptr, nullptr, nullptr};
-    bool looked_up[8] = {false, false, false, false, false, false, false, false};
+    // The blocks the neighbourhood reaches, by block step sx + 2 sy + 4 sz; a missing one reads as
+    // unobserved voxels, so every load below is valid and one weight test covers them all.
+    static const std::array<Voxel, kBlockVoxels> kUnobserved{};
+    const Voxel* blocks[8];
+    for (int k = 0; k < 8; ++k) {
+        const int sx = k & 1, sy = (k >> 1) & 1, sz = k >> 2;
+        const Voxel* b = nullptr;
+        if (sx <= step[0][3] && sy <= step[1][3] && sz <= step[2][3]) {
+            b = find(b_lo.x() + sx, b_lo.y() + sy, b_lo.z() + sz);
+        }
+        blocks[k] = b != nullptr ? b : kUnobserved.data();
+    }
     // n[x][y][z]: TSDF at lo + (x, y, z), x, y, z in [0, 3]; only the 32 voxels used are filled.
     float n[4][4][4];
+    bool observed = true;
     const auto load = [&](int x, int y, int z) {
-        const int k = step[0][x] + 2 * step[1][y] + 4 * step[2][z];
-        if (!looked_up[k]) {
-            const int32_t b =
-                hash_.find(b_lo.x() + step[0][x], b_lo.y() + step[1][y], b_lo.z() + step[2][z]);
-            blocks[k] = b == BlockHashMap::kNotFound ? nullptr : blockVoxels(b);
-            looked_up[k] = true;
-        }
-        if (blocks[k] == nullptr) return false;
-        const Voxel& vx = blocks[k][offset[0][x] + offset[1][y] + offset[2][z]];
-        if (!(vx.weight >= min_weight)) return false;
+        const Voxel& vx = blocks[step[0][x] + 2 * step[1][y] + 4 * step[2][z]]
+                                [offset[0][x] + offset[1][y] + offset[2][z]];
+        observed &= vx.weight >= min_weight;
         n[x][y][z] = vx.tsdf;
-        return true;
     };
     // The voxels with at most one coordinate outside the central cell {1, 2}^3: the central
     // 2 x 2 x 2 and one voxel beyond each of its faces along each axis.
     for (int i = 0; i < 4; ++i) {
         for (int j = 1; j < 3; ++j) {
             for (int k = 1; k < 3; ++k) {
-                if (!load(i, j, k)) return false;
+                load(i, j, k);
                 if (i == 1 || i == 2) continue;  // the centre, loaded once, along x
-                if (!load(j, i, k) || !load(j, k, i)) return false;
+                load(j, i, k);
+                load(j, k, i);
             }
         }
     }
+    if (!observed) return false;
     // Trilinear interpolation in the cell whose lowest corner is (x, y, z) of the neighbourhood.
     const auto cell = [&](int x, int y, int z) {
         const float c00 = n[x][y][z] + a.x() * (n[x + 1][y][z] - n[x][y][z]);
@@ -449,6 +476,31 @@ bool TsdfVolume::gradient(const Eigen::Vector3f& p, float min_weight, Eigen::Vec
     (*grad)[1] = (cell(1, 2, 1) - cell(1, 0, 1)) * inv_2h;
     (*grad)[2] = (cell(1, 1, 2) - cell(1, 1, 0)) * inv_2h;
     return true;
+}
+
+}  // namespace
+
+bool TsdfVolume::interpolate(const Eigen::Vector3f& p, float min_weight, float* tsdf) const {
+    return interpolateWith(p, config_.voxel_size_m, min_weight, HashFind{this}, tsdf) ==
+           Sample::kObserved;
+}
+
+Sample TsdfVolume::sample(const Eigen::Vector3f& p, float min_weight, BlockCache* cache,
+                          float* tsdf) const {
+    return interpolateWith(p, config_.voxel_size_m, min_weight, CacheFind{cache}, tsdf);
+}
+
+bool TsdfVolume::gradient(const Eigen::Vector3f& p, float min_weight, Eigen::Vector3f* grad) const {
+    return gradientWith(p, config_.voxel_size_m, min_weight, HashFind{this}, grad);
+}
+
+bool TsdfVolume::gradient(const Eigen::Vector3f& p, float min_weight, BlockCache* cache,
+                          Eigen::Vector3f* grad) const {
+    return gradientWith(p, config_.voxel_size_m, min_weight, CacheFind{cache}, grad);
+}
+
+BlockCache::BlockCache(const TsdfVolume& volume) : volume_(&volume) {
+    for (Slot& s : slots_) s.x = std::numeric_limits<int32_t>::min();
 }
 
 }  // namespace plumb::tsdf

@@ -14,6 +14,7 @@
 // exclusive access. Results never depend on the thread count.
 
 #include <Eigen/Geometry>
+#include <array>
 #include <cstdint>
 #include <vector>
 
@@ -32,6 +33,15 @@ struct Voxel {
     float weight = 0.0f;  ///< accumulated observation weight; 0 = never observed
 };
 static_assert(sizeof(Voxel) == 8, "a voxel must stay 8 bytes");
+
+class BlockCache;
+
+/// What a trilinear sample found (TsdfVolume::sample).
+enum class Sample {
+    kUnallocated,  ///< the block holding p does not exist
+    kUnobserved,   ///< a voxel of p's cell is missing or has weight below the minimum
+    kObserved,     ///< the sample holds a value
+};
 
 struct TsdfConfig {
     /// Edge length of a voxel, metres (KinFu: 3 m / 512 = 5.86 mm).
@@ -111,11 +121,17 @@ class TsdfVolume {
     /// Trilinear TSDF at point p (volume frame, metres). False when a block is missing or one of
     /// the 8 voxels has weight < min_weight (pass min_weight > 0: weight 0 = never observed).
     bool interpolate(const Eigen::Vector3f& p, float min_weight, float* tsdf) const;
+    /// The same, with the block lookups going through a thread's `cache` of this volume, and
+    /// telling apart a missing block at p from other unobserved voxels of p's cell.
+    Sample sample(const Eigen::Vector3f& p, float min_weight, BlockCache* cache, float* tsdf) const;
 
     /// Gradient of the trilinear TSDF at p by central differences one voxel apart (units 1/m),
     /// from one gather of the 32 voxels the six shifted cells read.
     /// False when a sample is unavailable.
     bool gradient(const Eigen::Vector3f& p, float min_weight, Eigen::Vector3f* grad) const;
+    /// The same, with the block lookups going through a thread's `cache` of this volume.
+    bool gradient(const Eigen::Vector3f& p, float min_weight, BlockCache* cache,
+                  Eigen::Vector3f* grad) const;
 
   private:
     /// Walks the blocks crossed by the frame's truncation band: existing blocks get
@@ -132,6 +148,34 @@ class TsdfVolume {
     mutable std::vector<uint32_t> stamps_;
     uint32_t frame_stamp_ = 0;
     std::vector<int32_t> visible_;  ///< scratch: visible blocks of the current frame
+};
+
+/// A small direct-mapped cache in front of a volume's block hash, for one thread working through
+/// nearby points (a row of rays): the 8 x 8 x 8 blocks around the last lookups are found without
+/// touching the hash table, which for a room is megabytes and misses the core's caches. Blocks
+/// that are not allocated are cached as such. Not thread-safe; the volume must not change while a
+/// cache of it is in use.
+class BlockCache {
+  public:
+    explicit BlockCache(const TsdfVolume& volume);
+
+    /// The 512 voxels of block (x, y, z), or nullptr when it is not allocated.
+    const Voxel* find(int x, int y, int z) {
+        Slot& s = slots_[static_cast<size_t>((x & 7) | ((y & 7) << 3) | ((z & 7) << 6))];
+        if (s.x != x || s.y != y || s.z != z) {
+            const int32_t b = volume_->findBlock(BlockKey(x, y, z));
+            s = Slot{x, y, z, b == BlockHashMap::kNotFound ? nullptr : volume_->blockVoxels(b)};
+        }
+        return s.voxels;
+    }
+
+  private:
+    struct Slot {
+        int32_t x, y, z;  ///< block key; x = INT32_MIN: empty (no block key reaches it)
+        const Voxel* voxels;
+    };
+    const TsdfVolume* volume_;
+    std::array<Slot, 512> slots_;
 };
 
 /// Block key holding global voxel g.

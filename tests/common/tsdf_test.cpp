@@ -8,6 +8,7 @@
 #include <cmath>
 #include <map>
 #include <optional>
+#include <random>
 #include <utility>
 #include <vector>
 
@@ -93,6 +94,19 @@ Eigen::Isometry3d jitter(int k) {
     xi << 0.01 * std::sin(k), 0.01 * std::cos(1.3 * k), 0.005 * std::sin(0.7 * k),
         0.01 * std::cos(k), 0.01 * std::sin(2.1 * k), 0.01 * std::sin(0.5 * k);
     return lie::expSE3(xi);
+}
+
+/// Fuses `frames` jittered views of `sphere` into `volume`.
+void integrateSphere(const PinholeCamera& cam, const Sphere& sphere, int frames,
+                     TsdfVolume* volume) {
+    for (int k = 0; k < frames; ++k) {
+        const Eigen::Isometry3d T_W_C = jitter(k);
+        ASSERT_TRUE(volume
+                        ->integrate(render(cam, T_W_C,
+                                           [&](auto o, auto r) { return hitSphere(sphere, o, r); }),
+                                    cam, T_W_C)
+                        .isOk());
+    }
 }
 
 struct Stats {
@@ -213,14 +227,7 @@ TEST(TsdfVolume, SphereSurfacePointsAndNormals) {
     const PinholeCamera cam = smallCamera();
     const Sphere sphere{Eigen::Vector3d(0.05, -0.02, 1.2), 0.3};
     TsdfVolume volume(testConfig());
-    for (int k = 0; k < 10; ++k) {
-        const Eigen::Isometry3d T_W_C = jitter(k);
-        ASSERT_TRUE(volume
-                        .integrate(render(cam, T_W_C,
-                                          [&](auto o, auto r) { return hitSphere(sphere, o, r); }),
-                                   cam, T_W_C)
-                        .isOk());
-    }
+    integrateSphere(cam, sphere, 10, &volume);
     const PointCloud surface = extractSurfacePoints(volume);
     ASSERT_GT(surface.size(), 1000u);
     const Stats s = distanceStats(
@@ -232,6 +239,77 @@ TEST(TsdfVolume, SphereSurfacePointsAndNormals) {
         angle += std::acos(std::min(1.0, radial.dot(surface.normals[i].cast<double>())));
     }
     EXPECT_LT(angle / surface.size(), 0.05);
+}
+
+/// Trilinear TSDF at p from the 8 voxels of its cell read one by one, in the order of the
+/// formula: the reference for interpolate().
+std::optional<float> trilinearByVoxels(const TsdfVolume& volume, const Eigen::Vector3f& p,
+                                       float min_weight) {
+    const Eigen::Vector3f q = p / volume.voxelSize();
+    const Eigen::Vector3f f = q.array().floor();
+    const Eigen::Vector3i g = f.cast<int>();
+    const Eigen::Vector3f a = q - f;
+    float c[8];
+    for (int i = 0; i < 8; ++i) {
+        const Voxel* v = volume.voxel(g + Eigen::Vector3i(i & 1, (i >> 1) & 1, (i >> 2) & 1));
+        if (v == nullptr || !(v->weight >= min_weight)) return std::nullopt;
+        c[i] = v->tsdf;
+    }
+    const float c00 = c[0] + a.x() * (c[1] - c[0]), c10 = c[2] + a.x() * (c[3] - c[2]);
+    const float c01 = c[4] + a.x() * (c[5] - c[4]), c11 = c[6] + a.x() * (c[7] - c[6]);
+    const float c0 = c00 + a.y() * (c10 - c00), c1 = c01 + a.y() * (c11 - c01);
+    return c0 + a.z() * (c1 - c0);
+}
+
+TEST(TsdfVolume, InterpolationAndGradientReadTheRightVoxelsAcrossBlockFaces) {
+    // Random points around an integrated sphere, many in cells that straddle block faces: the
+    // interpolation equals the formula over the cell's 8 voxels bit for bit, with and without a
+    // block cache, and the gradient is the central difference of that interpolation.
+    const PinholeCamera cam = smallCamera();
+    const Sphere sphere{Eigen::Vector3d(0.05, -0.02, 1.2), 0.3};
+    TsdfVolume volume(testConfig());
+    integrateSphere(cam, sphere, 4, &volume);
+    BlockCache cache(volume);
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
+    const float h = volume.voxelSize();
+    int observed = 0, straddling = 0, gradients = 0;
+    for (int i = 0; i < 20000; ++i) {
+        const Eigen::Vector3f dir = Eigen::Vector3f(unit(rng), unit(rng), unit(rng)).normalized();
+        const Eigen::Vector3f p = sphere.c.cast<float>() + dir * (0.3f + 0.03f * unit(rng));
+        const std::optional<float> expected = trilinearByVoxels(volume, p, 1.0f);
+        float plain = 0.0f, cached = 0.0f;
+        ASSERT_EQ(volume.interpolate(p, 1.0f, &plain), expected.has_value());
+        const Sample sample = volume.sample(p, 1.0f, &cache, &cached);
+        ASSERT_EQ(sample == Sample::kObserved, expected.has_value());
+        const Eigen::Vector3i g = (p / h).array().floor().cast<int>();
+        ASSERT_EQ(sample == Sample::kUnallocated, volume.findBlock(blockOf(g)) < 0);
+        if (!expected) continue;
+        ++observed;
+        straddling += (g.x() & 7) == 7 ? 1 : 0;  // the cell's x pairs span two blocks
+        ASSERT_EQ(plain, *expected);
+        ASSERT_EQ(cached, *expected);
+        Eigen::Vector3f grad, grad_cached, central;
+        bool all = true;
+        for (int axis = 0; axis < 3 && all; ++axis) {
+            const Eigen::Vector3f e = Eigen::Vector3f::Unit(axis) * h;
+            float fp = 0.0f, fm = 0.0f;
+            all = volume.interpolate(p + e, 1.0f, &fp) && volume.interpolate(p - e, 1.0f, &fm);
+            central[axis] = (fp - fm) / (2.0f * h);
+        }
+        ASSERT_EQ(volume.gradient(p, 1.0f, &grad), all);
+        ASSERT_EQ(volume.gradient(p, 1.0f, &cache, &grad_cached), all);
+        if (!all) continue;
+        ++gradients;
+        ASSERT_EQ(grad, grad_cached);
+        // p +- h e shares p's fractional offset up to rounding of the shifted point.
+        ASSERT_LT((grad - central).norm(), 1e-3f * std::max(1.0f, central.norm()))
+            << "p " << p.transpose() << " q " << (p / h).transpose() << " grad " << grad.transpose()
+            << " central " << central.transpose();
+    }
+    EXPECT_GT(observed, 3000);
+    EXPECT_GT(straddling, 300);
+    EXPECT_GT(gradients, 2000);
 }
 
 /// Pixels where two raycasts disagree: one hits and the other does not, or their depths differ
