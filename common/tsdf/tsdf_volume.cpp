@@ -27,44 +27,55 @@ struct RowIntegrator {
     float fx, fy, cx, cy;
     float mu, inv_mu, min_d, max_d, max_w;
 
-    /// Fuses the 4 voxels row[0..3], whose centres are p + k dx (k = lane), §2.3: the projective
-    /// distance sdf = D(u) - z, truncated to min(1, sdf / mu), skipped below -mu, running
-    /// average with unit weight saturating at max_w. Lanes are independent; no branch per voxel
-    /// except the depth lookups.
-    void fuse4(Voxel* row, const Eigen::Vector3f& p, const Eigen::Vector3f& dx,
-               const Float4& lane) const {
-        const Float4 px = p.x() + lane * dx.x();
-        const Float4 py = p.y() + lane * dx.y();
-        const Float4 pz = p.z() + lane * dx.z();
-        const Float4 inv_z = 1.0f / pz;
-        const Float4 uf = fx * px * inv_z + cx + 0.5f;
-        const Float4 vf = fy * py * inv_z + cy + 0.5f;
-        // In front of the camera and inside the image (uf, vf >= 0: truncation is floor).
-        const Int4 in = (pz > 0.0f) & (uf >= 0.0f) & (vf >= 0.0f) &
-                        (uf < static_cast<float>(width)) & (vf < static_cast<float>(height));
-        Float4 d = {0.0f, 0.0f, 0.0f, 0.0f};
-        for (int k = 0; k < 4; ++k) {
-            if (in[k]) {
-                d[k] = depth[static_cast<size_t>(static_cast<int>(vf[k])) * width +
-                             static_cast<int>(uf[k])];
-            }
+    /// Fuses kRows consecutive rows of 8 voxels, row[0 .. 8 kRows - 1], where voxel k of row j
+    /// has its centre at p[j] + k dx, §2.3: the projective distance sdf = D(u) - z, truncated to
+    /// min(1, sdf / mu), skipped below -mu, running average with unit weight saturating at
+    /// max_w. The rows' groups of 4 lanes go through each step together, so their long
+    /// dependency chains (a division, the depth lookup, another division) overlap. No branch.
+    template <int kRows>
+    void fuseRows(Voxel* row, const Eigen::Vector3f* p, const Eigen::Vector3f& dx) const {
+        constexpr int kGroups = 2 * kRows;  // group g: voxels 4 (g & 1) .. + 3 of row g / 2
+        const Float4 lanes[2] = {{0.0f, 1.0f, 2.0f, 3.0f}, {4.0f, 5.0f, 6.0f, 7.0f}};
+        const Float4 zero = {0.0f, 0.0f, 0.0f, 0.0f};
+        Float4 pz[kGroups], d[kGroups];
+        Int4 in[kGroups];
+        for (int g = 0; g < kGroups; ++g) {
+            const Eigen::Vector3f& o = p[g / 2];
+            const Float4 px = o.x() + lanes[g & 1] * dx.x();
+            const Float4 py = o.y() + lanes[g & 1] * dx.y();
+            pz[g] = o.z() + lanes[g & 1] * dx.z();
+            const Float4 inv_z = 1.0f / pz[g];
+            const Float4 uf = fx * px * inv_z + cx + 0.5f;
+            const Float4 vf = fy * py * inv_z + cy + 0.5f;
+            // In front of the camera and inside the image (uf, vf >= 0: truncation is floor).
+            in[g] = (pz[g] > 0.0f) & (uf >= 0.0f) & (vf >= 0.0f) &
+                    (uf < static_cast<float>(width)) & (vf < static_cast<float>(height));
+            // Pixel indices in lanes (exact in float below 2^24 pixels); lanes outside the
+            // image read pixel 0 and are masked by `in`.
+            const Float4 u =
+                __builtin_convertvector(__builtin_convertvector(in[g] ? uf : zero, Int4), Float4);
+            const Float4 v =
+                __builtin_convertvector(__builtin_convertvector(in[g] ? vf : zero, Int4), Float4);
+            const Int4 pixel = __builtin_convertvector(v * static_cast<float>(width) + u, Int4);
+            d[g] = Float4{depth[pixel[0]], depth[pixel[1]], depth[pixel[2]], depth[pixel[3]]};
+            d[g] = in[g] ? d[g] : zero;
         }
-        const Float4 sdf = d - pz;  // + in front of the surface
-        const Int4 ok = in & (d >= min_d) & (d <= max_d) & (sdf >= -mu);
-        const Float4 f_raw = sdf * inv_mu;
-        const Float4 f = f_raw < 1.0f ? f_raw : 1.0f;
-        Float4 a, b;  // {t0, w0, t1, w1}, {t2, w2, t3, w3}
-        std::memcpy(&a, row, sizeof(a));
-        std::memcpy(&b, row + 2, sizeof(b));
-        const Float4 tsdf = __builtin_shuffle(a, b, Int4{0, 2, 4, 6});
-        const Float4 w = __builtin_shuffle(a, b, Int4{1, 3, 5, 7});
-        const Float4 w1 = w + 1.0f;
-        const Float4 new_tsdf = ok ? (w * tsdf + f) / w1 : tsdf;
-        const Float4 new_w = ok ? (max_w < w1 ? Float4{max_w, max_w, max_w, max_w} : w1) : w;
-        a = __builtin_shuffle(new_tsdf, new_w, Int4{0, 4, 1, 5});
-        b = __builtin_shuffle(new_tsdf, new_w, Int4{2, 6, 3, 7});
-        std::memcpy(static_cast<void*>(row), &a, sizeof(a));
-        std::memcpy(static_cast<void*>(row + 2), &b, sizeof(b));
+        Float4 vox[2 * kGroups];  // {t0, w0, t1, w1}, {t2, w2, t3, w3}, ... in memory order
+        std::memcpy(vox, row, sizeof(vox));
+        for (int g = 0; g < kGroups; ++g) {
+            const Float4 sdf = d[g] - pz[g];  // + in front of the surface
+            const Int4 ok = in[g] & (d[g] >= min_d) & (d[g] <= max_d) & (sdf >= -mu);
+            const Float4 f_raw = sdf * inv_mu;
+            const Float4 f = f_raw < 1.0f ? f_raw : 1.0f;
+            const Float4 tsdf = __builtin_shuffle(vox[2 * g], vox[2 * g + 1], Int4{0, 2, 4, 6});
+            const Float4 w = __builtin_shuffle(vox[2 * g], vox[2 * g + 1], Int4{1, 3, 5, 7});
+            const Float4 w1 = w + 1.0f;
+            const Float4 new_tsdf = ok ? (w * tsdf + f) / w1 : tsdf;
+            const Float4 new_w = ok ? (max_w < w1 ? Float4{max_w, max_w, max_w, max_w} : w1) : w;
+            vox[2 * g] = __builtin_shuffle(new_tsdf, new_w, Int4{0, 4, 1, 5});
+            vox[2 * g + 1] = __builtin_shuffle(new_tsdf, new_w, Int4{2, 6, 3, 7});
+        }
+        std::memcpy(static_cast<void*>(row), vox, sizeof(vox));
     }
 };
 
@@ -243,6 +254,11 @@ Result<IntegrationStats> TsdfVolume::integrate(const DepthImage& depth, const Pi
     if (!lie::isValidPose(T_V_C, 1e-4)) {
         return invalidArgument("tsdf integrate: camera pose is not a finite rigid transform");
     }
+    if (depth.size() >= (size_t{1} << 24)) {  // pixel indices are computed in float lanes
+        return invalidArgument("tsdf integrate: depth images of 2^24 pixels or more (" +
+                               std::to_string(depth.width()) + "x" +
+                               std::to_string(depth.height()) + ") are not supported");
+    }
     // Stamp the existing blocks the frame's truncation band crosses; collect the new ones.
     ++frame_stamp_;
     if (frame_stamp_ == 0) {  // wrapped: clear old stamps so none can match by accident
@@ -295,7 +311,7 @@ Result<IntegrationStats> TsdfVolume::integrate(const DepthImage& depth, const Pi
     fuse.min_d = config_.min_depth_m;
     fuse.max_d = config_.max_depth_m;
     fuse.max_w = config_.max_weight;
-    static_assert(kBlockSide == 8, "rows are fused as two groups of 4 voxels");
+    static_assert(kBlockSide == 8, "rows are fused 8 voxels at a time");
 
     parallelFor(config_.num_threads, static_cast<int>(indices.size()), [&](int i) {
         const int32_t index = indices[static_cast<size_t>(i)];
@@ -303,14 +319,19 @@ Result<IntegrationStats> TsdfVolume::integrate(const DepthImage& depth, const Pi
         Voxel* voxels = blockVoxels(index);
         const Eigen::Vector3f origin_V = (key * kBlockSide).cast<float>() * vs;
         const Eigen::Vector3f base = R * origin_V + t;
-        const Float4 lanes_lo = {0.0f, 1.0f, 2.0f, 3.0f}, lanes_hi = {4.0f, 5.0f, 6.0f, 7.0f};
+        // Local copies: the voxel stores (floats) could otherwise alias the parameters, which
+        // would then be reloaded from memory for every 4 voxels.
+        const RowIntegrator f = fuse;
+        const Eigen::Vector3f step_x = dx, step_y = dy, step_z = dz;
+        constexpr int kRows = 2;  // rows fused together
         for (int z = 0; z < kBlockSide; ++z) {
-            for (int y = 0; y < kBlockSide; ++y) {
-                const Eigen::Vector3f p =
-                    base + static_cast<float>(z) * dz + static_cast<float>(y) * dy;
-                Voxel* row = voxels + z * 64 + y * 8;
-                fuse.fuse4(row, p, dx, lanes_lo);
-                fuse.fuse4(row + 4, p, dx, lanes_hi);
+            for (int y = 0; y < kBlockSide; y += kRows) {
+                Eigen::Vector3f p[kRows];
+                for (int j = 0; j < kRows; ++j) {
+                    p[j] =
+                        base + static_cast<float>(z) * step_z + static_cast<float>(y + j) * step_y;
+                }
+                f.fuseRows<kRows>(voxels + z * 64 + y * 8, p, step_x);
             }
         }
     });
