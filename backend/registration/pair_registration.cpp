@@ -2,6 +2,7 @@
 #include "backend/registration/pair_registration.hpp"
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
@@ -21,6 +22,10 @@ void describe(config::Schema& s, IcpConfig& c) {
         .positive();
     s.field("relative_change", c.relative_change,
             "stop a level when fitness and RMSE change by less than this")
+        .min(0.0);
+    s.field("min_normal_spread", c.min_normal_spread,
+            "translations t with mean (n.t)^2 over the correspondences below this are not solved "
+            "for and keep the start (solution remapping; 0 = plain Gauss-Newton)")
         .min(0.0);
     s.field("num_threads", c.num_threads, "worker threads, 0 = all; results do not depend on it")
         .min(0);
@@ -103,11 +108,41 @@ struct IcpAcc {
 
 constexpr size_t kChunk = 256;
 
+/// Gauss-Newton step of the normal equations H xi = -g with solution remapping: translations
+/// along eigenvectors of sum n n^T / count (H's translation block per correspondence) whose
+/// eigenvalue is below min_normal_spread are left out of the solve, so the step does not move
+/// along them. With none left out this is the plain solve.
+Vector6d remappedStep(const IcpAcc& acc, double min_normal_spread) {
+    if (min_normal_spread > 0.0) {
+        const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> spread(
+            acc.H.bottomRightCorner<3, 3>() / static_cast<double>(acc.count));
+        if (!(spread.eigenvalues()(0) >= min_normal_spread)) {
+            // Basis of the solved directions: the three rotations and the constrained
+            // translations (xi = [omega, v]). At most 6 columns: no heap.
+            using Basis = Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, 6>;
+            using Square = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 6, 6>;
+            using Vector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 6, 1>;
+            Basis basis = Basis::Zero(6, 6);
+            int k = 0;
+            for (int i = 0; i < 3; ++i) basis(i, k++) = 1.0;
+            for (int i = 0; i < 3; ++i) {
+                if (!(spread.eigenvalues()(i) >= min_normal_spread)) continue;
+                basis.block<3, 1>(3, k++) = spread.eigenvectors().col(i);
+            }
+            basis.conservativeResize(6, k);
+            const Square H = basis.transpose() * acc.H * basis;
+            const Vector g = basis.transpose() * acc.g;
+            return basis * Vector(H.ldlt().solve(-g));
+        }
+    }
+    return acc.H.ldlt().solve(-acc.g);
+}
+
 }  // namespace
 
 PairResult icpPointToPlane(const IndexedCloud& source, const PointCloud& target,
                            const Eigen::Isometry3d& init, double max_distance_m, int max_iterations,
-                           double relative_change, int num_threads) {
+                           double relative_change, double min_normal_spread, int num_threads) {
     PairResult out;
     out.T_source_target = init;
     const PointCloud& src = source.cloud();
@@ -165,7 +200,7 @@ PairResult icpPointToPlane(const IndexedCloud& source, const PointCloud& target,
         }
         prev_fitness = fitness;
         prev_rmse = rmse;
-        const Vector6d xi = acc.H.ldlt().solve(-acc.g);
+        const Vector6d xi = remappedStep(acc, min_normal_spread);
         if (!xi.allFinite()) {
             out.reason = "ICP: singular normal equations";
             out.T_source_target = T;
@@ -190,7 +225,7 @@ PairResult multiScaleIcp(const FragmentIndex& source, const FragmentIndex& targe
         PairResult step =
             icpPointToPlane(source.levels[l], target.levels[l].cloud(), r.T_source_target,
                             config.distance_factor * config.voxel_sizes_m[l], iters,
-                            config.relative_change, config.num_threads);
+                            config.relative_change, config.min_normal_spread, config.num_threads);
         total_iterations += step.iterations;
         if (!step.success) {
             step.reason += " (level " + std::to_string(l) + ")";

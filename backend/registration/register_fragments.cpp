@@ -186,9 +186,10 @@ LoopOutcome loopEdge(const FragmentIndex& s, const FragmentIndex& t, const Regis
         const bool hopeless = T_odo && c.max_loop_rotation_deviation_deg > 0.0 &&
                               turnedDeg(*T_odo, T) > 2.0 * c.max_loop_rotation_deviation_deg;
         if (!hopeless && !s.levels.empty() && !t.levels.empty() && !c.icp.voxel_sizes_m.empty()) {
-            const PairResult icp = icpPointToPlane(
-                s.levels[0], t.levels[0].cloud(), T, c.icp.distance_factor * c.icp.voxel_sizes_m[0],
-                c.loop_icp_iterations, c.icp.relative_change, c.icp.num_threads);
+            const PairResult icp = icpPointToPlane(s.levels[0], t.levels[0].cloud(), T,
+                                                   c.icp.distance_factor * c.icp.voxel_sizes_m[0],
+                                                   c.loop_icp_iterations, c.icp.relative_change,
+                                                   c.icp.min_normal_spread, c.icp.num_threads);
             if (icp.success) T = icp.T_source_target;
         }
         // A guided start that ICP slid out of the search window (along a wall, most often) is
