@@ -7,6 +7,7 @@
 
 #include <Eigen/Eigenvalues>
 #include <numbers>
+#include <random>
 #include <set>
 
 #include "backend/registration/guided_search.hpp"
@@ -253,6 +254,49 @@ TEST(GuidedSearch, AFloorAloneKeepsTheOdometryAlongItself) {
     EXPECT_NEAR(t.z(), 0.0, 0.026);
     EXPECT_NEAR(t.x(), 0.2, 0.026);
     EXPECT_NEAR(t.y(), 0.0, 0.026);
+}
+
+TEST(PairRegistration, RemappedIcpKeepsTheStartAlongWhatTheGeometryLeavesFree) {
+    // A wall (x = 0) meeting the floor (z = 0) along the y axis, 2 mm of depth noise, normals
+    // tilted by up to 3 degrees as estimated normals are: translation along y is observed only
+    // through that noise. From a start 3 cm / 10 cm / -2 cm off, ICP with solution remapping
+    // corrects x and z and keeps the start along y; plain Gauss-Newton follows the noise there.
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
+    PointCloud source_cloud, target;
+    for (int i = 0; i < 100; ++i) {
+        for (int j = 0; j < 60; ++j) {
+            const float y = 0.03f * static_cast<float>(i) - 1.5f;
+            const float s = 0.03f * static_cast<float>(j) + 0.015f;
+            const Eigen::Vector3f wall(0.0f, y, s), floor(s, y, 0.0f);
+            source_cloud.points.push_back(wall);
+            source_cloud.normals.push_back(
+                Eigen::Vector3f(1.0f, 0.05f * unit(rng), 0.0f).normalized());
+            source_cloud.points.push_back(floor);
+            source_cloud.normals.push_back(
+                Eigen::Vector3f(0.0f, 0.05f * unit(rng), 1.0f).normalized());
+            target.points.push_back(wall + Eigen::Vector3f(0.002f * unit(rng), 0.0f, 0.0f));
+            target.points.push_back(floor + Eigen::Vector3f(0.0f, 0.0f, 0.002f * unit(rng)));
+        }
+    }
+    const IndexedCloud source(source_cloud);
+    const Eigen::Isometry3d start(Eigen::Translation3d(0.03, 0.10, -0.02));
+    const PairResult remapped = icpPointToPlane(source, target, start, 0.07, 30, 1e-9,
+                                                /*min_normal_spread=*/0.005, /*num_threads=*/1);
+    ASSERT_TRUE(remapped.success) << remapped.reason;
+    const Eigen::Vector3d t = remapped.T_source_target.translation();
+    EXPECT_NEAR(t.x(), 0.0, 2e-3);
+    EXPECT_NEAR(t.z(), 0.0, 2e-3);
+    EXPECT_NEAR(t.y(), 0.10, 1e-3);
+    const PairResult plain = icpPointToPlane(source, target, start, 0.07, 30, 1e-9,
+                                             /*min_normal_spread=*/0.0, /*num_threads=*/1);
+    std::printf("plain: success %d, t = %.4f %.4f %.4f; remapped t = %.4f %.4f %.4f\n",
+                plain.success, plain.T_source_target.translation().x(),
+                plain.T_source_target.translation().y(), plain.T_source_target.translation().z(),
+                t.x(), t.y(), t.z());
+    if (plain.success) {
+        EXPECT_GT(std::abs(plain.T_source_target.translation().y() - 0.10), 0.005);
+    }
 }
 
 TEST(PairRegistration, FitRigidIsExact) {
