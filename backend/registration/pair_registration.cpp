@@ -10,6 +10,7 @@
 #include <random>
 
 #include "backend/registration/cloud_ops.hpp"
+#include "common/geometry/solution_remapping.hpp"
 
 namespace plumb::registration {
 
@@ -117,19 +118,9 @@ Vector6d remappedStep(const IcpAcc& acc, double min_normal_spread) {
         const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> spread(
             acc.H.bottomRightCorner<3, 3>() / static_cast<double>(acc.count));
         if (!(spread.eigenvalues()(0) >= min_normal_spread)) {
-            // Basis of the solved directions: the three rotations and the constrained
-            // translations (xi = [omega, v]). At most 6 columns: no heap.
-            using Basis = Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, 6>;
             using Square = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 6, 6>;
             using Vector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 6, 1>;
-            Basis basis = Basis::Zero(6, 6);
-            int k = 0;
-            for (int i = 0; i < 3; ++i) basis(i, k++) = 1.0;
-            for (int i = 0; i < 3; ++i) {
-                if (!(spread.eigenvalues()(i) >= min_normal_spread)) continue;
-                basis.block<3, 1>(3, k++) = spread.eigenvectors().col(i);
-            }
-            basis.conservativeResize(6, k);
+            const remapping::Basis basis = remapping::solvedDirections(spread, min_normal_spread);
             const Square H = basis.transpose() * acc.H * basis;
             const Vector g = basis.transpose() * acc.g;
             return basis * Vector(H.ldlt().solve(-g));

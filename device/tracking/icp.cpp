@@ -12,6 +12,7 @@
 #include <string>
 #include <utility>
 
+#include "common/geometry/solution_remapping.hpp"
 #include "common/tsdf/parallel.hpp"
 
 namespace plumb::device {
@@ -127,19 +128,11 @@ Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> translationSpread(const Accumulat
 Vector6d solveStep(const Accumulator& sys, const Vector6d& xi_prior, const IcpConfig& config) {
     const double per_inlier = 1.0 / static_cast<double>(sys.count);
     const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> spread = translationSpread(sys);
-    // Basis of the directions solved for: the three rotations and the constrained translations
-    // (xi = [omega, v]; a twist [0, t] translates the camera by t). At most 6 columns: no heap.
-    using Basis = Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, 6>;
+    // The directions solved for: the three rotations and the constrained translations.
     using Square = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 6, 6>;
     using Vector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 6, 1>;
-    Basis basis = Basis::Zero(6, 6);
-    int k = 0;
-    for (int i = 0; i < 3; ++i) basis(i, k++) = 1.0;
-    for (int i = 0; i < 3; ++i) {
-        if (!(spread.eigenvalues()(i) >= config.min_normal_spread)) continue;
-        basis.block<3, 1>(3, k++) = spread.eigenvectors().col(i);
-    }
-    basis.conservativeResize(6, k);
+    const remapping::Basis basis = remapping::solvedDirections(spread, config.min_normal_spread);
+    const int k = static_cast<int>(basis.cols());
     const Square H = basis.transpose() * sys.JtJ * basis;
     const Vector g = basis.transpose() * (-sys.Jtr);
     const Eigen::SelfAdjointEigenSolver<Square> es(H);
