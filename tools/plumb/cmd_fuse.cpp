@@ -62,6 +62,9 @@ constexpr const char* kUsage =
     "options:\n"
     "  --out DIR          output folder (required; created)\n"
     "  --frames N         use the first N frames only (simulator default 600)\n"
+    "  --frame-step X     process only frames floor(j X), j = 0, 1, ... (X >= 1, may be\n"
+    "                     fractional): what a live device that keeps up with 1/X of the sensor\n"
+    "                     rate does when it drops the frames it has no time for (default 1)\n"
     "  --intrinsics X     camera preset or intrinsics file (default: detected)\n"
     "  --depth-scale S    depth units per metre (default: the dataset's)\n"
     "  --seed S           seed of the simulator (default 1)\n"
@@ -98,6 +101,8 @@ struct FuseOptions {
     SourceOptions source_options;
     int threads = 0;
     bool quiet = false;
+    /// Process source frame floor(j * frame_step) for j = 0, 1, ... and drop the others.
+    double frame_step = 1.0;
 };
 
 nlohmann::json poseJson(const Eigen::Isometry3d& T) {
@@ -229,6 +234,10 @@ int runFuse(const std::vector<std::string>& arguments) {
             if (!value(&v) || !parseNumber(v, &o.source_options.max_frames) ||
                 o.source_options.max_frames == 0)
                 return usageError("--frames needs a positive integer");
+        } else if (a == "--frame-step") {
+            if (!value(&v) || !parseNumber(v, &o.frame_step) || !(o.frame_step >= 1.0) ||
+                !std::isfinite(o.frame_step))
+                return usageError("--frame-step needs a number >= 1");
         } else if (a == "--intrinsics") {
             if (!value(&o.source_options.intrinsics))
                 return usageError("--intrinsics needs a preset or a file");
@@ -346,6 +355,7 @@ int runFuse(const std::vector<std::string>& arguments) {
         return Status::ok();
     };
 
+    size_t read = 0, kept = 0;  // source frames read, frames kept (--frame-step)
     for (;;) {
         Result<Frame> frame = source->next();
         if (!frame.isOk()) {
@@ -356,6 +366,12 @@ int runFuse(const std::vector<std::string>& arguments) {
             }
             return failure(frame.status());
         }
+        const size_t position = read++;
+        if (position != static_cast<size_t>(std::floor(static_cast<double>(kept) * o.frame_step))) {
+            progress.advance();
+            continue;  // dropped, as a device that has no time for it
+        }
+        ++kept;
         if (frame->index >= 0) {
             if (truth.T_W_C.size() <= static_cast<size_t>(frame->index)) {
                 truth.T_W_C.resize(static_cast<size_t>(frame->index) + 1);
@@ -391,6 +407,7 @@ int runFuse(const std::vector<std::string>& arguments) {
     nlohmann::json summary;
     summary["source"] = source->description();
     summary["frames"] = frames;
+    summary["frame_step"] = o.frame_step;
     summary["frames_tracking_failed"] = lost;
     summary["relocalisations"] = relocalised;
     summary["new_segments"] = segments_started;
