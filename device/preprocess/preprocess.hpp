@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "common/camera/pinhole.hpp"
+#include "common/core/simd.hpp"
 #include "common/core/status.hpp"
 #include "common/image/image.hpp"
 #include "common/tsdf/raycast.hpp"
@@ -60,7 +61,11 @@ DepthImage gateDepth(const DepthImage& depth, const PreprocessConfig& config);
 
 /// Masked bilateral filter: invalid neighbours and neighbours more than 3 sigma_depth away from
 /// the centre are ignored; invalid pixels stay invalid.
+/// Runs the best kernel this CPU has (simd::best()).
 DepthImage bilateralFilter(const DepthImage& depth, const PreprocessConfig& config);
+/// The same with the kernel chosen: every level gives the same image, bit for bit.
+DepthImage bilateralFilter(const DepthImage& depth, const PreprocessConfig& config,
+                           simd::Level simd_level);
 
 /// Half-size depth: mean of the valid pixels of each 2x2 block within 3 sigma_depth of the
 /// block's first valid pixel (KinFu style, never averaging across depth edges).

@@ -1,0 +1,23 @@
+// SPDX-License-Identifier: Apache-2.0
+#pragma once
+
+// Runtime choice of the instruction set of a few hot kernels. The build targets the baseline
+// x86-64 (SSE2) or ARM ISA, as Debian's PCL/Open3D need; kernels with an AVX2 variant compile it
+// for that target alone (no AVX in any Eigen code) and pick it at run time when the CPU has it.
+// Every variant computes the same operations in the same order per pixel or voxel, so results are
+// identical bit for bit whichever runs.
+
+namespace plumb::simd {
+
+enum class Level {
+    kPortable,  ///< baseline ISA only
+    kAvx2,      ///< x86-64 with AVX2 (no FMA: the same rounding as the portable code)
+};
+
+/// The best level this CPU runs; kPortable where the environment variable PLUMB_SIMD is
+/// "portable" (to compare both on one machine).
+Level best();
+
+const char* toString(Level level);
+
+}  // namespace plumb::simd
