@@ -10,10 +10,6 @@
 #include <limits>
 #include <string>
 
-#if defined(__x86_64__) && defined(__GNUC__)
-#include <immintrin.h>
-#endif
-
 #include "common/geometry/lie.hpp"
 #include "common/tsdf/parallel.hpp"
 
@@ -82,75 +78,6 @@ struct RowIntegrator {
         std::memcpy(static_cast<void*>(row), vox, sizeof(vox));
     }
 };
-
-#if defined(__x86_64__) && defined(__GNUC__)
-/// Eight float or int lanes, for the AVX2 kernel only.
-using Float8 = float __attribute__((vector_size(32)));
-using Int8 = int32_t __attribute__((vector_size(32)));
-
-/// One block of 8 x 8 x 8 voxels (voxel (x, y, z) at base + x dx + y dy + z dz) fused as
-/// RowIntegrator::fuseRows<2> does, with each row of 8 voxels in one group of 8 AVX2 lanes and the
-/// depth read with one gather. Per voxel the same operations in the same order (no FMA), so the
-/// voxels come out identical bit for bit.
-__attribute__((target("avx2"))) void fuseBlockAvx2(const RowIntegrator& params, Voxel* voxels,
-                                                   const Eigen::Vector3f& base,
-                                                   const Eigen::Vector3f& dx,
-                                                   const Eigen::Vector3f& dy,
-                                                   const Eigen::Vector3f& dz) {
-    const RowIntegrator f = params;  // local copies (see TsdfVolume::integrate)
-    const float dxx = dx.x(), dxy = dx.y(), dxz = dx.z();
-    const Float8 lanes = {0.0f, 1.0f, 2.0f, 3.0f, 4.0f, 5.0f, 6.0f, 7.0f};
-    const Float8 zero = {};
-    const Float8 lane_x = lanes * dxx, lane_y = lanes * dxy, lane_z = lanes * dxz;
-    constexpr int kRows = 2;  // rows fused together (their chains overlap)
-    for (int z = 0; z < 8; ++z) {
-        for (int y = 0; y < 8; y += kRows) {
-            Float8 pz[kRows], d[kRows];
-            Int8 in[kRows];
-            for (int j = 0; j < kRows; ++j) {
-                const Eigen::Vector3f o =
-                    base + static_cast<float>(z) * dz + static_cast<float>(y + j) * dy;
-                const Float8 px = o.x() + lane_x;
-                const Float8 py = o.y() + lane_y;
-                pz[j] = o.z() + lane_z;
-                const Float8 inv_z = 1.0f / pz[j];
-                const Float8 uf = f.fx * px * inv_z + f.cx + 0.5f;
-                const Float8 vf = f.fy * py * inv_z + f.cy + 0.5f;
-                in[j] = (pz[j] > 0.0f) & (uf >= 0.0f) & (vf >= 0.0f) &
-                        (uf < static_cast<float>(f.width)) & (vf < static_cast<float>(f.height));
-                const Float8 u = __builtin_convertvector(
-                    __builtin_convertvector(in[j] ? uf : zero, Int8), Float8);
-                const Float8 v = __builtin_convertvector(
-                    __builtin_convertvector(in[j] ? vf : zero, Int8), Float8);
-                const Int8 pixel =
-                    __builtin_convertvector(v * static_cast<float>(f.width) + u, Int8);
-                const Float8 g = reinterpret_cast<Float8>(
-                    _mm256_i32gather_ps(f.depth, reinterpret_cast<__m256i>(pixel), 4));
-                d[j] = in[j] ? g : zero;
-            }
-            Voxel* row = voxels + z * 64 + y * 8;
-            for (int j = 0; j < kRows; ++j) {
-                Float8 vox[2];  // {t0, w0, .., t3, w3}, {t4, w4, .., t7, w7}
-                std::memcpy(vox, row + 8 * j, sizeof(vox));
-                const Float8 sdf = d[j] - pz[j];
-                const Int8 ok = in[j] & (d[j] >= f.min_d) & (d[j] <= f.max_d) & (sdf >= -f.mu);
-                const Float8 f_raw = sdf * f.inv_mu;
-                const Float8 fv = f_raw < 1.0f ? f_raw : 1.0f;
-                const Float8 tsdf =
-                    __builtin_shuffle(vox[0], vox[1], Int8{0, 2, 4, 6, 8, 10, 12, 14});
-                const Float8 w = __builtin_shuffle(vox[0], vox[1], Int8{1, 3, 5, 7, 9, 11, 13, 15});
-                const Float8 w1 = w + 1.0f;
-                const Float8 max_w = zero + f.max_w;
-                const Float8 new_tsdf = ok ? (w * tsdf + fv) / w1 : tsdf;
-                const Float8 new_w = ok ? (max_w < w1 ? max_w : w1) : w;
-                vox[0] = __builtin_shuffle(new_tsdf, new_w, Int8{0, 8, 1, 9, 2, 10, 3, 11});
-                vox[1] = __builtin_shuffle(new_tsdf, new_w, Int8{4, 12, 5, 13, 6, 14, 7, 15});
-                std::memcpy(static_cast<void*>(row + 8 * j), vox, sizeof(vox));
-            }
-        }
-    }
-}
-#endif
 
 bool keyLess(const BlockKey& a, const BlockKey& b) {
     if (a.z() != b.z()) return a.z() < b.z();
@@ -385,7 +312,6 @@ Result<IntegrationStats> TsdfVolume::integrate(const DepthImage& depth, const Pi
     fuse.max_d = config_.max_depth_m;
     fuse.max_w = config_.max_weight;
     static_assert(kBlockSide == 8, "rows are fused 8 voxels at a time");
-    const bool use_avx2 = simd_ == simd::Level::kAvx2;
 
     parallelFor(config_.num_threads, static_cast<int>(indices.size()), [&](int i) {
         const int32_t index = indices[static_cast<size_t>(i)];
@@ -395,12 +321,6 @@ Result<IntegrationStats> TsdfVolume::integrate(const DepthImage& depth, const Pi
         const Eigen::Vector3f base = R * origin_V + t;
         // Local copies: the voxel stores (floats) could otherwise alias the parameters, which
         // would then be reloaded from memory for every 4 voxels.
-#if defined(__x86_64__) && defined(__GNUC__)
-        if (use_avx2) {
-            fuseBlockAvx2(fuse, voxels, base, dx, dy, dz);
-            return;
-        }
-#endif
         const RowIntegrator f = fuse;
         const Eigen::Vector3f step_x = dx, step_y = dy, step_z = dz;
         constexpr int kRows = 2;  // rows fused together

@@ -19,7 +19,6 @@
 #include <vector>
 
 #include "common/camera/pinhole.hpp"
-#include "common/core/simd.hpp"
 #include "common/core/status.hpp"
 #include "common/image/image.hpp"
 #include "common/tsdf/block_hash.hpp"
@@ -95,10 +94,6 @@ class TsdfVolume {
     size_t countNewBlocks(const DepthImage& depth, const PinholeCamera& camera,
                           const Eigen::Isometry3d& T_V_C) const;
 
-    /// The integration kernel's instruction set (default simd::best()); every level fuses the
-    /// same voxels bit for bit.
-    void setSimdLevel(simd::Level level) { simd_ = level; }
-
     /// Index of block `key`, creating it (all voxels unobserved) when missing. Returns -1 when the
     /// block budget is reached. For tests and for writers of analytic fields.
     int32_t allocateBlock(const BlockKey& key);
@@ -153,7 +148,6 @@ class TsdfVolume {
     mutable std::vector<uint32_t> stamps_;
     uint32_t frame_stamp_ = 0;
     std::vector<int32_t> visible_;  ///< scratch: visible blocks of the current frame
-    simd::Level simd_ = simd::best();
 };
 
 /// A small direct-mapped cache in front of a volume's block hash, for one thread working through

@@ -6,7 +6,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 #include <map>
 #include <optional>
 #include <random>
@@ -632,52 +631,6 @@ TEST(TsdfVolume, ResultsDoNotDependOnThreadCount) {
     EXPECT_EQ(voxels[0], voxels[2]);
     EXPECT_EQ(surface_sizes[0], surface_sizes[1]);
     EXPECT_EQ(surface_sizes[0], surface_sizes[2]);
-}
-
-TEST(TsdfVolume, IntegrationKernelsAgreeBitForBit) {
-    // The AVX2 kernel does per voxel what the portable one does, in the same order: after frames
-    // with holes, depth beyond range and weights that saturate, every voxel must be identical.
-    if (simd::best() != simd::Level::kAvx2) GTEST_SKIP() << "this CPU has no AVX2";
-    const PinholeCamera cam = smallCamera();
-    const Sphere ball{Eigen::Vector3d(0.05, -0.03, 1.0), 0.25};
-    const Plane wall{Eigen::Vector3d(0.1, 0.1, -1.0).normalized(), 1.6};
-    for (const float max_weight : {128.0f, 3.0f}) {
-        TsdfConfig config = testConfig(0.0075f);
-        config.max_weight = max_weight;
-        config.max_depth_m = 1.5f;  // part of the wall is beyond range
-        TsdfVolume portable(config), avx2(config);
-        portable.setSimdLevel(simd::Level::kPortable);
-        avx2.setSimdLevel(simd::Level::kAvx2);
-        for (int k = 0; k < 6; ++k) {
-            const Eigen::Isometry3d T_W_C = jitter(k);
-            DepthImage depth = render(cam, T_W_C, [&](auto o, auto r) {
-                std::optional<double> t = hitPlane(wall, o, r);
-                const std::optional<double> ts = hitSphere(ball, o, r);
-                if (ts && (!t || *ts < *t)) t = ts;
-                return t;
-            });
-            for (int v = 0; v < cam.height; ++v) {
-                for (int u = 0; u < cam.width; ++u) {
-                    if ((u * 7 + v * 3 + k) % 13 == 0) depth(u, v) = 0.0f;  // holes
-                }
-            }
-            ASSERT_TRUE(portable.integrate(depth, cam, T_W_C).isOk());
-            ASSERT_TRUE(avx2.integrate(depth, cam, T_W_C).isOk());
-        }
-        ASSERT_EQ(portable.blockKeys(), avx2.blockKeys());
-        ASSERT_GT(portable.numBlocks(), 100u);
-        size_t differing = 0, observed = 0;
-        for (size_t b = 0; b < portable.numBlocks(); ++b) {
-            const Voxel* a = portable.blockVoxels(static_cast<int32_t>(b));
-            const Voxel* c = avx2.blockVoxels(static_cast<int32_t>(b));
-            for (int i = 0; i < kBlockVoxels; ++i) {
-                differing += std::memcmp(&a[i], &c[i], sizeof(Voxel)) != 0 ? 1 : 0;
-                observed += a[i].weight > 0.0f ? 1 : 0;
-            }
-        }
-        EXPECT_EQ(differing, 0u) << "max_weight " << max_weight;
-        EXPECT_GT(observed, 50000u);
-    }
 }
 
 TEST(TsdfVolume, RejectsMismatchedImageAndBadPose) {
