@@ -133,7 +133,7 @@ DepthImage bilateralFilter(const DepthImage& depth, const PreprocessConfig& conf
     const bool use_avx2 = simd_level == simd::Level::kAvx2;
     tsdf::parallelFor(config.num_threads, h, [&](int v) {
         const bool interior_row = v >= r && v < h - r;
-        bool vector_span = interior_row && use_avx2;
+        [[maybe_unused]] bool vector_span = interior_row && use_avx2;
         for (int u = 0; u < w; ++u) {
 #if defined(__x86_64__) && defined(__GNUC__)
             if (vector_span && u == r) {
