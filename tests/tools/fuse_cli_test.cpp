@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 // Runs the built `plumb` program (PLUMB_EXE) as a user would: `plumb fuse ...` (issue 4).
 // --frame-step must keep exactly source frames floor(j X) (what a live device that keeps up with
-// 1/X of the sensor rate fuses), still track them, and refuse bad values with exit code 2.
+// 1/X of the sensor rate fuses), still track them, and refuse bad values with exit code 2; frames
+// tracked with translations the depth leaves free are counted per frame and per fragment.
 
 #include <gtest/gtest.h>
 #include <sys/wait.h>
@@ -65,6 +66,42 @@ TEST(PlumbFuseCli, FrameStepFusesFramesFloorOfJTimesStepAndTracksThem) {
     EXPECT_EQ(indices, (std::vector<int64_t>{0, 2, 5, 7, 10, 12, 15, 17, 20, 22}));
     // The kept frames are 2.5 sensor frames apart and still track to the ground truth.
     EXPECT_LT(fragment.at("ground_truth").at("ate_rmse_m").get<double>(), 0.01);
+}
+
+TEST(PlumbFuseCli, FramesWithTranslationsTheDepthLeavesFreeAreCounted) {
+    // l_shape: the first 50 frames see geometry that fixes every translation; in the next 50 the
+    // camera walks down the corridor of the L with the far wall out of range, and the walls, floor
+    // and ceiling in view all run along the walk. Those frames must be marked, per frame and per
+    // fragment, and the counts must agree.
+    const fs::path logs = testing::freshTempDir("plumb_fuse_cli_free_logs");
+    const fs::path out = testing::freshTempDir("plumb_fuse_cli_free");
+    const ProcessRun run =
+        plumbFuse(logs, {"sim:l_shape", "--frames", "100", "--intrinsics", "ci", "--noise",
+                         "parametric", "--quiet", "--out", out.string()});
+    ASSERT_EQ(run.exit_code, 0) << run.err;
+    const nlohmann::json summary = nlohmann::json::parse(slurp(out / "fragments.json"));
+    ASSERT_EQ(summary.at("fragments").size(), 2u);
+    std::vector<int> per_fragment;
+    int total = 0;
+    for (int id = 0; id < 2; ++id) {
+        const nlohmann::json fragment =
+            nlohmann::json::parse(slurp(out / ("fragment_00" + std::to_string(id) + ".json")));
+        int marked = 0;
+        for (const nlohmann::json& f : fragment.at("frames")) {
+            const int n = f.at("unconstrained_translations").get<int>();
+            EXPECT_GE(n, 0);
+            EXPECT_LE(n, 2);  // more than 2 free translations is a tracking failure
+            marked += n > 0 ? 1 : 0;
+        }
+        EXPECT_EQ(fragment.at("frames_unconstrained").get<int>(), marked);
+        EXPECT_EQ(summary.at("fragments").at(static_cast<size_t>(id)).at("frames_unconstrained"),
+                  marked);
+        per_fragment.push_back(marked);
+        total += marked;
+    }
+    EXPECT_EQ(summary.at("frames_unconstrained").get<int>(), total);
+    EXPECT_EQ(per_fragment[0], 0) << "the first fragment's views fix every translation";
+    EXPECT_GE(per_fragment[1], 8) << "the corridor leaves the walk free";
 }
 
 TEST(PlumbFuseCli, FrameStepBelowOneOrNotANumberIsRefused) {

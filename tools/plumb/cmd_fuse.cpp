@@ -19,6 +19,7 @@
 #include <numeric>
 #include <optional>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include "common/config/config.hpp"
@@ -46,7 +47,10 @@ constexpr const char* kUsage =
     "writes every fragment for inspection:\n"
     "  fragment_NNN.ply    oriented surface points in the fragment frame\n"
     "  fragment_NNN.json   id, segment, why it was closed, T_W_F, frames (index, timestamp,\n"
-    "                      T_F_C, tracking_ok), tracking quality, errors against ground truth\n"
+    "                      T_F_C, tracking_ok, unconstrained_translations: how many\n"
+    "                      translations the depth in view left free, along which the pose\n"
+    "                      follows the constant-velocity prediction), frames_unconstrained\n"
+    "                      (frames with any), tracking quality, errors against ground truth\n"
     "  fragments.json      summary: source, timing, per-fragment figures\n"
     "  trajectory.txt      odometry (TUM, camera->world = T_W_F * T_F_C of tracked frames)\n"
     "  config.toml         the effective configuration\n"
@@ -320,6 +324,10 @@ int runFuse(const std::vector<std::string>& arguments) {
     po.unit = "frames";
     Progress progress("tracking and fusing", source->size().value_or(0), po);
 
+    // Tracked frames whose ICP left translations unconstrained (the geometry in view does not
+    // fix them; the pose follows the constant-velocity prediction along them), by frame index.
+    std::unordered_map<int64_t, int> unconstrained;
+    size_t frames_unconstrained = 0;
     auto emit = [&](const Fragment& f) -> Status {
         const FragmentAccuracy acc = measureFragment(f, truth, gt_surface ? &*gt_surface : nullptr);
         if (acc.ate) ates.push_back(acc.ate->rmse_m);
@@ -335,6 +343,15 @@ int runFuse(const std::vector<std::string>& arguments) {
         const std::string stem = fmt::format("fragment_{:03d}", f.id);
         PLUMB_RETURN_IF_ERROR(io::writePointCloud(o.out / (stem + ".ply"), f.points_F));
         nlohmann::json j = fragmentJson(f, acc);
+        size_t num_unconstrained = 0;
+        for (nlohmann::json& fr : j["frames"]) {
+            const auto it = unconstrained.find(fr["frame_index"].get<int64_t>());
+            const int n = it == unconstrained.end() ? 0 : it->second;
+            fr["unconstrained_translations"] = n;
+            num_unconstrained += n > 0 ? 1 : 0;
+        }
+        frames_unconstrained += num_unconstrained;
+        j["frames_unconstrained"] = num_unconstrained;
         PLUMB_RETURN_IF_ERROR(writeText(o.out / (stem + ".json"), j.dump(2) + "\n"));
         j.erase("frames");
         j["num_frames"] = f.frames.size();
@@ -348,6 +365,11 @@ int runFuse(const std::vector<std::string>& arguments) {
             }
             if (acc.surface_median_m) {
                 gt_text += fmt::format(", surface median {:.2f} mm", *acc.surface_median_m * 1e3);
+            }
+            if (num_unconstrained > 0) {
+                gt_text += fmt::format(
+                    "; {} frames tracked with a translation the depth does not constrain",
+                    num_unconstrained);
             }
             log::info("fragment {} (segment {}): {} frames, {} points, closed by {}{}", f.id,
                       f.segment, f.frames.size(), f.points_F.size(), toString(f.end), gt_text);
@@ -387,6 +409,9 @@ int runFuse(const std::vector<std::string>& arguments) {
         relocalised += report->relocalised ? 1 : 0;
         segments_started += report->new_segment ? 1 : 0;
         budget += report->budget_reached ? 1 : 0;
+        if (report->tracked && report->icp.num_degenerate_directions > 0) {
+            unconstrained[report->frame_index] = report->icp.num_degenerate_directions;
+        }
         if (!report->message.empty()) {
             log::warn("frame {}: {}", report->frame_index, report->message);
         }
@@ -409,6 +434,7 @@ int runFuse(const std::vector<std::string>& arguments) {
     summary["frames"] = frames;
     summary["frame_step"] = o.frame_step;
     summary["frames_tracking_failed"] = lost;
+    summary["frames_unconstrained"] = frames_unconstrained;
     summary["relocalisations"] = relocalised;
     summary["new_segments"] = segments_started;
     summary["block_budget_closures"] = budget;
