@@ -101,7 +101,26 @@ void fusionLoop(const PinholeCamera& camera, const DeviceConfig& config,
     FragmentBuilder builder(camera, toFusionConfig(config.fusion));
     messages::FragmentCodecConfig codec;
     codec.include_colors = config.stream.include_colors;
+    // Frames tracked with a translation the depth in view left free, not yet in a closed fragment.
+    std::deque<int64_t> unconstrained;
     auto emit = [&](const Fragment& fragment) {
+        if (!fragment.frames.empty()) {
+            const int64_t first = fragment.frames.front().frame_index;
+            const int64_t last = fragment.frames.back().frame_index;
+            size_t marked = 0;
+            while (!unconstrained.empty() && unconstrained.front() <= last) {
+                marked += unconstrained.front() >= first ? 1 : 0;
+                unconstrained.pop_front();
+            }
+            if (5 * marked >= fragment.frames.size() && marked > 0) {
+                log::warn(
+                    "fusion: fragment {}: {} of {} frames tracked with a translation the depth "
+                    "does "
+                    "not constrain (a plain wall, a corridor); along it the pose follows the "
+                    "constant-velocity prediction and may drift: keep more structure in view",
+                    fragment.id, marked, fragment.frames.size());
+            }
+        }
         auto bytes = messages::encodeFragment(fragment, codec);
         if (!bytes.isOk()) {
             // A fragment the codec refuses (e.g. NaN points) is a fusion bug; say so loudly.
@@ -133,6 +152,9 @@ void fusionLoop(const PinholeCamera& camera, const DeviceConfig& config,
         }
         shared.tracking = static_cast<int>(report->tracked ? messages::TrackingState::kOk
                                                            : messages::TrackingState::kLost);
+        if (report->tracked && report->icp.num_degenerate_directions > 0) {
+            unconstrained.push_back(report->frame_index);
+        }
         if (!report->message.empty())
             log::debug("fusion: frame {}: {}", frame->index, report->message);
         for (const Fragment& f : report->closed) emit(f);
