@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "common/core/simd.hpp"
 
+#include <atomic>
 #include <cstdlib>
 #include <cstring>
 
@@ -19,12 +20,19 @@ Level detect() {
     return Level::kPortable;
 }
 
+std::atomic<int> g_cap{static_cast<int>(Level::kAvx2)};  // ScopedLevel's cap
+
 }  // namespace
 
 Level best() {
     static const Level level = detect();
-    return level;
+    const int cap = g_cap.load(std::memory_order_relaxed);
+    return static_cast<int>(level) <= cap ? level : static_cast<Level>(cap);
 }
+
+ScopedLevel::ScopedLevel(Level level) : previous_(g_cap.exchange(static_cast<int>(level))) {}
+
+ScopedLevel::~ScopedLevel() { g_cap.store(previous_); }
 
 const char* toString(Level level) {
     switch (level) {

@@ -20,4 +20,17 @@ Level best();
 
 const char* toString(Level level);
 
+/// For tests: while it lives, best() returns at most `level` (every thread). Not for concurrent
+/// use with kernels running.
+class ScopedLevel {
+  public:
+    explicit ScopedLevel(Level level);
+    ~ScopedLevel();
+    ScopedLevel(const ScopedLevel&) = delete;
+    ScopedLevel& operator=(const ScopedLevel&) = delete;
+
+  private:
+    int previous_;
+};
+
 }  // namespace plumb::simd

@@ -12,6 +12,11 @@
 #include <string>
 #include <utility>
 
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+#endif
+
+#include "common/core/simd.hpp"
 #include "common/geometry/solution_remapping.hpp"
 #include "common/tsdf/parallel.hpp"
 
@@ -25,6 +30,96 @@ struct Accumulator {
     double r2 = 0.0;
     size_t count = 0;
 };
+
+static_assert(sizeof(Eigen::Vector3f) == 3 * sizeof(float), "point images are 3 floats a pixel");
+
+/// What the correspondence search needs, in plain floats (no Eigen in the AVX2 kernel).
+struct CorrespondenceParams {
+    float R[9], t[3];            ///< T_M_C, row-major rotation
+    float R_pm[9], t_pm[3];      ///< T_P_M
+    float fx, fy, cx, cy;        ///< model camera
+    int mw, mh;                  ///< model image size
+    float max_d2, min_cos;       ///< gates
+    const float* model_normals;  ///< model images, 3 floats a pixel
+    const float* model_points;
+};
+
+#if defined(__x86_64__) && defined(__GNUC__)
+/// Steps 1-2 for 8 consecutive frame pixels in AVX2 lanes: transform, projective association and
+/// the gates, with the same operations in the same order as the scalar loop (Eigen evaluates
+/// a 3x3 product row as a0 + (a1 + a2), and a dot product the same way; no FMA), so the same
+/// pixels pass. Returns the mask of the lanes that pass and their model pixels.
+/// m[0] a + (m[1] b + m[2] d): one row of a 3x3 product, in Eigen's order.
+__attribute__((target("avx2"), always_inline)) inline __m256 row(const float* m, __m256 a, __m256 b,
+                                                                 __m256 d) {
+    return _mm256_add_ps(_mm256_mul_ps(_mm256_set1_ps(m[0]), a),
+                         _mm256_add_ps(_mm256_mul_ps(_mm256_set1_ps(m[1]), b),
+                                       _mm256_mul_ps(_mm256_set1_ps(m[2]), d)));
+}
+
+__attribute__((target("avx2"))) unsigned correspondencesAvx2(const CorrespondenceParams& c,
+                                                             const float* normals,
+                                                             const float* points,
+                                                             int32_t* model_pixel) {
+    const __m256i idx3 = _mm256_setr_epi32(0, 3, 6, 9, 12, 15, 18, 21);
+    const __m256 nx = _mm256_i32gather_ps(normals, idx3, 4);
+    const __m256 ny = _mm256_i32gather_ps(normals + 1, idx3, 4);
+    const __m256 nz = _mm256_i32gather_ps(normals + 2, idx3, 4);
+    __m256 ok = _mm256_cmp_ps(nx, nx, _CMP_ORD_Q);  // valid normal
+    if (_mm256_movemask_ps(ok) == 0) return 0;
+    const __m256 px = _mm256_i32gather_ps(points, idx3, 4);
+    const __m256 py = _mm256_i32gather_ps(points + 1, idx3, 4);
+    const __m256 pz = _mm256_i32gather_ps(points + 2, idx3, 4);
+    const __m256 x0 = _mm256_add_ps(row(c.R, px, py, pz), _mm256_set1_ps(c.t[0]));
+    const __m256 x1 = _mm256_add_ps(row(c.R + 3, px, py, pz), _mm256_set1_ps(c.t[1]));
+    const __m256 x2 = _mm256_add_ps(row(c.R + 6, px, py, pz), _mm256_set1_ps(c.t[2]));
+    const __m256 xp0 = _mm256_add_ps(row(c.R_pm, x0, x1, x2), _mm256_set1_ps(c.t_pm[0]));
+    const __m256 xp1 = _mm256_add_ps(row(c.R_pm + 3, x0, x1, x2), _mm256_set1_ps(c.t_pm[1]));
+    const __m256 xp2 = _mm256_add_ps(row(c.R_pm + 6, x0, x1, x2), _mm256_set1_ps(c.t_pm[2]));
+    ok = _mm256_and_ps(ok, _mm256_cmp_ps(xp2, _mm256_setzero_ps(), _CMP_NLE_UQ));
+    const __m256 inv_z = _mm256_div_ps(_mm256_set1_ps(1.0f), xp2);
+    const __m256 half = _mm256_set1_ps(0.5f);
+    const __m256i mu = _mm256_cvttps_epi32(_mm256_floor_ps(
+        _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(_mm256_mul_ps(_mm256_set1_ps(c.fx), xp0), inv_z),
+                                    _mm256_set1_ps(c.cx)),
+                      half)));
+    const __m256i mv = _mm256_cvttps_epi32(_mm256_floor_ps(
+        _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(_mm256_mul_ps(_mm256_set1_ps(c.fy), xp1), inv_z),
+                                    _mm256_set1_ps(c.cy)),
+                      half)));
+    const __m256i minus1 = _mm256_set1_epi32(-1);
+    const __m256i inside = _mm256_and_si256(
+        _mm256_and_si256(_mm256_cmpgt_epi32(mu, minus1), _mm256_cmpgt_epi32(mv, minus1)),
+        _mm256_and_si256(_mm256_cmpgt_epi32(_mm256_set1_epi32(c.mw), mu),
+                         _mm256_cmpgt_epi32(_mm256_set1_epi32(c.mh), mv)));
+    ok = _mm256_and_ps(ok, _mm256_castsi256_ps(inside));
+    if (_mm256_movemask_ps(ok) == 0) return 0;
+    // Model pixel of each lane (0 where the lane already failed: a valid address to gather).
+    const __m256i mp =
+        _mm256_and_si256(_mm256_castps_si256(ok),
+                         _mm256_add_epi32(_mm256_mullo_epi32(mv, _mm256_set1_epi32(c.mw)), mu));
+    const __m256i mp3 = _mm256_add_epi32(_mm256_add_epi32(mp, mp), mp);
+    const __m256 mnx = _mm256_i32gather_ps(c.model_normals, mp3, 4);
+    ok = _mm256_and_ps(ok, _mm256_cmp_ps(mnx, mnx, _CMP_ORD_Q));
+    if (_mm256_movemask_ps(ok) == 0) return 0;
+    const __m256 mny = _mm256_i32gather_ps(c.model_normals + 1, mp3, 4);
+    const __m256 mnz = _mm256_i32gather_ps(c.model_normals + 2, mp3, 4);
+    const __m256 d0 = _mm256_sub_ps(x0, _mm256_i32gather_ps(c.model_points, mp3, 4));
+    const __m256 d1 = _mm256_sub_ps(x1, _mm256_i32gather_ps(c.model_points + 1, mp3, 4));
+    const __m256 d2 = _mm256_sub_ps(x2, _mm256_i32gather_ps(c.model_points + 2, mp3, 4));
+    const __m256 dist2 = _mm256_add_ps(_mm256_mul_ps(d0, d0),
+                                       _mm256_add_ps(_mm256_mul_ps(d1, d1), _mm256_mul_ps(d2, d2)));
+    ok = _mm256_and_ps(ok, _mm256_cmp_ps(dist2, _mm256_set1_ps(c.max_d2), _CMP_NGT_UQ));
+    const __m256 rn0 = row(c.R, nx, ny, nz);
+    const __m256 rn1 = row(c.R + 3, nx, ny, nz);
+    const __m256 rn2 = row(c.R + 6, nx, ny, nz);
+    const __m256 cosine = _mm256_add_ps(
+        _mm256_mul_ps(rn0, mnx), _mm256_add_ps(_mm256_mul_ps(rn1, mny), _mm256_mul_ps(rn2, mnz)));
+    ok = _mm256_and_ps(ok, _mm256_cmp_ps(cosine, _mm256_set1_ps(c.min_cos), _CMP_NLT_UQ));
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(model_pixel), mp);
+    return static_cast<unsigned>(_mm256_movemask_ps(ok));
+}
+#endif
 
 Accumulator buildSystem(const PyramidLevel& level, const ModelLevel& model,
                         const Eigen::Isometry3d& T_M_C, const Eigen::Isometry3d& T_P_M,
@@ -43,6 +138,26 @@ Accumulator buildSystem(const PyramidLevel& level, const ModelLevel& model,
     constexpr int kRowsPerChunk = 8;
     const int num_chunks = (h + kRowsPerChunk - 1) / kRowsPerChunk;
     std::vector<Accumulator> chunks(static_cast<size_t>(num_chunks));
+    const bool use_avx2 = simd::best() == simd::Level::kAvx2;
+    CorrespondenceParams cp{};
+    for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) {
+            cp.R[3 * i + j] = R(i, j);
+            cp.R_pm[3 * i + j] = R_pm(i, j);
+        }
+        cp.t[i] = t[i];
+        cp.t_pm[i] = t_pm[i];
+    }
+    cp.fx = fx;
+    cp.fy = fy;
+    cp.cx = cx;
+    cp.cy = cy;
+    cp.mw = mw;
+    cp.mh = mh;
+    cp.max_d2 = max_d2;
+    cp.min_cos = min_cos;
+    cp.model_normals = reinterpret_cast<const float*>(model.normals_M.data());
+    cp.model_points = reinterpret_cast<const float*>(model.points_M.data());
     tsdf::parallelFor(config.num_threads, num_chunks, [&](int c) {
         Accumulator& acc = chunks[static_cast<size_t>(c)];
         // Per row: the 21 upper-triangular entries of J^T J, the 6 of J^T r and r^2 summed in
@@ -52,7 +167,41 @@ Accumulator buildSystem(const PyramidLevel& level, const ModelLevel& model,
         for (int v = c * kRowsPerChunk; v < v_end; ++v) {
             std::array<float, 28> row{};
             size_t row_count = 0;
-            for (int u = 0; u < w; ++u) {
+            // Step 3 for one correspondence: r = n^T (x - v), J = [(x x n)^T, n^T].
+            const auto add = [&](const Eigen::Vector3f& x, const Eigen::Vector3f& nm,
+                                 const Eigen::Vector3f& diff) {
+                const float r = nm.dot(diff);
+                const Eigen::Vector3f xn = x.cross(nm);
+                const float J[6] = {xn.x(), xn.y(), xn.z(), nm.x(), nm.y(), nm.z()};
+                int k = 0;
+                for (int i = 0; i < 6; ++i) {
+                    for (int j = i; j < 6; ++j) row[static_cast<size_t>(k++)] += J[i] * J[j];
+                }
+                for (int i = 0; i < 6; ++i) row[static_cast<size_t>(21 + i)] += J[i] * r;
+                row[27] += r * r;
+                ++row_count;
+            };
+            int u = 0;
+#if defined(__x86_64__) && defined(__GNUC__)
+            if (use_avx2) {
+                // Steps 1-2 for 8 pixels at a time in AVX2 lanes, step 3 for the lanes that pass,
+                // in pixel order (the sums are those of the scalar loop, bit for bit).
+                for (; u + 8 <= w; u += 8) {
+                    int32_t model_pixel[8];
+                    const unsigned pass = correspondencesAvx2(
+                        cp, reinterpret_cast<const float*>(&level.normals_C(u, v)),
+                        reinterpret_cast<const float*>(&level.points_C(u, v)), model_pixel);
+                    for (unsigned lanes = pass; lanes != 0; lanes &= lanes - 1) {
+                        const int k = __builtin_ctz(lanes);
+                        const Eigen::Vector3f x = R * level.points_C(u + k, v) + t;
+                        const auto mp = static_cast<size_t>(model_pixel[k]);
+                        const Eigen::Vector3f& nm = model.normals_M.data()[mp];
+                        add(x, nm, x - model.points_M.data()[mp]);
+                    }
+                }
+            }
+#endif
+            for (; u < w; ++u) {
                 const Eigen::Vector3f& n = level.normals_C(u, v);
                 if (!tsdf::isValid(n)) continue;
                 const Eigen::Vector3f& p = level.points_C(u, v);
@@ -68,17 +217,7 @@ Accumulator buildSystem(const PyramidLevel& level, const ModelLevel& model,
                 const Eigen::Vector3f diff = x - model.points_M(mu, mv);  // step 2: gates
                 if (diff.squaredNorm() > max_d2) continue;
                 if ((R * n).dot(nm) < min_cos) continue;
-                // Step 3: r = n^T (x - v), J = [(x x n)^T, n^T].
-                const float r = nm.dot(diff);
-                const Eigen::Vector3f xn = x.cross(nm);
-                const float J[6] = {xn.x(), xn.y(), xn.z(), nm.x(), nm.y(), nm.z()};
-                int k = 0;
-                for (int i = 0; i < 6; ++i) {
-                    for (int j = i; j < 6; ++j) row[static_cast<size_t>(k++)] += J[i] * J[j];
-                }
-                for (int i = 0; i < 6; ++i) row[static_cast<size_t>(21 + i)] += J[i] * r;
-                row[27] += r * r;
-                ++row_count;
+                add(x, nm, diff);  // step 3
             }
             for (size_t i = 0; i < 28; ++i) chunk_sum[i] += static_cast<double>(row[i]);
             acc.count += row_count;
