@@ -34,14 +34,4 @@ ScopedLevel::ScopedLevel(Level level) : previous_(g_cap.exchange(static_cast<int
 
 ScopedLevel::~ScopedLevel() { g_cap.store(previous_); }
 
-const char* toString(Level level) {
-    switch (level) {
-        case Level::kPortable:
-            return "portable";
-        case Level::kAvx2:
-            return "avx2";
-    }
-    return "unknown";
-}
-
 }  // namespace plumb::simd

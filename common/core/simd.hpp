@@ -18,8 +18,6 @@ enum class Level {
 /// "portable" (to compare both on one machine).
 Level best();
 
-const char* toString(Level level);
-
 /// For tests: while it lives, best() returns at most `level` (every thread). Not for concurrent
 /// use with kernels running.
 class ScopedLevel {

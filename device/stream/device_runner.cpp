@@ -115,9 +115,8 @@ void fusionLoop(const PinholeCamera& camera, const DeviceConfig& config,
             if (5 * marked >= fragment.frames.size() && marked > 0) {
                 log::warn(
                     "fusion: fragment {}: {} of {} frames tracked with a translation the depth "
-                    "does "
-                    "not constrain (a plain wall, a corridor); along it the pose follows the "
-                    "constant-velocity prediction and may drift: keep more structure in view",
+                    "does not constrain (a plain wall, a corridor); along it the pose follows "
+                    "the constant-velocity prediction and may drift: keep more structure in view",
                     fragment.id, marked, fragment.frames.size());
             }
         }

@@ -45,10 +45,6 @@ struct CorrespondenceParams {
 };
 
 #if defined(__x86_64__) && defined(__GNUC__)
-/// Steps 1-2 for 8 consecutive frame pixels in AVX2 lanes: transform, projective association and
-/// the gates, with the same operations in the same order as the scalar loop (Eigen evaluates
-/// a 3x3 product row as a0 + (a1 + a2), and a dot product the same way; no FMA), so the same
-/// pixels pass. Returns the mask of the lanes that pass and their model pixels.
 /// m[0] a + (m[1] b + m[2] d): one row of a 3x3 product, in Eigen's order.
 __attribute__((target("avx2"), always_inline)) inline __m256 row(const float* m, __m256 a, __m256 b,
                                                                  __m256 d) {
@@ -57,6 +53,10 @@ __attribute__((target("avx2"), always_inline)) inline __m256 row(const float* m,
                                        _mm256_mul_ps(_mm256_set1_ps(m[2]), d)));
 }
 
+/// Steps 1-2 for 8 consecutive frame pixels in AVX2 lanes: transform, projective association and
+/// the gates, with the same operations in the same order as the scalar loop (Eigen evaluates
+/// a 3x3 product row as a0 + (a1 + a2), and a dot product the same way; no FMA), so the same
+/// pixels pass. Returns the mask of the lanes that pass and their model pixels.
 __attribute__((target("avx2"))) unsigned correspondencesAvx2(const CorrespondenceParams& c,
                                                              const float* normals,
                                                              const float* points,

@@ -2,18 +2,17 @@
 // Runs the built `plumb` program (PLUMB_EXE) as a user would: `plumb eval traj ...`.
 
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 
 #include <cmath>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <random>
-#include <sstream>
 #include <string>
 #include <vector>
 
 #include "common/geometry/lie.hpp"
 #include "common/io/trajectory.hpp"
+#include "tests/testing/run_program.hpp"
 #include "tests/testing/shared_data.hpp"
 
 namespace plumb {
@@ -21,31 +20,12 @@ namespace {
 
 namespace fs = std::filesystem;
 
-struct ProcessRun {
-    int exit_code = -1;
-    std::string out;
-    std::string err;
-};
-
-std::string slurp(const fs::path& path) {
-    std::ifstream in(path);
-    std::stringstream s;
-    s << in.rdbuf();
-    return s.str();
-}
+using testing::ProcessRun;
+using testing::slurp;
 
 /// Runs `plumb eval traj <args>` with stdout/stderr captured in `dir`.
 ProcessRun evalTraj(const fs::path& dir, const std::vector<std::string>& args) {
-    std::string command = std::string("'") + PLUMB_EXE + "' eval traj";
-    for (const std::string& a : args) command += " '" + a + "'";
-    command +=
-        " > '" + (dir / "stdout.txt").string() + "' 2> '" + (dir / "stderr.txt").string() + "'";
-    const int status = std::system(command.c_str());
-    ProcessRun run;
-    run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    run.out = slurp(dir / "stdout.txt");
-    run.err = slurp(dir / "stderr.txt");
-    return run;
+    return testing::runProgram(std::string("'") + PLUMB_EXE + "' eval traj", dir, args);
 }
 
 /// A random-walk ground truth at 30 Hz.

@@ -5,14 +5,12 @@
 // tracked with translations the depth leaves free are counted per frame and per fragment.
 
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 
-#include <fstream>
-#include <iterator>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
+#include "tests/testing/run_program.hpp"
 #include "tests/testing/shared_data.hpp"
 
 namespace plumb {
@@ -20,27 +18,12 @@ namespace {
 
 namespace fs = std::filesystem;
 
-struct ProcessRun {
-    int exit_code = -1;
-    std::string err;
-};
-
-std::string slurp(const fs::path& path) {
-    std::ifstream in(path, std::ios::binary);
-    return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
+using testing::ProcessRun;
+using testing::slurp;
 
 /// Runs `plumb fuse <args>` with stdout/stderr captured in `log_dir`.
 ProcessRun plumbFuse(const fs::path& log_dir, const std::vector<std::string>& args) {
-    std::string command = std::string("'") + PLUMB_EXE + "' fuse";
-    for (const std::string& a : args) command += " '" + a + "'";
-    command += " > '" + (log_dir / "stdout.txt").string() + "' 2> '" +
-               (log_dir / "stderr.txt").string() + "'";
-    const int status = std::system(command.c_str());
-    ProcessRun run;
-    run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    run.err = slurp(log_dir / "stderr.txt");
-    return run;
+    return testing::runProgram(std::string("'") + PLUMB_EXE + "' fuse", log_dir, args);
 }
 
 TEST(PlumbFuseCli, FrameStepFusesFramesFloorOfJTimesStepAndTracksThem) {

@@ -4,16 +4,14 @@
 // its ground truth, and bad input must get a specific error and the documented exit code.
 
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 
 #include <fstream>
-#include <iterator>
-#include <sstream>
 #include <string>
 #include <vector>
 
 #include "drivers/dataset/dataset.hpp"
 #include "drivers/sim/sim_source.hpp"
+#include "tests/testing/run_program.hpp"
 #include "tests/testing/shared_data.hpp"
 
 namespace plumb {
@@ -21,29 +19,12 @@ namespace {
 
 namespace fs = std::filesystem;
 
-struct ProcessRun {
-    int exit_code = -1;
-    std::string out;
-    std::string err;
-};
-
-std::string slurp(const fs::path& path) {
-    std::ifstream in(path, std::ios::binary);
-    return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
+using testing::ProcessRun;
+using testing::slurp;
 
 /// Runs `plumb sim <args>` with stdout/stderr captured in `log_dir`.
 ProcessRun plumbSim(const fs::path& log_dir, const std::vector<std::string>& args) {
-    std::string command = std::string("'") + PLUMB_EXE + "' sim";
-    for (const std::string& a : args) command += " '" + a + "'";
-    command += " > '" + (log_dir / "stdout.txt").string() + "' 2> '" +
-               (log_dir / "stderr.txt").string() + "'";
-    const int status = std::system(command.c_str());
-    ProcessRun run;
-    run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    run.out = slurp(log_dir / "stdout.txt");
-    run.err = slurp(log_dir / "stderr.txt");
-    return run;
+    return testing::runProgram(std::string("'") + PLUMB_EXE + "' sim", log_dir, args);
 }
 
 // Small, shared-data-free settings: CI intrinsics, parametric distortion.

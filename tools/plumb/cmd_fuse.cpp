@@ -325,7 +325,8 @@ int runFuse(const std::vector<std::string>& arguments) {
     Progress progress("tracking and fusing", source->size().value_or(0), po);
 
     // Tracked frames whose ICP left translations unconstrained (the geometry in view does not
-    // fix them; the pose follows the constant-velocity prediction along them), by frame index.
+    // fix them; the pose follows the constant-velocity prediction along them), by frame index,
+    // until their fragment is written.
     std::unordered_map<int64_t, int> unconstrained;
     size_t frames_unconstrained = 0;
     auto emit = [&](const Fragment& f) -> Status {
@@ -347,6 +348,7 @@ int runFuse(const std::vector<std::string>& arguments) {
         for (nlohmann::json& fr : j["frames"]) {
             const auto it = unconstrained.find(fr["frame_index"].get<int64_t>());
             const int n = it == unconstrained.end() ? 0 : it->second;
+            if (it != unconstrained.end()) unconstrained.erase(it);
             fr["unconstrained_translations"] = n;
             num_unconstrained += n > 0 ? 1 : 0;
         }
