@@ -208,13 +208,14 @@ class BodyCursor {
         if (format_ == BodyFormat::kAscii) return readAscii(value);
         const size_t n = sizeOf(t);
         if (static_cast<size_t>(end_ - p_) < n) return Outcome::kEnd;
-        unsigned char bytes[8];
-        std::memcpy(bytes, p_, n);
-        p_ += n;
+        // The value's bytes in native order (every PLY scalar is at most 8 bytes).
+        unsigned char bytes[8] = {};
         const bool file_little = format_ == BodyFormat::kBinaryLittleEndian;
-        if (file_little != (std::endian::native == std::endian::little)) {
-            std::reverse(bytes, bytes + n);
+        const bool swap = file_little != (std::endian::native == std::endian::little);
+        for (size_t i = 0; i < n && i < sizeof bytes; ++i) {
+            bytes[i] = static_cast<unsigned char>(p_[swap ? n - 1 - i : i]);
         }
+        p_ += n;
         *value = decode(t, bytes);
         return Outcome::kOk;
     }

@@ -148,10 +148,12 @@ Result<FrameReport> FragmentBuilder::processImpl(const Frame& frame) {
     const tsdf::TsdfVolume& model_volume = handover_ ? previous_volume_ : volume_;
     const Eigen::Isometry3d T_X_M = handover_ ? T_P_M_ : Eigen::Isometry3d::Identity();
     if (model_.empty() || model_uses_ >= config_.raycast_interval) {
+        const Clock::time_point t_raycast = Clock::now();
         T_X_P_ = T_X_M * T_M_last_;
         model_ = predictModel(model_volume, pyramid, T_X_P_, config_.raycast, config_.model_level,
                               last_depth_.empty() ? nullptr : &last_depth_);
         model_uses_ = 0;
+        report.timing.raycast_ms = msSince(t_raycast);
     }
     ++model_uses_;
     // Start from a constant-velocity prediction: along directions the geometry leaves free

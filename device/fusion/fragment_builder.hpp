@@ -75,6 +75,7 @@ struct FusionConfig {
 struct FrameTiming {
     double preprocess_ms = 0.0;  ///< filter, pyramid, vertex and normal maps
     double track_ms = 0.0;       ///< model raycast and ICP
+    double raycast_ms = 0.0;     ///< of track_ms, the model raycast (0 when the last one is reused)
     double integrate_ms = 0.0;   ///< TSDF integration (all attempts)
     double extract_ms = 0.0;     ///< surface points of fragments closed on this frame
     double total_ms = 0.0;       ///< the whole process() call
