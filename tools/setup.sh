@@ -25,7 +25,7 @@ packages=(
     libpcl-dev libopenmpi-dev libceres-dev libboost-graph-dev
     # tests, benchmarks and the peer (Open3D is an oracle and a peer, never on the runtime path)
     libgtest-dev libgmock-dev libbenchmark-dev libopen3d-dev python3-open3d python3-numpy
-    qemu-user-static  # runs a test program as an older x86-64 CPU (tests/common/cpu_check_test)
+    qemu-user  # runs a test program as an older x86-64 CPU (tests/common/cpu_check_test)
     # monitor, and its browser test (Debian's Chromium, driven by playwright-core from npm)
     libcpp-httplib-dev chromium chromium-driver
 )

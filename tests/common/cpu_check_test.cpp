@@ -16,7 +16,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-/// qemu's x86-64 user-mode emulator on PATH, or "" (tools/setup.sh installs qemu-user-static).
+/// qemu's x86-64 user-mode emulator on PATH, or "" (tools/setup.sh installs qemu-user).
 std::string findQemu() {
     const char* path = std::getenv("PATH");
     if (path == nullptr) return "";
@@ -38,7 +38,7 @@ TEST(CpuCheck, AnX8664V2BuildRefusesAnOlderCpuWithAMessage) {
     const std::string qemu = findQemu();
     if (qemu.empty()) {
         if (plumb::testing::runningInCi()) FAIL() << "qemu-x86_64 not found under CI";
-        GTEST_SKIP() << "qemu-x86_64 not found (tools/setup.sh installs qemu-user-static)";
+        GTEST_SKIP() << "qemu-x86_64 not found (tools/setup.sh installs qemu-user)";
     }
     const fs::path self = fs::read_symlink("/proc/self/exe");
     const fs::path dir = plumb::testing::freshTempDir("cpu_check");

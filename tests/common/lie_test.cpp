@@ -47,8 +47,8 @@ TEST(ExpLogSO3, RoundTripForRandomAngles) {
         worst_rotation = std::max(worst_rotation, maxAbs(expSO3(logSO3(R)) - R));
     }
     EXPECT_LT(worst_omega, 1e-12);
-    // 1.2e-13 on aarch64, where GCC contracts multiply-adds into FMAs (x86-64 without -march
-    // flags does not): a few ulps of the angles near pi.
+    // 1.2e-13 on aarch64, where GCC contracts multiply-adds into FMAs (x86-64 up to x86-64-v2
+    // has no FMA): a few ulps of the angles near pi.
     EXPECT_LT(worst_rotation, 1e-12);
 }
 
