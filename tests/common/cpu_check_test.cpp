@@ -7,6 +7,7 @@
 
 #include <cstdlib>
 #include <filesystem>
+#include <sstream>
 #include <string>
 
 #include "tests/testing/run_program.hpp"
@@ -16,24 +17,20 @@ namespace {
 
 namespace fs = std::filesystem;
 
+#if defined(__x86_64__) && defined(__SSE4_2__)
 /// qemu's x86-64 user-mode emulator on PATH, or "" (tools/setup.sh installs qemu-user).
 std::string findQemu() {
     const char* path = std::getenv("PATH");
-    if (path == nullptr) return "";
     for (const char* name : {"qemu-x86_64-static", "qemu-x86_64"}) {
-        std::string dirs = path;
-        size_t begin = 0;
-        while (begin <= dirs.size()) {
-            const size_t end = std::min(dirs.find(':', begin), dirs.size());
-            const fs::path candidate = fs::path(dirs.substr(begin, end - begin)) / name;
-            if (end > begin && fs::exists(candidate)) return candidate.string();
-            begin = end + 1;
+        std::istringstream dirs(path != nullptr ? path : "");
+        for (std::string dir; std::getline(dirs, dir, ':');) {
+            const fs::path candidate = fs::path(dir) / name;
+            if (!dir.empty() && fs::exists(candidate)) return candidate.string();
         }
     }
     return "";
 }
 
-#if defined(__x86_64__) && defined(__SSE4_2__)
 TEST(CpuCheck, AnX8664V2BuildRefusesAnOlderCpuWithAMessage) {
     const std::string qemu = findQemu();
     if (qemu.empty()) {
