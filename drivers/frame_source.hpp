@@ -21,6 +21,10 @@ struct Frame {
     double timestamp_s = 0.0;  ///< capture time in seconds (dataset or host clock)
     DepthImage depth;          ///< metres, 0 = invalid, camera().width x camera().height
     GrayImage gray;            ///< optional intensity image (empty when the source has none)
+    /// 8-bit RGB registered to `depth` (pixel (u, v) sees what depth pixel (u, v) sees, same
+    /// size), or empty when the source has no colour. Sources whose colour camera is not
+    /// registered to the depth camera (7-Scenes) say so in their description.
+    ColourImage colour;
     std::string name;          ///< file name or other identifier, for messages
     /// Ground-truth camera-to-world pose, when the source knows it (datasets, simulator).
     std::optional<Eigen::Isometry3d> T_W_C_gt;

@@ -35,6 +35,12 @@ Depth16Image toRaw(const DepthImage& depth, double depth_scale) {
     return out;
 }
 
+Image<float> toIntensity(const ColourImage& colour) {
+    Image<float> out(colour.width(), colour.height());
+    for (size_t i = 0; i < colour.size(); ++i) out.data()[i] = intensity(colour.data()[i]);
+    return out;
+}
+
 size_t countValid(const DepthImage& depth) {
     size_t n = 0;
     for (float d : depth.pixels()) n += (d > 0.0f && std::isfinite(d)) ? 1 : 0;

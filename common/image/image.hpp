@@ -47,6 +47,26 @@ using DepthImage = Image<float>;       ///< metres, 0 = invalid
 using Depth16Image = Image<uint16_t>;  ///< raw sensor/file units, 0 = invalid
 using GrayImage = Image<uint8_t>;      ///< 8-bit intensity
 
+/// One 8-bit RGB pixel (sRGB-encoded as the camera delivers it).
+struct Rgb8 {
+    uint8_t r = 0;
+    uint8_t g = 0;
+    uint8_t b = 0;
+    bool operator==(const Rgb8& other) const = default;
+};
+static_assert(sizeof(Rgb8) == 3, "colour images are 3 bytes a pixel");
+
+using ColourImage = Image<Rgb8>;  ///< 8-bit RGB, row-major, 3 bytes a pixel
+
+/// Luma of an RGB pixel in [0, 1]: I = (0.299 R + 0.587 G + 0.114 B) / 255 (ITU-R BT.601, the
+/// intensity of reference §7b.1).
+inline float intensity(const Rgb8& c) {
+    return (0.299f * c.r + 0.587f * c.g + 0.114f * c.b) * (1.0f / 255.0f);
+}
+
+/// Intensity image in [0, 1] of a colour image (see intensity()).
+Image<float> toIntensity(const ColourImage& colour);
+
 /// uint16 units -> metres: d_m = raw / depth_scale (e.g. 1000 for mm, 5000 for TUM/ICL-NUIM).
 /// Values below `min_depth_m` or above `max_depth_m` (when > 0) become 0 (invalid).
 DepthImage toMetres(const Depth16Image& raw, double depth_scale, double min_depth_m = 0.0,
