@@ -32,6 +32,7 @@ Status FusionConfig::validate() const {
     PLUMB_RETURN_IF_ERROR(tsdf.validate());
     PLUMB_RETURN_IF_ERROR(preprocess.validate());
     PLUMB_RETURN_IF_ERROR(icp.validate());
+    PLUMB_RETURN_IF_ERROR(tracking.validate());
     return Status::ok();
 }
 
@@ -103,6 +104,14 @@ bool FragmentBuilder::integrate(const FramePyramid& pyramid, const Eigen::Isomet
     return true;
 }
 
+void FragmentBuilder::setReference(const FramePyramid& pyramid,
+                                   const std::vector<IntensityLevel>& intensity) {
+    have_reference_ = !intensity.empty();
+    if (!have_reference_) return;
+    reference_ = selectReference(pyramid, intensity, config_.tracking);
+    T_W_R_ = T_W_C_;
+}
+
 Result<FrameReport> FragmentBuilder::process(const Frame& frame) {
     const Clock::time_point t0 = Clock::now();
     Result<FrameReport> report = processImpl(frame);
@@ -118,6 +127,16 @@ Result<FrameReport> FragmentBuilder::processImpl(const Frame& frame) {
                       "frame " + std::to_string(frame.index) + ": " + pyr.status().message());
     }
     const FramePyramid& pyramid = pyr.value();
+    std::vector<IntensityLevel> intensity;  // empty: track by depth only
+    if (config_.tracking.enabled && !frame.colour.empty()) {
+        if (frame.colour.width() != camera_.width || frame.colour.height() != camera_.height) {
+            return invalidArgument("frame " + std::to_string(frame.index) + ": colour is " +
+                                   std::to_string(frame.colour.width()) + "x" +
+                                   std::to_string(frame.colour.height()) + " but the camera is " +
+                                   camera_.toString());
+        }
+        intensity = buildIntensityPyramid(frame.colour, pyramid, config_.tracking);
+    }
     FrameReport report;
     report.frame_index = frame.index;
     report.timing.preprocess_ms = msSince(t_pre);
@@ -134,6 +153,7 @@ Result<FrameReport> FragmentBuilder::processImpl(const Frame& frame) {
         report.integrated = integrate(pyramid, Eigen::Isometry3d::Identity(), &report);
         if (report.integrated) addFrame(frame, Eigen::Isometry3d::Identity(), true, 1.0);
         report.T_W_C = T_W_C_;
+        setReference(pyramid, intensity);
         return report;
     }
 
@@ -160,7 +180,15 @@ Result<FrameReport> FragmentBuilder::processImpl(const Frame& frame) {
     // (solution remapping in the ICP) the camera keeps moving as it did.
     const Eigen::Isometry3d T_M_pred =
         config_.constant_velocity && !lost_ ? T_M_last_ * velocity_ : T_M_last_;
-    report.icp = alignFrameToModel(pyramid, model_, T_X_P_, T_X_M * T_M_pred, config_.icp);
+    PhotometricInput photometric;
+    if (have_reference_ && !intensity.empty()) {
+        photometric.current = &intensity;
+        photometric.reference = &reference_;
+        photometric.T_M_R = T_X_M * T_W_M_.inverse() * T_W_R_;  // in the tracking model's frame
+        photometric.config = config_.tracking;
+    }
+    report.icp = alignFrameToModel(pyramid, model_, T_X_P_, T_X_M * T_M_pred, config_.icp,
+                                   photometric.current != nullptr ? &photometric : nullptr);
     if (handover_) report.icp.T_M_C = T_P_M_.inverse() * report.icp.T_M_C;
     report.timing.track_ms = msSince(t_track);
 
@@ -171,6 +199,7 @@ Result<FrameReport> FragmentBuilder::processImpl(const Frame& frame) {
         report.tracked = true;
         report.relocalised = lost_;
         lost_ = false;
+        setReference(pyramid, intensity);
         if (current_) {
             // Normal tracking inside the open fragment (M = F).
             if (integrate(pyramid, T_M_C, &report)) {
@@ -212,6 +241,7 @@ Result<FrameReport> FragmentBuilder::processImpl(const Frame& frame) {
             openFragment(T_W_C_);
             report.integrated = integrate(pyramid, Eigen::Isometry3d::Identity(), &report);
             if (report.integrated) addFrame(frame, Eigen::Isometry3d::Identity(), true, 1.0);
+            setReference(pyramid, intensity);
         } else {
             lost_ = true;  // failed right after a cut: try the next frame against the same model
         }

@@ -67,6 +67,9 @@ struct FusionConfig {
     PreprocessConfig preprocess;
     /// Frame-to-model ICP and its failure tests.
     IcpConfig icp;
+    /// RGB-D tracking: the photometric term against the last tracked frame, used when the
+    /// frame has colour (reference §7b.1).
+    PhotometricConfig tracking;
 
     Status validate() const;
 };
@@ -123,6 +126,9 @@ class FragmentBuilder {
     Result<FrameReport> processImpl(const Frame& frame);
     bool integrate(const FramePyramid& pyramid, const Eigen::Isometry3d& T_F_C,
                    FrameReport* report);
+    /// The frame just tracked at T_W_C_ becomes the photometric reference of the next one (no
+    /// reference when it has no colour).
+    void setReference(const FramePyramid& pyramid, const std::vector<IntensityLevel>& intensity);
 
     PinholeCamera camera_;
     FusionConfig config_;
@@ -148,6 +154,12 @@ class FragmentBuilder {
     Eigen::Isometry3d T_W_C_ = Eigen::Isometry3d::Identity();
     /// Last frame-to-frame motion T_Cprev_C (identity after a loss), for the prediction.
     Eigen::Isometry3d velocity_ = Eigen::Isometry3d::Identity();
+    /// The photometric reference: the last tracked frame's textured points and intensities, and
+    /// its camera pose in the world. Kept through tracking failures (re-localisation starts from
+    /// that frame's pose); empty while frames have no colour.
+    PhotometricReference reference_;
+    Eigen::Isometry3d T_W_R_ = Eigen::Isometry3d::Identity();
+    bool have_reference_ = false;
     uint32_t next_id_ = 0;
     uint32_t segment_ = 0;
     double quality_sum_ = 0.0;

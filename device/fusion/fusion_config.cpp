@@ -85,6 +85,47 @@ void describe(config::Schema& s, IcpConfig& c) {
         .min(0);
 }
 
+void describe(config::Schema& s, PhotometricConfig& c) {
+    s.field("colour", c.enabled,
+            "track with the photometric term when the source has colour (off: depth only)");
+    s.field("weight", c.weight,
+            "relative weight lambda of the photometric term: sum (r_icp / depth_sigma_m)^2 + "
+            "lambda sum huber(r_I / intensity_sigma)^2 is minimised (unit-free)")
+        .min(0.0);
+    s.field("depth_sigma_m", c.depth_sigma_m,
+            "scale of the point-to-plane residual the intensity residual is weighed against", "m")
+        .positive();
+    s.field("intensity_sigma", c.intensity_sigma,
+            "scale of the intensity residual (intensities in [0, 1])")
+        .positive();
+    s.field("huber_delta", c.huber_delta,
+            "Huber threshold of the intensity residual; also what counts as an inlier")
+        .positive();
+    s.field("max_residual", c.max_residual,
+            "intensity residuals above this (occlusions, highlights) are left out")
+        .positive();
+    s.field("min_gradient", c.min_gradient,
+            "reference pixels are used where |grad I| is at least this (intensity per pixel)")
+        .min(0.0);
+    s.field("max_points", c.max_points,
+            "at most this many reference points per pyramid level, taken evenly (bounds the cost; "
+            "the sums are scaled to all selected pixels)")
+        .min(1);
+    s.field("min_points", c.min_points,
+            "with fewer textured reference pixels the frame is tracked by depth only (too little "
+            "texture)")
+        .min(0);
+    s.field("min_inlier_fraction", c.min_inlier_fraction,
+            "when fewer visible reference points than this fraction agree at the final pose "
+            "(exposure jump, blur, motion) the frame is tracked again by depth only")
+        .range(0.0, 1.0);
+    s.field("affine_brightness", c.affine_brightness,
+            "estimate a gain and offset of each frame's intensity against its reference");
+    s.field("smoothing_sigma_px", c.smoothing_sigma_px,
+            "Gaussian smoothing of the full-resolution intensity before gradients", "px")
+        .range(0.0, 5.0);
+}
+
 void describe(config::Schema& s, FusionConfig& c) {
     s.field("frames_per_fragment", c.frames_per_fragment,
             "a fragment is cut every this many frames (paper: 50)", "frames")
@@ -113,6 +154,9 @@ void describe(config::Schema& s, FusionConfig& c) {
     s.section("surface", c.surface, "oriented surface points of a closed fragment");
     s.section("preprocess", c.preprocess, "per-frame filtering, vertex/normal maps, pyramid");
     s.section("icp", c.icp, "frame-to-model projective point-to-plane ICP and its failure tests");
+    s.section("tracking", c.tracking,
+              "RGB-D tracking: the photometric term against the last tracked frame, on when the "
+              "source has colour");
 }
 
 PLUMB_PROGRAM_CONFIG(fusion, "fusion", FusionConfig,

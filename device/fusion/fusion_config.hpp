@@ -15,6 +15,7 @@ struct FusionConfig;
 
 void describe(config::Schema& s, PreprocessConfig& c);
 void describe(config::Schema& s, IcpConfig& c);
+void describe(config::Schema& s, PhotometricConfig& c);
 void describe(config::Schema& s, FusionConfig& c);
 
 }  // namespace plumb::device

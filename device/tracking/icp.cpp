@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <numbers>
 #include <optional>
@@ -359,11 +360,41 @@ Status IcpConfig::validate() const {
     return Status::ok();
 }
 
-IcpResult alignFrameToModel(const FramePyramid& frame, const std::vector<ModelLevel>& model,
-                            const Eigen::Isometry3d& T_M_P, const Eigen::Isometry3d& T_M_C_init,
-                            const IcpConfig& config) {
-    PLUMB_CHECK(!frame.levels.empty() && frame.levels.size() == model.size())
-        << "frame has " << frame.levels.size() << " levels, model " << model.size();
+namespace {
+
+/// The system of one level: point-to-plane ICP plus, with colour, the photometric term weighed
+/// into point-to-plane units (w = lambda (depth_sigma / intensity_sigma)^2, times the reference's
+/// thinning scale). `count` stays the ICP's correspondence count.
+struct LevelSystem {
+    Accumulator combined;
+    double icp_r2 = 0.0;  ///< the point-to-plane part of combined.r2
+    PhotometricSystem photo;
+};
+
+LevelSystem buildLevelSystem(const FramePyramid& frame, const std::vector<ModelLevel>& model,
+                             size_t l, const Eigen::Isometry3d& T, const Eigen::Isometry3d& T_P_M,
+                             const IcpConfig& config, const PhotometricInput* ph,
+                             const Brightness& br) {
+    LevelSystem s;
+    s.combined = buildSystem(frame.levels[l], model[l], T, T_P_M, config);
+    s.icp_r2 = s.combined.r2;
+    if (ph == nullptr) return s;
+    const PhotometricConfig& pc = ph->config;
+    s.photo = buildPhotometricSystem(ph->reference->levels[l], (*ph->current)[l], ph->T_M_R, T, br,
+                                     pc, config.num_threads);
+    const double ratio = pc.depth_sigma_m / pc.intensity_sigma;
+    const double w = pc.weight * ratio * ratio * ph->reference->level_scale[l];
+    s.combined.JtJ += w * s.photo.JtJ;
+    s.combined.Jtr += w * s.photo.Jtr;
+    s.combined.r2 += w * s.photo.r2;
+    return s;
+}
+
+/// Coarse-to-fine Gauss-Newton with solution remapping; the photometric term joins every level
+/// when `ph` is given.
+IcpResult align(const FramePyramid& frame, const std::vector<ModelLevel>& model,
+                const Eigen::Isometry3d& T_M_P, const Eigen::Isometry3d& T_M_C_init,
+                const IcpConfig& config, const PhotometricInput* ph) {
     IcpResult result;
     Eigen::Isometry3d T = T_M_C_init;
     const Eigen::Isometry3d T_P_M = T_M_P.inverse();
@@ -372,17 +403,27 @@ IcpResult alignFrameToModel(const FramePyramid& frame, const std::vector<ModelLe
     const Eigen::Isometry3d T_prior =
         lie::expSE3(config.weak_motion_decay * lie::logSE3(T_M_C_init * T_P_M)) * T_M_P;
     const int num_levels = static_cast<int>(frame.levels.size());
+    const bool affine = ph != nullptr && ph->config.affine_brightness;
+    Brightness br;
+    if (affine) {
+        // The brightness of the frame at the start pose, from the coarsest level.
+        const size_t l = static_cast<size_t>(num_levels - 1);
+        br = buildPhotometricSystem(ph->reference->levels[l], (*ph->current)[l], ph->T_M_R, T, br,
+                                    ph->config, config.num_threads)
+                 .brightness;
+    }
     // The finest level's system of the last iteration, when that iteration converged: the pose
     // then moved by less than min_update_norm and the system is the final statistics.
-    std::optional<Accumulator> converged;
+    std::optional<LevelSystem> converged;
     for (int l = num_levels - 1; l >= 0; --l) {
         const int iterations = l < 3 ? config.iterations[static_cast<size_t>(l)] : 4;
-        const PyramidLevel& level = frame.levels[static_cast<size_t>(l)];
         for (int it = 0; it < iterations; ++it) {
-            Accumulator sys = buildSystem(level, model[static_cast<size_t>(l)], T, T_P_M, config);
-            if (sys.count < 6) break;
+            LevelSystem sys =
+                buildLevelSystem(frame, model, static_cast<size_t>(l), T, T_P_M, config, ph, br);
+            if (sys.combined.count < 6) break;
             ++result.iterations;
-            const Vector6d xi = solveStep(sys, lie::logSE3(T_prior * T.inverse()), config);
+            if (affine) br = sys.photo.brightness;
+            const Vector6d xi = solveStep(sys.combined, lie::logSE3(T_prior * T.inverse()), config);
             if (!xi.allFinite()) break;
             T = lie::orthonormalized(lie::expSE3(xi) * T);
             if (xi.norm() < config.min_update_norm) {
@@ -392,14 +433,27 @@ IcpResult alignFrameToModel(const FramePyramid& frame, const std::vector<ModelLe
         }
     }
     // Final statistics at the finest level, at the final pose.
-    const Accumulator last =
-        converged ? *converged : buildSystem(frame.levels[0], model[0], T, T_P_M, config);
+    const LevelSystem final_sys =
+        converged ? *converged : buildLevelSystem(frame, model, 0, T, T_P_M, config, ph, br);
+    const Accumulator& last = final_sys.combined;
     result.T_M_C = T;
+    if (ph != nullptr) {
+        PhotometricStats& st = result.photometric;
+        const PhotometricSystem& p = final_sys.photo;
+        st.used = true;
+        st.num_selected = ph->reference->num_selected;
+        st.num_visible = p.num_visible;
+        st.num_inliers = p.num_inliers;
+        st.inlier_fraction =
+            p.num_visible > 0 ? static_cast<double>(p.num_inliers) / p.num_visible : 0.0;
+        st.rmse = p.num_used > 0 ? std::sqrt(p.r2 / p.num_used) : 0.0;
+        st.brightness = br;
+    }
     result.num_inliers = last.count;
     result.num_valid = countValidNormals(frame.levels[0]);
     result.inlier_fraction =
         result.num_valid > 0 ? static_cast<double>(last.count) / result.num_valid : 0.0;
-    result.rmse_m = last.count > 0 ? std::sqrt(last.r2 / last.count) : 0.0;
+    result.rmse_m = last.count > 0 ? std::sqrt(final_sys.icp_r2 / last.count) : 0.0;
     result.information = last.JtJ;
     const Eigen::SelfAdjointEigenSolver<Matrix6d> eig(last.JtJ, Eigen::EigenvaluesOnly);
     const double min_ev = eig.eigenvalues()(0), max_ev = eig.eigenvalues()(5);
@@ -440,6 +494,48 @@ IcpResult alignFrameToModel(const FramePyramid& frame, const std::vector<ModelLe
         result.failure = "implausible motion: turned " + std::to_string(turned_deg) + " deg";
     }
     result.ok = result.failure.empty();
+    return result;
+}
+
+}  // namespace
+
+IcpResult alignFrameToModel(const FramePyramid& frame, const std::vector<ModelLevel>& model,
+                            const Eigen::Isometry3d& T_M_P, const Eigen::Isometry3d& T_M_C_init,
+                            const IcpConfig& config, const PhotometricInput* photometric) {
+    PLUMB_CHECK(!frame.levels.empty() && frame.levels.size() == model.size())
+        << "frame has " << frame.levels.size() << " levels, model " << model.size();
+    const PhotometricInput* ph = nullptr;
+    std::string fallback;
+    if (photometric != nullptr && photometric->current != nullptr &&
+        photometric->reference != nullptr) {
+        const PhotometricReference& ref = *photometric->reference;
+        PLUMB_CHECK(photometric->current->size() == frame.levels.size() &&
+                    ref.levels.size() == frame.levels.size())
+            << "photometric levels do not match the frame pyramid";
+        if (ref.num_selected < static_cast<size_t>(photometric->config.min_points)) {
+            fallback = "too little texture: " + std::to_string(ref.num_selected) +
+                       " textured pixels in the reference (min_points " +
+                       std::to_string(photometric->config.min_points) + ")";
+        } else {
+            ph = photometric;
+        }
+    }
+    IcpResult result = align(frame, model, T_M_P, T_M_C_init, config, ph);
+    if (ph != nullptr && result.photometric.inlier_fraction < ph->config.min_inlier_fraction) {
+        // The image disagrees with itself (exposure jump, blur, moving objects): depth only.
+        PhotometricStats stats = result.photometric;
+        char pct[32];
+        std::snprintf(pct, sizeof pct, "%.0f%%", 100.0 * stats.inlier_fraction);
+        fallback = std::string("photometric term rejected: ") + pct + " of " +
+                   std::to_string(stats.num_visible) +
+                   " reference points agree (exposure change, blur or motion)";
+        result = align(frame, model, T_M_P, T_M_C_init, config, nullptr);
+        result.photometric = stats;
+        result.photometric.used = false;
+    } else if (photometric != nullptr && photometric->reference != nullptr && ph == nullptr) {
+        result.photometric.num_selected = photometric->reference->num_selected;
+    }
+    result.photometric.fallback = fallback;
     return result;
 }
 

@@ -15,6 +15,7 @@
 #include "common/tsdf/raycast.hpp"
 #include "common/tsdf/tsdf_volume.hpp"
 #include "device/preprocess/preprocess.hpp"
+#include "device/tracking/photometric.hpp"
 
 namespace plumb::device {
 
@@ -91,6 +92,27 @@ std::vector<ModelLevel> predictModel(const tsdf::TsdfVolume& volume, const Frame
                                      const tsdf::RaycastConfig& config, int raycast_level = 0,
                                      const DepthImage* start_hint = nullptr);
 
+/// The photometric term of one frame (device/tracking/photometric.hpp): the current frame's
+/// intensity pyramid and an earlier tracked frame R as the reference, seen from T_M_R.
+struct PhotometricInput {
+    const std::vector<IntensityLevel>* current = nullptr;  ///< levels as the frame pyramid
+    const PhotometricReference* reference = nullptr;
+    Eigen::Isometry3d T_M_R = Eigen::Isometry3d::Identity();
+    PhotometricConfig config;
+};
+
+/// What the photometric term did for one frame.
+struct PhotometricStats {
+    bool used = false;             ///< the final pose is from the combined RGB-D system
+    std::string fallback;          ///< why the frame was tracked by depth only (empty when used)
+    size_t num_selected = 0;       ///< reference pixels with a strong gradient (full resolution)
+    size_t num_visible = 0;        ///< reference points landing in the frame (finest level)
+    size_t num_inliers = 0;        ///< of them with |r| <= huber_delta at the final pose
+    double inlier_fraction = 0.0;  ///< num_inliers / num_visible
+    double rmse = 0.0;             ///< RMS Huber-weighted intensity residual of the used points
+    Brightness brightness;         ///< affine brightness of the frame against the reference
+};
+
 struct IcpResult {
     Eigen::Isometry3d T_M_C = Eigen::Isometry3d::Identity();  ///< estimated camera pose
     bool ok = false;         ///< converged and passed every failure test
@@ -108,15 +130,26 @@ struct IcpResult {
     Eigen::Vector3d translation_spread = Eigen::Vector3d::Zero();
     /// The matching eigenvectors (columns) in the model frame M.
     Eigen::Matrix3d translation_axes_M = Eigen::Matrix3d::Identity();
-    Matrix6d information = Matrix6d::Zero();  ///< J^T J at the finest level (rotation first)
+    /// J^T J at the finest level (rotation first), in point-to-plane units (1 / m^2 of the
+    /// point-to-plane residual): with colour, the photometric term's share is weighed in.
+    Matrix6d information = Matrix6d::Zero();
+    PhotometricStats photometric;  ///< the photometric term (unused without colour)
 };
 
 /// Aligns the frame to the model. T_M_P is the pose the model was raycast from (data association
 /// projects into that view); T_M_C_init is the starting estimate (usually T_M_P). Each iteration
 /// solves (sum J^T J) xi = -sum J^T r with r = n^T (x - v), J = [(x x n)^T, n^T] and applies
 /// T <- Exp(xi) T. Deterministic for every thread count.
+///
+/// With `photometric` (RGB-D tracking, reference §7b.1) every level's system becomes
+/// J_g^T J_g + w J_I^T W J_I with w = lambda (depth_sigma_m / intensity_sigma)^2: the
+/// intensity residuals count in metres of point-to-plane residual, so the observability tests
+/// (min_normal_spread, min_normalized_eigenvalue) and `information` see what the combined system
+/// constrains. The frame falls back to depth only (PhotometricStats::fallback says why) when the
+/// reference has fewer than min_points textured pixels, or when at the final pose fewer than
+/// min_inlier_fraction of its visible points agree (then the alignment is redone without it).
 IcpResult alignFrameToModel(const FramePyramid& frame, const std::vector<ModelLevel>& model,
                             const Eigen::Isometry3d& T_M_P, const Eigen::Isometry3d& T_M_C_init,
-                            const IcpConfig& config);
+                            const IcpConfig& config, const PhotometricInput* photometric = nullptr);
 
 }  // namespace plumb::device

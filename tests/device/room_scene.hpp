@@ -81,6 +81,35 @@ struct Scene {
     }
 };
 
+/// A smooth albedo in [0.15, 0.85] of a world point: sinusoids of 7 to 31 cm wavelength (strong
+/// gradients at 1-3 m without aliasing at 320 px).
+inline double texture(const Eigen::Vector3d& p) {
+    constexpr double k = 2.0 * 3.14159265358979323846;
+    return 0.5 + 0.2 * std::sin(k * p.x() / 0.23) * std::sin(k * (p.y() + 0.5 * p.z()) / 0.17) +
+           0.1 * std::sin(k * (p.x() + 0.7 * p.y() - 0.4 * p.z()) / 0.07) +
+           0.05 * std::cos(k * (p.z() - p.x()) / 0.31);
+}
+
+/// Colour image of `scene` seen from T_W_C: grey `albedo(p)` at the hit point p (uniform 0.5
+/// when `albedo` is null), times `gain`.
+inline ColourImage renderColour(const Scene& scene, const PinholeCamera& cam,
+                                const Eigen::Isometry3d& T_W_C,
+                                double (*albedo)(const Eigen::Vector3d&) = texture,
+                                double gain = 1.0) {
+    ColourImage out(cam.width, cam.height);
+    for (int v = 0; v < cam.height; ++v) {
+        for (int u = 0; u < cam.width; ++u) {
+            const Eigen::Vector3d r = T_W_C.linear() * cam.ray(u, v);
+            const std::optional<double> t = scene.hit(T_W_C.translation(), r);
+            if (!t) continue;
+            const double a = albedo != nullptr ? albedo(T_W_C.translation() + *t * r) : 0.5;
+            const auto g = static_cast<uint8_t>(std::clamp(255.0 * a * gain + 0.5, 0.0, 255.0));
+            out(u, v) = {g, g, g};
+        }
+    }
+    return out;
+}
+
 /// Camera at `eye` looking at `target` (z forward; x chosen perpendicular to world y or x).
 inline Eigen::Isometry3d lookAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target) {
     const Eigen::Vector3d z = (target - eye).normalized();
