@@ -121,7 +121,16 @@ class Neighbourhood {
             const int32_t b = volume.findBlock(k);
             blocks_[static_cast<size_t>(i)] =
                 b == BlockHashMap::kNotFound ? nullptr : volume.blockVoxels(b);
+            colours_[static_cast<size_t>(i)] =
+                b == BlockHashMap::kNotFound ? nullptr : volume.blockColours(b);
         }
+    }
+    /// Colour of the voxel at local (x, y, z), or nullptr (block missing, volume without colour).
+    const VoxelColour* colourAt(int x, int y, int z) const {
+        const int i = (x >> 3) | ((y >> 3) << 1) | ((z >> 3) << 2);
+        const VoxelColour* b = colours_[static_cast<size_t>(i)];
+        if (b == nullptr) return nullptr;
+        return b + (x & 7) + 8 * (y & 7) + 64 * (z & 7);
     }
     /// Voxel at local coordinates (x, y, z) in [0, 8]^3, or nullptr if its block is missing.
     const Voxel* at(int x, int y, int z) const {
@@ -133,11 +142,26 @@ class Neighbourhood {
 
   private:
     std::array<const Voxel*, 8> blocks_{};
+    std::array<const VoxelColour*, 8> colours_{};
 };
+
+/// Colour at fraction `frac` of the edge from voxel colour a to b (either may be unobserved);
+/// mid grey when neither holds colour.
+Color3u8 edgeColour(const VoxelColour* a, const VoxelColour* b, float frac) {
+    const bool ha = a != nullptr && a->weight > 0, hb = b != nullptr && b->weight > 0;
+    if (!ha && !hb) return Color3u8(128, 128, 128);
+    if (!hb) return Color3u8(a->r, a->g, a->b);
+    if (!ha) return Color3u8(b->r, b->g, b->b);
+    auto lerp = [frac](uint8_t x, uint8_t y) {
+        return static_cast<uint8_t>(std::lround(x + frac * (static_cast<float>(y) - x)));
+    };
+    return Color3u8(lerp(a->r, b->r), lerp(a->g, b->g), lerp(a->b, b->b));
+}
 
 struct BlockSurface {
     std::vector<Eigen::Vector3f> points;
     std::vector<Eigen::Vector3f> normals;
+    std::vector<Color3u8> colours;     ///< one per point when the volume has colour
     std::vector<int32_t> edge_vertex;  ///< per voxel and axis: local vertex index or -1
 };
 
@@ -178,6 +202,12 @@ std::vector<BlockSurface> computeEdgeVertices(const TsdfVolume& volume, const Su
                         }
                         s.points.push_back(p);
                         s.normals.push_back(grad.normalized());
+                        if (volume.hasColour()) {
+                            s.colours.push_back(edgeColour(
+                                nb.colourAt(x, y, z),
+                                nb.colourAt(x + (axis == 0), y + (axis == 1), z + (axis == 2)),
+                                frac));
+                        }
                     }
                 }
             }
@@ -193,10 +223,11 @@ PointCloud extractSurfacePoints(const TsdfVolume& volume, const SurfaceConfig& c
     PointCloud cloud;
     size_t n = 0;
     for (const auto& b : blocks) n += b.points.size();
-    cloud.reserve(n, true, false);
+    cloud.reserve(n, true, volume.hasColour());
     for (const auto& b : blocks) {
         cloud.points.insert(cloud.points.end(), b.points.begin(), b.points.end());
         cloud.normals.insert(cloud.normals.end(), b.normals.begin(), b.normals.end());
+        cloud.colors.insert(cloud.colors.end(), b.colours.begin(), b.colours.end());
     }
     return cloud;
 }
@@ -264,6 +295,7 @@ TriangleMesh extractMesh(const TsdfVolume& volume, const SurfaceConfig& config) 
     for (const auto& b : blocks) {
         mesh.vertices.insert(mesh.vertices.end(), b.points.begin(), b.points.end());
         mesh.normals.insert(mesh.normals.end(), b.normals.begin(), b.normals.end());
+        mesh.colors.insert(mesh.colors.end(), b.colours.begin(), b.colours.end());
     }
     for (const auto& t : block_triangles)
         mesh.triangles.insert(mesh.triangles.end(), t.begin(), t.end());

@@ -25,7 +25,8 @@ struct SurfaceConfig {
 /// Every zero crossing on a voxel edge between two observed voxels, linearly interpolated, with
 /// the unit TSDF gradient as normal (pointing into free space). Points whose gradient cannot be
 /// evaluated (an unobserved neighbour) are left out. Order: block allocation order, then voxel,
-/// then axis: deterministic.
+/// then axis: deterministic. A volume with colour gives every point the colour of its edge's two
+/// voxels, interpolated like the position (mid grey where neither voxel holds colour).
 PointCloud extractSurfacePoints(const TsdfVolume& volume, const SurfaceConfig& config = {});
 
 /// Marching-cubes mesh whose vertices are exactly extractSurfacePoints(volume, config).

@@ -24,6 +24,11 @@ void describe(config::Schema& s, TsdfConfig& c) {
     s.field("allocation_stride_px", c.allocation_stride_px,
             "pixel stride of block allocation (1 = every pixel)", "px")
         .range(1, 8);
+    s.field("colour_band", c.colour_band,
+            "colour is fused into voxels within this fraction of the truncation from the "
+            "measured surface")
+        .greaterThan(0.0)
+        .max(1.0);
     s.field("num_threads", c.num_threads, "worker threads (0 = all); results do not depend on it")
         .min(0);
 }

@@ -26,19 +26,24 @@ struct RowIntegrator {
     int width, height;
     float fx, fy, cx, cy;
     float mu, inv_mu, min_d, max_d, max_w;
+    const Rgb8* colour = nullptr;  ///< registered to depth; null: depth only
+    float colour_band_m = 0.0f;    ///< colour where |sdf| <= this
 
     /// Fuses kRows consecutive rows of 8 voxels, row[0 .. 8 kRows - 1], where voxel k of row j
     /// has its centre at p[j] + k dx, §2.3: the projective distance sdf = D(u) - z, truncated to
     /// min(1, sdf / mu), skipped below -mu, running average with unit weight saturating at
     /// max_w. The rows' groups of 4 lanes go through each step together, so their long
     /// dependency chains (a division, the depth lookup, another division) overlap. No branch.
+    /// With `colours` (the rows' voxel colours) lanes that pass and lie within the colour band
+    /// also average the pixel's colour (§7b.2); the TSDF values are the same either way.
     template <int kRows>
-    void fuseRows(Voxel* row, const Eigen::Vector3f* p, const Eigen::Vector3f& dx) const {
+    void fuseRows(Voxel* row, const Eigen::Vector3f* p, const Eigen::Vector3f& dx,
+                  VoxelColour* colours = nullptr) const {
         constexpr int kGroups = 2 * kRows;  // group g: voxels 4 (g & 1) .. + 3 of row g / 2
         const Float4 lanes[2] = {{0.0f, 1.0f, 2.0f, 3.0f}, {4.0f, 5.0f, 6.0f, 7.0f}};
         const Float4 zero = {0.0f, 0.0f, 0.0f, 0.0f};
         Float4 pz[kGroups], d[kGroups];
-        Int4 in[kGroups];
+        Int4 in[kGroups], pixels[kGroups];
         for (int g = 0; g < kGroups; ++g) {
             const Eigen::Vector3f& o = p[g / 2];
             const Float4 px = o.x() + lanes[g & 1] * dx.x();
@@ -57,6 +62,7 @@ struct RowIntegrator {
             const Float4 v =
                 __builtin_convertvector(__builtin_convertvector(in[g] ? vf : zero, Int4), Float4);
             const Int4 pixel = __builtin_convertvector(v * static_cast<float>(width) + u, Int4);
+            pixels[g] = pixel;
             d[g] = Float4{depth[pixel[0]], depth[pixel[1]], depth[pixel[2]], depth[pixel[3]]};
             d[g] = in[g] ? d[g] : zero;
         }
@@ -74,8 +80,25 @@ struct RowIntegrator {
             const Float4 new_w = ok ? (max_w < w1 ? Float4{max_w, max_w, max_w, max_w} : w1) : w;
             vox[2 * g] = __builtin_shuffle(new_tsdf, new_w, Int4{0, 4, 1, 5});
             vox[2 * g + 1] = __builtin_shuffle(new_tsdf, new_w, Int4{2, 6, 3, 7});
+            if (colours != nullptr) {
+                const Float4 abs_sdf = sdf < 0.0f ? -sdf : sdf;
+                const Int4 near = ok & (abs_sdf <= colour_band_m);
+                for (int k = 0; k < 4; ++k) {
+                    if (near[k]) blendColour(colour[pixels[g][k]], &colours[4 * g + k]);
+                }
+            }
         }
         std::memcpy(static_cast<void*>(row), vox, sizeof(vox));
+    }
+
+    /// C <- (W C + c) / (W + 1), rounded to nearest, W saturating at max_w.
+    void blendColour(const Rgb8& c, VoxelColour* v) const {
+        const int w = v->weight;
+        const int w1 = w + 1;
+        v->r = static_cast<uint8_t>((w * v->r + c.r + w1 / 2) / w1);
+        v->g = static_cast<uint8_t>((w * v->g + c.g + w1 / 2) / w1);
+        v->b = static_cast<uint8_t>((w * v->b + c.b + w1 / 2) / w1);
+        if (static_cast<float>(w1) <= max_w && w1 <= 255) v->weight = static_cast<uint8_t>(w1);
     }
 };
 
@@ -170,6 +193,9 @@ Status TsdfConfig::validate() const {
     if (allocation_stride_px < 1 || allocation_stride_px > 8) {
         return invalidArgument("tsdf: allocation_stride_px must be in [1, 8]");
     }
+    if (!(colour_band > 0.0f && colour_band <= 1.0f)) {
+        return invalidArgument("tsdf: colour_band must be in (0, 1]");
+    }
     if (num_threads < 0) return invalidArgument("tsdf: num_threads must be >= 0");
     return Status::ok();
 }
@@ -183,6 +209,8 @@ void TsdfVolume::clear() {
     hash_.clear();
     block_keys_.clear();
     voxels_.clear();
+    colours_.clear();
+    has_colour_ = false;
     stamps_.clear();
 }
 
@@ -245,11 +273,19 @@ size_t TsdfVolume::countNewBlocks(const DepthImage& depth, const PinholeCamera& 
 }
 
 Result<IntegrationStats> TsdfVolume::integrate(const DepthImage& depth, const PinholeCamera& camera,
-                                               const Eigen::Isometry3d& T_V_C) {
+                                               const Eigen::Isometry3d& T_V_C,
+                                               const ColourImage* colour) {
     if (depth.width() != camera.width || depth.height() != camera.height) {
         return invalidArgument("tsdf integrate: depth is " + std::to_string(depth.width()) + "x" +
                                std::to_string(depth.height()) + " but the camera is " +
                                camera.toString());
+    }
+    if (colour != nullptr &&
+        (colour->width() != depth.width() || colour->height() != depth.height())) {
+        return invalidArgument("tsdf integrate: colour is " + std::to_string(colour->width()) +
+                               "x" + std::to_string(colour->height()) + " but depth is " +
+                               std::to_string(depth.width()) + "x" +
+                               std::to_string(depth.height()));
     }
     if (!lie::isValidPose(T_V_C, 1e-4)) {
         return invalidArgument("tsdf integrate: camera pose is not a finite rigid transform");
@@ -273,8 +309,15 @@ Result<IntegrationStats> TsdfVolume::integrate(const DepthImage& depth, const Pi
                                   std::to_string(block_keys_.size()) + " allocated, frame needs " +
                                   std::to_string(num_new) + " more)");
     }
+    if (colour != nullptr && !has_colour_) {
+        has_colour_ = true;  // from now on every block carries colour; older voxels have none
+        colours_.assign(voxels_.size(), VoxelColour{});
+    }
     const size_t needed = voxels_.size() + num_new * kBlockVoxels;
     if (needed > voxels_.capacity()) voxels_.reserve(std::max(needed, 2 * voxels_.capacity()));
+    if (has_colour_ && needed > colours_.capacity()) {
+        colours_.reserve(std::max(needed, 2 * colours_.capacity()));
+    }
     for (const BlockKey& key : fresh) {
         const int32_t index = allocateBlock(key);
         stamps_[static_cast<size_t>(index)] = frame_stamp_;
@@ -311,12 +354,17 @@ Result<IntegrationStats> TsdfVolume::integrate(const DepthImage& depth, const Pi
     fuse.min_d = config_.min_depth_m;
     fuse.max_d = config_.max_depth_m;
     fuse.max_w = config_.max_weight;
+    fuse.colour = colour != nullptr ? colour->data() : nullptr;
+    fuse.colour_band_m = config_.colour_band * config_.truncation_m;
     static_assert(kBlockSide == 8, "rows are fused 8 voxels at a time");
 
     parallelFor(config_.num_threads, static_cast<int>(indices.size()), [&](int i) {
         const int32_t index = indices[static_cast<size_t>(i)];
         const BlockKey& key = block_keys_[static_cast<size_t>(index)];
         Voxel* voxels = blockVoxels(index);
+        VoxelColour* colours = colour != nullptr
+                                   ? colours_.data() + static_cast<size_t>(index) * kBlockVoxels
+                                   : nullptr;
         const Eigen::Vector3f origin_V = (key * kBlockSide).cast<float>() * vs;
         const Eigen::Vector3f base = R * origin_V + t;
         // Local copies: the voxel stores (floats) could otherwise alias the parameters, which
@@ -331,7 +379,8 @@ Result<IntegrationStats> TsdfVolume::integrate(const DepthImage& depth, const Pi
                     p[j] =
                         base + static_cast<float>(z) * step_z + static_cast<float>(y + j) * step_y;
                 }
-                f.fuseRows<kRows>(voxels + z * 64 + y * 8, p, step_x);
+                f.fuseRows<kRows>(voxels + z * 64 + y * 8, p, step_x,
+                                  colours != nullptr ? colours + z * 64 + y * 8 : nullptr);
             }
         }
     });
@@ -347,6 +396,7 @@ int32_t TsdfVolume::allocateBlock(const BlockKey& key) {
     block_keys_.push_back(key);
     stamps_.push_back(0);
     voxels_.resize(voxels_.size() + kBlockVoxels);
+    if (has_colour_) colours_.resize(voxels_.size());
     return index;
 }
 
@@ -500,6 +550,30 @@ bool gradientWith(const Eigen::Vector3f& p, float voxel_size, float min_weight, 
 }
 
 }  // namespace
+
+bool TsdfVolume::interpolateColour(const Eigen::Vector3f& p, Eigen::Vector3f* rgb) const {
+    if (!has_colour_) return false;
+    const Eigen::Vector3f q = p / config_.voxel_size_m;
+    const Eigen::Vector3i g0 = floorVec(q);
+    const Eigen::Vector3f f = q - g0.cast<float>();
+    Eigen::Vector3f sum = Eigen::Vector3f::Zero();
+    float wsum = 0.0f;
+    for (int k = 0; k < 8; ++k) {
+        const Eigen::Vector3i g = g0 + Eigen::Vector3i(k & 1, (k >> 1) & 1, (k >> 2) & 1);
+        const int32_t b = findBlock(blockOf(g));
+        if (b == BlockHashMap::kNotFound) continue;
+        const VoxelColour& c = colours_[static_cast<size_t>(b) * kBlockVoxels +
+                                        static_cast<size_t>(voxelIndexInBlock(g))];
+        if (c.weight == 0) continue;
+        const float w = ((k & 1) ? f.x() : 1.0f - f.x()) * ((k & 2) ? f.y() : 1.0f - f.y()) *
+                        ((k & 4) ? f.z() : 1.0f - f.z());
+        sum += w * Eigen::Vector3f(c.r, c.g, c.b);
+        wsum += w;
+    }
+    if (!(wsum > 1e-6f)) return false;
+    *rgb = sum / wsum;
+    return true;
+}
 
 bool TsdfVolume::interpolate(const Eigen::Vector3f& p, float min_weight, float* tsdf) const {
     return interpolateWith(p, config_.voxel_size_m, min_weight, HashFind{this}, tsdf) ==

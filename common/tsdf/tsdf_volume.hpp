@@ -3,7 +3,9 @@
 
 // Voxel-hashed truncated signed distance volume (reference §2.3, §2.5). Space is cut into blocks of
 // 8^3 voxels; only blocks near observed surfaces exist. A voxel holds a float TSDF value in [-1, 1]
-// (signed distance / truncation, positive in free space) and a float weight: 8 bytes.
+// (signed distance / truncation, positive in free space) and a float weight: 8 bytes. A volume
+// fused with colour (reference §7b.2) also holds, beside every voxel, an 8-bit RGB running average
+// and its weight (VoxelColour, 4 bytes); a volume fused from depth alone allocates none.
 //
 // Grid convention: voxel g = (i, j, k) (global integer index) has its centre at g * voxel_size_m in
 // the volume's frame V (the world frame of the poses passed to integrate()). Block key b holds the
@@ -34,6 +36,15 @@ struct Voxel {
 };
 static_assert(sizeof(Voxel) == 8, "a voxel must stay 8 bytes");
 
+/// Colour of a voxel near the surface: running average C <- (W C + c) / (W + 1), rounded.
+struct VoxelColour {
+    uint8_t r = 0;
+    uint8_t g = 0;
+    uint8_t b = 0;
+    uint8_t weight = 0;  ///< observations averaged (saturating at TsdfConfig::max_weight); 0 = none
+};
+static_assert(sizeof(VoxelColour) == 4, "a voxel colour must stay 4 bytes");
+
 class BlockCache;
 
 /// What a trilinear sample found (TsdfVolume::sample).
@@ -60,6 +71,10 @@ struct TsdfConfig {
     /// Pixel stride of block allocation (1 = every pixel). Blocks are 8 voxels wide, so a stride
     /// of 2 still touches every block a surface passes through at normal range.
     int allocation_stride_px = 2;
+    /// Colour is fused into voxels within this fraction of the truncation from the measured
+    /// surface (|sdf| <= colour_band * truncation_m): the voxels that surface points and mesh
+    /// vertices interpolate, not the free space in front or the far side.
+    float colour_band = 0.5f;
     /// Worker threads (0 = TBB default). Results do not depend on it.
     int num_threads = 0;
 
@@ -87,8 +102,11 @@ class TsdfVolume {
     /// sdf = D(u) - z_C, skipped when sdf < -mu; F <- (W F + min(1, sdf/mu)) / (W + 1).
     /// Fails with kFailedPrecondition (volume unchanged) when the block budget would be exceeded,
     /// and with kInvalidArgument when the image size does not match the camera.
+    /// With `colour` (registered to `depth`, same size) voxels within the colour band of the
+    /// measured surface also average the pixel's colour; the TSDF values are the same as without.
     Result<IntegrationStats> integrate(const DepthImage& depth, const PinholeCamera& camera,
-                                       const Eigen::Isometry3d& T_V_C);
+                                       const Eigen::Isometry3d& T_V_C,
+                                       const ColourImage* colour = nullptr);
 
     /// Number of blocks the frame would add to the volume (for budget checks), without changing it.
     size_t countNewBlocks(const DepthImage& depth, const PinholeCamera& camera,
@@ -102,7 +120,11 @@ class TsdfVolume {
     void clear();
 
     size_t numBlocks() const { return block_keys_.size(); }
-    size_t memoryBytes() const { return voxels_.size() * sizeof(Voxel); }
+    size_t memoryBytes() const {
+        return voxels_.size() * sizeof(Voxel) + colours_.size() * sizeof(VoxelColour);
+    }
+    /// True once a frame with colour was fused (until clear()).
+    bool hasColour() const { return has_colour_; }
     const std::vector<BlockKey>& blockKeys() const { return block_keys_; }
 
     /// Index of block `key` or -1.
@@ -114,6 +136,15 @@ class TsdfVolume {
     Voxel* blockVoxels(int32_t index) {
         return voxels_.data() + static_cast<size_t>(index) * kBlockVoxels;
     }
+
+    /// The 512 voxel colours of block `index`, or nullptr when the volume has no colour.
+    const VoxelColour* blockColours(int32_t index) const {
+        return has_colour_ ? colours_.data() + static_cast<size_t>(index) * kBlockVoxels : nullptr;
+    }
+
+    /// Trilinear colour at p (volume frame, metres) over the voxels of p's cell that hold colour,
+    /// RGB in [0, 255]. False when the volume has no colour or no voxel of the cell has any.
+    bool interpolateColour(const Eigen::Vector3f& p, Eigen::Vector3f* rgb) const;
 
     /// The voxel at global index g, or nullptr when its block does not exist.
     const Voxel* voxel(const Eigen::Vector3i& g) const;
@@ -143,6 +174,8 @@ class TsdfVolume {
     BlockHashMap hash_;
     std::vector<BlockKey> block_keys_;  ///< key of block i
     std::vector<Voxel> voxels_;         ///< block i occupies [i * 512, (i + 1) * 512)
+    std::vector<VoxelColour> colours_;  ///< as voxels_ when has_colour_, else empty
+    bool has_colour_ = false;
     /// Per block: the integrate() call (frame_stamp_) that last saw it. Written by
     /// collectBlocks() under integrate()'s exclusive access only.
     mutable std::vector<uint32_t> stamps_;

@@ -93,7 +93,7 @@ Fragment FragmentBuilder::closeFragment(FragmentEnd end, FrameTiming* timing) {
 bool FragmentBuilder::integrate(const FramePyramid& pyramid, const Eigen::Isometry3d& T_F_C,
                                 FrameReport* report) {
     const Clock::time_point t0 = Clock::now();
-    Result<tsdf::IntegrationStats> r = volume_.integrate(pyramid.depth, camera_, T_F_C);
+    Result<tsdf::IntegrationStats> r = volume_.integrate(pyramid.depth, camera_, T_F_C, colour_);
     report->timing.integrate_ms += msSince(t0);
     if (!r.isOk()) {
         report->message += (report->message.empty() ? "" : "; ") + r.status().message();
@@ -127,19 +127,21 @@ Result<FrameReport> FragmentBuilder::processImpl(const Frame& frame) {
                       "frame " + std::to_string(frame.index) + ": " + pyr.status().message());
     }
     const FramePyramid& pyramid = pyr.value();
+    if (!frame.colour.empty() &&
+        (frame.colour.width() != camera_.width || frame.colour.height() != camera_.height)) {
+        return invalidArgument("frame " + std::to_string(frame.index) + ": colour is " +
+                               std::to_string(frame.colour.width()) + "x" +
+                               std::to_string(frame.colour.height()) + " but the camera is " +
+                               camera_.toString());
+    }
     std::vector<IntensityLevel> intensity;  // empty: track by depth only
     if (config_.tracking.enabled && !frame.colour.empty()) {
-        if (frame.colour.width() != camera_.width || frame.colour.height() != camera_.height) {
-            return invalidArgument("frame " + std::to_string(frame.index) + ": colour is " +
-                                   std::to_string(frame.colour.width()) + "x" +
-                                   std::to_string(frame.colour.height()) + " but the camera is " +
-                                   camera_.toString());
-        }
         intensity = buildIntensityPyramid(frame.colour, pyramid, config_.tracking);
     }
     FrameReport report;
     report.frame_index = frame.index;
     report.timing.preprocess_ms = msSince(t_pre);
+    colour_ = config_.fuse_colour && !frame.colour.empty() ? &frame.colour : nullptr;
 
     if (first_frame_ || !have_model_) {
         // Start of the stream, or nothing to track against: begin here at the best known pose.

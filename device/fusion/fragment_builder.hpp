@@ -67,6 +67,9 @@ struct FusionConfig {
     PreprocessConfig preprocess;
     /// Frame-to-model ICP and its failure tests.
     IcpConfig icp;
+    /// Fuse the frames' colour into the fragment volumes (coloured fragment points), when the
+    /// frames have colour.
+    bool fuse_colour = true;
     /// RGB-D tracking: the photometric term against the last tracked frame, used when the
     /// frame has colour (reference §7b.1).
     PhotometricConfig tracking;
@@ -132,6 +135,7 @@ class FragmentBuilder {
 
     PinholeCamera camera_;
     FusionConfig config_;
+    const ColourImage* colour_ = nullptr;  ///< colour of the frame being processed, to fuse
     tsdf::TsdfVolume volume_;
     tsdf::TsdfVolume previous_volume_;  ///< the last fragment's volume during a handover
     bool handover_ = false;             ///< previous_volume_ is the tracking model

@@ -154,6 +154,9 @@ void describe(config::Schema& s, FusionConfig& c) {
     s.section("surface", c.surface, "oriented surface points of a closed fragment");
     s.section("preprocess", c.preprocess, "per-frame filtering, vertex/normal maps, pyramid");
     s.section("icp", c.icp, "frame-to-model projective point-to-plane ICP and its failure tests");
+    s.field("fuse_colour", c.fuse_colour,
+            "fuse the frames' colour into the fragment volumes (coloured fragment points) when "
+            "the source has colour");
     s.section("tracking", c.tracking,
               "RGB-D tracking: the photometric term against the last tracked frame, on when the "
               "source has colour");

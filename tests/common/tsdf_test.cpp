@@ -180,6 +180,74 @@ TEST(TsdfVolume, FrontoParallelPlaneSurfaceAndRaycastAreUnbiased) {
     }
 }
 
+/// A colour that varies smoothly over the world: 3 levels per centimetre in red and green.
+Rgb8 worldColour(const Eigen::Vector3d& p) {
+    auto level = [](double x) { return static_cast<uint8_t>(std::clamp(x, 0.0, 255.0)); };
+    return {level(128.0 + 300.0 * p.x()), level(128.0 + 300.0 * p.y()), 60};
+}
+
+TEST(TsdfVolume, ColourFollowsTheSurfaceAndLeavesTheTsdfUnchanged) {
+    const PinholeCamera cam = smallCamera();
+    const Plane plane{Eigen::Vector3d(0, 0, -1), 1.5};
+    TsdfVolume coloured(testConfig()), plain(testConfig());
+    for (int k = 0; k < 10; ++k) {
+        const Eigen::Isometry3d T_W_C = jitter(k);
+        const DepthImage depth =
+            render(cam, T_W_C, [&](auto o, auto r) { return hitPlane(plane, o, r); });
+        ColourImage colour(cam.width, cam.height);
+        for (int v = 0; v < cam.height; ++v) {
+            for (int u = 0; u < cam.width; ++u) {
+                const Eigen::Vector3d r = T_W_C.linear() * cam.ray(u, v);
+                if (depth(u, v) > 0.0f) {
+                    colour(u, v) = worldColour(T_W_C.translation() + depth(u, v) * r);
+                }
+            }
+        }
+        ASSERT_TRUE(coloured.integrate(depth, cam, T_W_C, &colour).isOk());
+        ASSERT_TRUE(plain.integrate(depth, cam, T_W_C).isOk());
+    }
+    EXPECT_TRUE(coloured.hasColour());
+    EXPECT_FALSE(plain.hasColour());
+    // The TSDF is the same bit for bit: colour rides along.
+    ASSERT_EQ(coloured.numBlocks(), plain.numBlocks());
+    for (size_t b = 0; b < coloured.numBlocks(); ++b) {
+        const Voxel* a = coloured.blockVoxels(static_cast<int32_t>(b));
+        const Voxel* c = plain.blockVoxels(static_cast<int32_t>(b));
+        for (int i = 0; i < kBlockVoxels; ++i) {
+            ASSERT_EQ(a[i].tsdf, c[i].tsdf);
+            ASSERT_EQ(a[i].weight, c[i].weight);
+        }
+    }
+    // Surface points carry the colour of the place they lie on, to a few levels (a voxel is
+    // 1 cm: 3 levels of the gradient).
+    const PointCloud surface = extractSurfacePoints(coloured);
+    ASSERT_GT(surface.size(), 5000u);
+    ASSERT_TRUE(surface.hasColors());
+    EXPECT_FALSE(extractSurfacePoints(plain).hasColors());
+    double err = 0.0, worst = 0.0;
+    for (size_t i = 0; i < surface.size(); ++i) {
+        const Rgb8 truth = worldColour(surface.points[i].cast<double>());
+        const double e = std::max({std::abs(surface.colors[i].x() - truth.r),
+                                   std::abs(surface.colors[i].y() - truth.g),
+                                   std::abs(surface.colors[i].z() - truth.b)});
+        err += e;
+        worst = std::max(worst, e);
+    }
+    err /= static_cast<double>(surface.size());
+    EXPECT_LT(err, 2.0);
+    EXPECT_LT(worst, 8.0);
+    // Meshes carry the same colours.
+    const TriangleMesh mesh = extractMesh(coloured);
+    ASSERT_EQ(mesh.colors.size(), mesh.vertices.size());
+    // A colour image of the wrong size is refused.
+    const ColourImage wrong(cam.width / 2, cam.height);
+    EXPECT_FALSE(coloured
+                     .integrate(render(cam, jitter(0),
+                                       [&](auto o, auto r) { return hitPlane(plane, o, r); }),
+                                cam, jitter(0), &wrong)
+                     .isOk());
+}
+
 TEST(TsdfVolume, TiltedPlaneSurfaceAndRaycastAreUnbiased) {
     const PinholeCamera cam = smallCamera();
     const Plane plane{Eigen::Vector3d(0.3, -0.25, -1.0).normalized(), 1.4};

@@ -228,7 +228,7 @@ Slide slideAlongWall(bool colour, double (*albedo)(const Eigen::Vector3d&)) {
     config.tsdf.truncation_m = 0.04f;
     config.tracking.enabled = colour;
     FragmentBuilder builder(cam, config);
-    constexpr int kFrames = 140;
+    constexpr int kFrames = 100;
     Slide out;
     for (int k = 0; k < kFrames; ++k) {
         const Eigen::Isometry3d T_true = slidePose(k, kFrames, 1.0);
@@ -257,14 +257,14 @@ TEST(Photometric, ASlideOfOneMetreAlongATexturedWallStaysWithinOneCentimetre) {
     const Slide rgbd = slideAlongWall(true, testing::texture);
     EXPECT_GT(depth_only.max_error_m, 0.10);
     EXPECT_LT(rgbd.max_error_m, 0.01);
-    EXPECT_EQ(rgbd.photometric_frames, 139);  // every frame after the first
+    EXPECT_EQ(rgbd.photometric_frames, 99);  // every frame after the first
     EXPECT_EQ(rgbd.fallback_frames, 0) << rgbd.last_fallback;
 }
 
 TEST(Photometric, ASlideAlongAPlainWallTracksByDepthOnlyAndSaysSo) {
     const Slide plain = slideAlongWall(true, nullptr);
     EXPECT_EQ(plain.photometric_frames, 0);
-    EXPECT_EQ(plain.fallback_frames, 139);
+    EXPECT_EQ(plain.fallback_frames, 99);
     EXPECT_NE(plain.last_fallback.find("too little texture"), std::string::npos)
         << plain.last_fallback;
     EXPECT_GT(plain.max_error_m, 0.10);  // as depth only: the slide is not observed
