@@ -62,8 +62,12 @@ io::Trajectory frameTrajectory(const std::vector<Fragment>& fragments,
 }
 
 DepthImage renderPointsToDepth(const PointCloud& points_F, const PinholeCamera& camera,
-                               const Eigen::Isometry3d& T_F_C, int splat_radius_px) {
+                               const Eigen::Isometry3d& T_F_C, int splat_radius_px,
+                               ColourImage* colour) {
     DepthImage depth(camera.width, camera.height, 0.0f);
+    const bool with_colour = colour != nullptr && points_F.hasColors();
+    if (colour != nullptr)
+        *colour = with_colour ? ColourImage(camera.width, camera.height) : ColourImage();
     const Eigen::Isometry3f T_C_F = T_F_C.inverse().cast<float>();
     const Eigen::Vector3f centre_F = T_F_C.translation().cast<float>();
     const bool have_normals = points_F.normals.size() == points_F.points.size();
@@ -81,7 +85,13 @@ DepthImage renderPointsToDepth(const PointCloud& points_F, const PinholeCamera& 
             for (int u = u0 - r; u <= u0 + r; ++u) {
                 if (u < 0 || u >= camera.width) continue;
                 float& d = depth(u, v);
-                if (d == 0.0f || p_C.z() < d) d = p_C.z();
+                if (d == 0.0f || p_C.z() < d) {
+                    d = p_C.z();
+                    if (with_colour) {
+                        const Color3u8& c = points_F.colors[k];
+                        (*colour)(u, v) = {c.x(), c.y(), c.z()};
+                    }
+                }
             }
         }
     }
@@ -142,8 +152,12 @@ Result<FinalModel> integrateRawFrames(FrameSource& source, const std::vector<Fra
         const auto it = pose_of.find(frame->index);
         if (it == pose_of.end()) continue;
         if (frame->index % config.frame_stride != 0) continue;
-        Result<tsdf::IntegrationStats> stats =
-            volume.integrate(frame->depth, source.camera(), it->second);
+        // Colour of another size than the depth (a source that does not register it) is left out.
+        const bool colour = !frame->colour.empty() &&
+                            frame->colour.width() == frame->depth.width() &&
+                            frame->colour.height() == frame->depth.height();
+        Result<tsdf::IntegrationStats> stats = volume.integrate(
+            frame->depth, source.camera(), it->second, colour ? &frame->colour : nullptr);
         if (!stats.isOk()) return stats.status();
         ++integrated;
     }
@@ -169,10 +183,11 @@ Result<FinalModel> fuseFragmentSurfaces(const std::vector<Fragment>& fragments,
         for (size_t k = 0; k < fragment.frames.size(); ++k) {
             const FragmentFrame& f = fragment.frames[k];
             if (!f.tracking_ok || f.frame_index % config.frame_stride != 0) continue;
-            const DepthImage depth =
-                renderPointsToDepth(fragment.points_F, camera, f.T_F_C, config.splat_radius_px);
-            Result<tsdf::IntegrationStats> stats =
-                volume.integrate(depth, camera, T_W_F[i] * f.T_F_C);
+            ColourImage colour;
+            const DepthImage depth = renderPointsToDepth(fragment.points_F, camera, f.T_F_C,
+                                                         config.splat_radius_px, &colour);
+            Result<tsdf::IntegrationStats> stats = volume.integrate(
+                depth, camera, T_W_F[i] * f.T_F_C, colour.empty() ? nullptr : &colour);
             if (!stats.isOk()) return stats.status();
             ++integrated;
         }

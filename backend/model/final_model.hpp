@@ -7,7 +7,9 @@
 // scan where only fragments crossed the wire) each fragment's oriented surface points are rendered
 // back into the depth images of the frames that made them (z-buffered splats, back-faces culled)
 // and those synthetic frames are integrated instead: the same volumetric averaging, so overlapping
-// fragments merge into one surface rather than a stack of shifted copies.
+// fragments merge into one surface rather than a stack of shifted copies. Colour goes along
+// either way (the raw frames' colour, or the fragments' point colours): the mesh is coloured
+// when the scan is.
 
 #include <Eigen/Geometry>
 #include <cstdint>
@@ -53,9 +55,12 @@ io::Trajectory frameTrajectory(const std::vector<Fragment>& fragments,
                                const std::vector<Eigen::Isometry3d>& T_W_F);
 
 /// Renders `points_F` (oriented, in frame F) as seen by `camera` at T_F_C: nearest depth per pixel
-/// over a (2r+1)^2 splat, points facing away from the camera skipped. 0 = no data.
+/// over a (2r+1)^2 splat, points facing away from the camera skipped. 0 = no data. With `colour`
+/// and a coloured cloud, *colour receives the nearest point's colour per pixel (else it is left
+/// empty).
 DepthImage renderPointsToDepth(const PointCloud& points_F, const PinholeCamera& camera,
-                               const Eigen::Isometry3d& T_F_C, int splat_radius_px);
+                               const Eigen::Isometry3d& T_F_C, int splat_radius_px,
+                               ColourImage* colour = nullptr);
 
 struct FinalModel {
     TriangleMesh mesh;             ///< marching cubes of the final volume, world frame

@@ -33,6 +33,8 @@ struct FusedRun {
     std::vector<Fragment> fragments;
     std::vector<std::optional<Eigen::Isometry3d>> gt;  ///< T_W_C by frame index
     int tracking_failures = 0;
+    int frames_with_colour = 0;
+    int frames_photometric = 0;  ///< tracked with the photometric term
 };
 
 /// Feeds up to `max_frames` frames of `source` through a FragmentBuilder; with
@@ -48,6 +50,7 @@ FusedRun fuse(FrameSource& source, const FusionConfig& config, size_t max_frames
             break;
         }
         out.gt.push_back(frame->T_W_C_gt);
+        out.frames_with_colour += frame->colour.empty() ? 0 : 1;
         Result<FrameReport> r = builder.process(*frame);
         EXPECT_TRUE(r.isOk()) << r.status().toString();
         if (!r.isOk()) break;
@@ -55,6 +58,7 @@ FusedRun fuse(FrameSource& source, const FusionConfig& config, size_t max_frames
             EXPECT_TRUE(r->tracked) << "frame " << k << ": " << r->message;
         }
         out.tracking_failures += r->tracked ? 0 : 1;
+        out.frames_photometric += r->icp.photometric.used ? 1 : 0;
         for (Fragment& f : r->closed) out.fragments.push_back(std::move(f));
     }
     if (auto last = builder.finish()) out.fragments.push_back(std::move(*last));
@@ -255,6 +259,32 @@ TEST(RealFusion, TumStructureNotextureFarFragmentAte) {
 }
 
 TEST(RealFusion, IclNuimOfficeKt0FragmentAte) { checkRecording("icl-nuim-office-kt0", 30, 0.02); }
+
+// ICL-NUIM kt3 with its colour: RGB-D tracking uses it on (nearly) every frame and its
+// per-fragment ATE is no worse than depth-only tracking's.
+TEST(RealFusion, IclNuimOfficeKt3RgbdNoWorseThanDepthOnly) {
+    PLUMB_REQUIRE_SHARED_DATA(path, "icl-nuim-office-kt3-rgbd");
+    auto run = [&](bool colour) {
+        Result<std::unique_ptr<FrameSource>> source = openFrameSource("dataset:" + path.string());
+        EXPECT_TRUE(source.isOk()) << source.status().toString();
+        FusionConfig config;
+        config.tracking.enabled = colour;
+        return fuse(**source, config, 99);
+    };
+    const FusedRun rgbd = run(true), depth = run(false);
+    EXPECT_EQ(rgbd.frames_with_colour, 99);
+    EXPECT_GE(rgbd.frames_photometric, 95);
+    EXPECT_EQ(depth.frames_photometric, 0);
+    ASSERT_EQ(rgbd.fragments.size(), depth.fragments.size());
+    for (size_t i = 0; i < rgbd.fragments.size(); ++i) {
+        if (rgbd.fragments[i].frames.size() < 10) continue;
+        const double ate_c = fragmentAte(rgbd.fragments[i], rgbd);
+        const double ate_d = fragmentAte(depth.fragments[i], depth);
+        std::printf("kt3 fragment %zu: ATE RGB-D %.2f mm, depth only %.2f mm\n", i, ate_c * 1e3,
+                    ate_d * 1e3);
+        EXPECT_LE(ate_c, 1.05 * ate_d + 0.0005) << "fragment " << i;
+    }
+}
 
 }  // namespace
 }  // namespace plumb::device

@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <numbers>
@@ -45,13 +46,18 @@ constexpr const char* kUsage =
     "Runs the on-device pipeline (preprocessing, frame-to-model ICP tracking, voxel-hashed TSDF\n"
     "fusion, a fragment every N frames) over a recorded dataset or the simulated scanner and\n"
     "writes every fragment for inspection:\n"
-    "  fragment_NNN.ply    oriented surface points in the fragment frame\n"
+    "  fragment_NNN.ply    oriented surface points in the fragment frame (coloured when the\n"
+    "                      source has colour)\n"
     "  fragment_NNN.json   id, segment, why it was closed, T_W_F, frames (index, timestamp,\n"
     "                      T_F_C, tracking_ok, unconstrained_translations: how many\n"
     "                      translations the depth in view left free, along which the pose\n"
     "                      follows the constant-velocity prediction), frames_unconstrained\n"
-    "                      (frames with any), tracking quality, errors against ground truth\n"
-    "  fragments.json      summary: source, timing, per-fragment figures\n"
+    "                      (frames with any), depth_only (a frame with colour tracked by\n"
+    "                      depth alone, and why: too little texture, or the photometric term\n"
+    "                      rejected), frames_depth_only, tracking quality, errors against\n"
+    "                      ground truth\n"
+    "  fragments.json      summary: source, timing, per-fragment figures, frames_photometric\n"
+    "                      (tracked RGB-D), frames_depth_only and depth_only_reasons\n"
     "  trajectory.txt      odometry (TUM, camera->world = T_W_F * T_F_C of tracked frames)\n"
     "  config.toml         the effective configuration\n"
     "With ground truth (simulator, TUM/ICL-NUIM groundtruth.txt) each fragment gets its ATE\n"
@@ -329,6 +335,11 @@ int runFuse(const std::vector<std::string>& arguments) {
     // until their fragment is written.
     std::unordered_map<int64_t, int> unconstrained;
     size_t frames_unconstrained = 0;
+    // Frames with colour tracked by depth only, and why (photometric fall-back), by frame index
+    // until their fragment is written; counts of the reasons' kinds (the text before ':').
+    std::unordered_map<int64_t, std::string> depth_only;
+    size_t frames_photometric = 0;
+    std::map<std::string, size_t> depth_only_kinds;
     auto emit = [&](const Fragment& f) -> Status {
         const FragmentAccuracy acc = measureFragment(f, truth, gt_surface ? &*gt_surface : nullptr);
         if (acc.ate) ates.push_back(acc.ate->rmse_m);
@@ -344,14 +355,21 @@ int runFuse(const std::vector<std::string>& arguments) {
         const std::string stem = fmt::format("fragment_{:03d}", f.id);
         PLUMB_RETURN_IF_ERROR(io::writePointCloud(o.out / (stem + ".ply"), f.points_F));
         nlohmann::json j = fragmentJson(f, acc);
-        size_t num_unconstrained = 0;
+        size_t num_unconstrained = 0, num_depth_only = 0;
         for (nlohmann::json& fr : j["frames"]) {
             const auto it = unconstrained.find(fr["frame_index"].get<int64_t>());
             const int n = it == unconstrained.end() ? 0 : it->second;
             if (it != unconstrained.end()) unconstrained.erase(it);
             fr["unconstrained_translations"] = n;
             num_unconstrained += n > 0 ? 1 : 0;
+            if (const auto d = depth_only.find(fr["frame_index"].get<int64_t>());
+                d != depth_only.end()) {
+                fr["depth_only"] = d->second;
+                ++num_depth_only;
+                depth_only.erase(d);
+            }
         }
+        j["frames_depth_only"] = num_depth_only;
         frames_unconstrained += num_unconstrained;
         j["frames_unconstrained"] = num_unconstrained;
         PLUMB_RETURN_IF_ERROR(writeText(o.out / (stem + ".json"), j.dump(2) + "\n"));
@@ -414,6 +432,12 @@ int runFuse(const std::vector<std::string>& arguments) {
         if (report->tracked && report->icp.num_degenerate_directions > 0) {
             unconstrained[report->frame_index] = report->icp.num_degenerate_directions;
         }
+        if (report->tracked && report->icp.photometric.used) ++frames_photometric;
+        if (report->tracked && !report->icp.photometric.fallback.empty()) {
+            const std::string& why = report->icp.photometric.fallback;
+            depth_only[report->frame_index] = why;
+            ++depth_only_kinds[why.substr(0, why.find(':'))];
+        }
         if (!report->message.empty()) {
             log::warn("frame {}: {}", report->frame_index, report->message);
         }
@@ -437,6 +461,13 @@ int runFuse(const std::vector<std::string>& arguments) {
     summary["frame_step"] = o.frame_step;
     summary["frames_tracking_failed"] = lost;
     summary["frames_unconstrained"] = frames_unconstrained;
+    summary["frames_photometric"] = frames_photometric;
+    size_t frames_depth_only = 0;
+    for (const auto& [kind, n] : depth_only_kinds) {
+        summary["depth_only_reasons"][kind] = n;
+        frames_depth_only += n;
+    }
+    summary["frames_depth_only"] = frames_depth_only;
     summary["relocalisations"] = relocalised;
     summary["new_segments"] = segments_started;
     summary["block_budget_closures"] = budget;
@@ -473,6 +504,15 @@ int runFuse(const std::vector<std::string>& arguments) {
     if (!medians.empty()) {
         gt_text += fmt::format("; surface median max {:.2f} mm",
                                summary["surface_median_m"]["max"].get<double>() * 1e3);
+    }
+    if (frames_photometric > 0 || frames_depth_only > 0) {
+        std::string kinds;
+        for (const auto& [kind, n] : depth_only_kinds) {
+            kinds += fmt::format("{}{} {}", kinds.empty() ? " (" : ", ", n, kind);
+        }
+        if (!kinds.empty()) kinds += ")";
+        gt_text += fmt::format("; colour: {} frames tracked RGB-D, {} by depth only{}",
+                               frames_photometric, frames_depth_only, kinds);
     }
     log::info("{} frames -> {} fragments in {}, {:.1f} ms/frame{}", frames, fragment_list.size(),
               o.out.string(), 1e3 * process_s / static_cast<double>(frames), gt_text);
