@@ -52,8 +52,9 @@ constexpr const char* kUsage =
     "  --spool-dir DIR      keep unacknowledged fragments here across runs (default: memory)\n"
     "  --dump-dir DIR       also write every encoded fragment here as sent\n"
     "  --record DIR         also record every captured frame to DIR (a new folder) as a plumb\n"
-    "                       dataset: depth/*.png in mm, depth.txt, intrinsics.json, capture.txt;\n"
-    "                       replay it with --source dataset:DIR\n"
+    "                       dataset: depth/*.png in mm, depth.txt, intrinsics.json, capture.txt,\n"
+    "                       rgb/*.png and rgb.txt when the source has colour; replay it with\n"
+    "                       --source dataset:DIR\n"
     "  --session-id N       session id (default: start time in microseconds)\n"
     "  --log-level L        trace|debug|info|warn|error (default info)\n";
 
