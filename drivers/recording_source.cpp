@@ -78,10 +78,60 @@ Status RecordingSource::appendLine(const File& file, const char* what, const std
     return Status::ok();
 }
 
+Status RecordingSource::writeColour(const Frame& frame, const std::string& number) {
+    if (frame.colour.width() != frame.depth.width() ||
+        frame.colour.height() != frame.depth.height()) {
+        return failedPrecondition(fmt::format(
+            "recording {}: frame {} has {}x{} colour for {}x{} depth (colour must be registered "
+            "to the depth)",
+            dir_.string(), frame.index, frame.colour.width(), frame.colour.height(),
+            frame.depth.width(), frame.depth.height()));
+    }
+    if (colour_list_ == nullptr) {
+        std::error_code ec;
+        std::filesystem::create_directories(dir_ / "rgb", ec);
+        if (ec) {
+            return ioError(
+                fmt::format("cannot create {}: {}", (dir_ / "rgb").string(), ec.message()));
+        }
+    }
+    return dataset::writeColourPng(dir_ / "rgb" / (number + ".png"), frame.colour);
+}
+
+Status RecordingSource::listColour(const Frame& frame, const std::string& number) {
+    const std::string stamp = fmt::format("{:.6f}", frame.timestamp_s);
+    const std::string colour_line = fmt::format("{} rgb/{}.png\n", stamp, number);
+    const std::string pair_line =
+        fmt::format("{} depth/{}.png {} rgb/{}.png\n", stamp, number, stamp, number);
+    // The lists are created together with their first line, so neither is ever without one.
+    if (colour_list_ == nullptr) {
+        auto list = openList(
+            dir_ / "rgb.txt",
+            ("# colour images recorded by plumb-device\n# timestamp filename\n" + colour_line)
+                .c_str());
+        if (!list.isOk()) return list.status();
+        colour_list_ = std::move(list).value();
+    } else {
+        PLUMB_RETURN_IF_ERROR(appendLine(colour_list_, "rgb.txt", colour_line));
+    }
+    if (associations_ == nullptr) {
+        auto pairs = openList(dir_ / "associations.txt",
+                              ("# timestamp depth timestamp colour\n" + pair_line).c_str());
+        if (!pairs.isOk()) return pairs.status();
+        associations_ = std::move(pairs).value();
+        return Status::ok();
+    }
+    return appendLine(associations_, "associations.txt", pair_line);
+}
+
 Status RecordingSource::record(const Frame& frame) {
-    const std::string name = fmt::format("depth/{:06d}.png", recorded_);
+    const std::string number = fmt::format("{:06d}", recorded_);
+    const std::string name = "depth/" + number + ".png";
     PLUMB_RETURN_IF_ERROR(dataset::writeDepthPng(dir_ / name, toRaw(frame.depth, kDepthScale)));
-    // The image first, then the lines that list it: a cut-off recording lists only whole frames.
+    const bool colour = !frame.colour.empty();
+    if (colour) PLUMB_RETURN_IF_ERROR(writeColour(frame, number));
+    // The images first, then the lines that list them: a cut-off recording lists only whole
+    // frames.
     if (frame.T_W_C_gt) {
         if (ground_truth_ == nullptr) {
             auto gt = openList(dir_ / "groundtruth.txt", "# timestamp tx ty tz qx qy qz qw\n");
@@ -102,6 +152,9 @@ Status RecordingSource::record(const Frame& frame) {
     PLUMB_RETURN_IF_ERROR(
         appendLine(depth_list_, "depth.txt", fmt::format("{:.6f} {}\n", frame.timestamp_s, name)));
     ++recorded_;
+    // The colour lists after depth.txt: associations.txt never names a depth image that depth.txt
+    // does not list (a recording cut off here has this frame without colour).
+    if (colour) PLUMB_RETURN_IF_ERROR(listColour(frame, number));
     return Status::ok();
 }
 

@@ -11,7 +11,14 @@
 //   capture.txt        `index timestamp name` per frame: the source's own frame name (an OpenNI2
 //                      device frame number, a dataset file), to trace a recorded frame back
 //   groundtruth.txt    TUM poses, only when the source knows them (simulator, datasets)
+//   rgb/NNNNNN.png     8-bit RGB colour, only for frames that carry colour (Frame::colour), with
+//                      the number of the depth image it belongs to
+//   rgb.txt            `timestamp rgb/NNNNNN.png` per colour image (the depth frame's stamp)
+//   associations.txt   `timestamp depth/NNNNNN.png timestamp rgb/NNNNNN.png` per colour image:
+//                      the exact pairing, which the dataset reader prefers over matching rgb.txt
+//                      stamps (frames closer than 0.02 s apart could otherwise swap colour)
 //
+// The colour is stored as the source delivered it (registered to the depth, the depth's size).
 // Every list line is written after its image and flushed, so a scan that is cut off leaves a
 // readable recording of the frames captured so far. A failed write is the frame's error
 // (kIoError), never a silently incomplete recording.
@@ -53,11 +60,17 @@ class RecordingSource final : public FrameSourceDecorator {
     Status record(const Frame& frame);
     static Result<File> openList(const std::filesystem::path& path, const char* header);
     Status appendLine(const File& file, const char* what, const std::string& line);
+    /// Writes rgb/NNNNNN.png (creating rgb/ the first time).
+    Status writeColour(const Frame& frame, const std::string& number);
+    /// Lists rgb/NNNNNN.png in rgb.txt and associations.txt (created with their first line).
+    Status listColour(const Frame& frame, const std::string& number);
 
     std::filesystem::path dir_;
     File depth_list_;
     File capture_list_;
     File ground_truth_;  ///< opened at the first frame with a pose
+    File colour_list_;   ///< rgb.txt, created with the first frame with colour
+    File associations_;  ///< associations.txt, created with rgb.txt
     size_t recorded_ = 0;
 };
 

@@ -44,6 +44,7 @@ Result<std::unique_ptr<FrameSource>> openRawSource(const std::string& uri,
         config.intrinsics = options.intrinsics;
         config.depth_scale = options.depth_scale;
         config.max_frames = options.max_frames;
+        config.load_colour = options.colour;
         auto source = dataset::DatasetSource::open(rest, config);
         if (!source.isOk()) return source.status();
         return std::unique_ptr<FrameSource>(std::move(source).value());

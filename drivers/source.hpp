@@ -36,6 +36,10 @@ struct SourceOptions {
     std::string sim_noise;
     /// Live cameras (openni2, v4l2): depth mode "WxH@fps", e.g. "640x480@30" or "320x240@60".
     std::string depth_mode = "640x480@30";
+    /// Deliver colour (Frame::colour) when the source has it (datasets with colour images,
+    /// OpenNI2 colour streams, V4L2 colour nodes); false = depth only, as from a source without
+    /// colour (`--no-colour`).
+    bool colour = true;
     /// Depth calibration (drivers/depth_calibration.hpp): empty or "sensor" = the sensor's own
     /// (the simulated sensor with the measured distortion table is calibrated with that table,
     /// like a CLAMS-calibrated camera; other sources have none), "none" = raw depth, anything

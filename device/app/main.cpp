@@ -39,6 +39,8 @@ constexpr const char* kUsage =
     "  --depth-calibration X  undistort depth: sensor (default: the sensor's own table; the\n"
     "                       simulated sensor with the measured table is calibrated with it,\n"
     "                       real cameras have none), none, or a CLAMS/Redwood dist-model.txt\n"
+    "  --no-colour          read depth only, even when the source has colour (datasets,\n"
+    "                       OpenNI2 and V4L2 colour streams)\n"
     "  --realtime           pace recorded sources like a live sensor (capture.realtime)\n"
     "  --wait-for-camera S  a live camera (openni2, v4l2) not plugged in at start: wait up to S\n"
     "                       seconds for it, or 'forever' (capture.wait_for_camera_s; default 0,\n"
@@ -50,8 +52,9 @@ constexpr const char* kUsage =
     "  --spool-dir DIR      keep unacknowledged fragments here across runs (default: memory)\n"
     "  --dump-dir DIR       also write every encoded fragment here as sent\n"
     "  --record DIR         also record every captured frame to DIR (a new folder) as a plumb\n"
-    "                       dataset: depth/*.png in mm, depth.txt, intrinsics.json, capture.txt;\n"
-    "                       replay it with --source dataset:DIR\n"
+    "                       dataset: depth/*.png in mm, depth.txt, intrinsics.json, capture.txt,\n"
+    "                       rgb/*.png and rgb.txt when the source has colour; replay it with\n"
+    "                       --source dataset:DIR\n"
     "  --session-id N       session id (default: start time in microseconds)\n"
     "  --log-level L        trace|debug|info|warn|error (default info)\n";
 
@@ -100,6 +103,7 @@ int main(int argc, char** argv) {
     messages::LinkOptions link_options;
     int64_t frames = 0, session_id = 0, key_id = 1;
     bool realtime = false;
+    bool colour = true;
     std::optional<double> wait_for_camera_s;
     log::Level level = log::Level::kInfo;
     for (size_t i = 0; i < args.size(); ++i) {
@@ -133,6 +137,8 @@ int main(int argc, char** argv) {
                 return usageError(s.message());
         } else if (a == "--realtime") {
             realtime = true;
+        } else if (a == "--no-colour") {
+            colour = false;
         } else if (a == "--wait-for-camera") {
             double seconds = 0.0;
             if (!value(&v) || !parseSeconds(v, &seconds))
@@ -195,6 +201,7 @@ int main(int argc, char** argv) {
     source_options.seed = options.config.capture.seed;
     source_options.sim_noise = sim_noise;
     source_options.depth_calibration = depth_calibration;
+    source_options.colour = colour;
     struct sigaction sa {};
     sa.sa_handler = onSignal;
     sigemptyset(&sa.sa_mask);

@@ -8,6 +8,8 @@
 #include <charconv>
 #include <cmath>
 #include <fstream>
+#include <map>
+#include <set>
 #include <sstream>
 #include <system_error>
 #include <utility>
@@ -23,11 +25,16 @@ namespace fs = std::filesystem;
 namespace {
 
 constexpr const char* kDepthList = "depth.txt";
+constexpr const char* kColourList = "rgb.txt";
+constexpr const char* kAssociations = "associations.txt";
 constexpr const char* kGroundTruth = "groundtruth.txt";
 constexpr const char* kIntrinsicsJson = "intrinsics.json";
 constexpr const char* kSevenScenesPrefix = "frame-";
 constexpr const char* kSevenScenesDepthSuffix = ".depth.png";
 constexpr const char* kSevenScenesPoseSuffix = ".pose.txt";
+constexpr const char* kSevenScenesColourSuffix = ".color.png";
+/// Redwood colour folders, in the order they are looked for.
+constexpr const char* kRedwoodColourFolders[] = {"color", "rgb", "image"};
 /// 7-Scenes marks missing depth with the largest 16-bit value.
 constexpr uint16_t kSevenScenesInvalid = 65535;
 
@@ -118,9 +125,10 @@ struct Listing {
     std::string comments;                   ///< all comment text of depth.txt
 };
 
-/// Parses depth.txt: `stamp path` per line, '#' comments and blank lines skipped.
-Result<Listing> readDepthList(const fs::path& dir) {
-    const fs::path path = dir / kDepthList;
+/// Parses a `stamp path` list (depth.txt, rgb.txt): '#' comments and blank lines skipped;
+/// `what` ("depth frames", "colour images") names the entries in errors.
+Result<Listing> readStampedList(const fs::path& dir, const char* file, const char* what) {
+    const fs::path path = dir / file;
     auto lines = readLines(path);
     if (!lines.isOk()) return lines.status();
     Listing out;
@@ -144,10 +152,105 @@ Result<Listing> readDepthList(const fs::path& dir) {
         out.stamp_tokens.push_back(tokens[0]);
     }
     if (out.frames.empty()) {
-        return corrupt(fmt::format("{}: lists no depth frames (expected 'timestamp path' lines)",
-                                   path.string()));
+        return corrupt(
+            fmt::format("{}: lists no {} (expected 'timestamp path' lines)", path.string(), what));
     }
     return out;
+}
+
+bool isImageFile(const fs::path& path) {
+    const std::string ext = toLower(path.extension().string());
+    return ext == ".png" || ext == ".jpg" || ext == ".jpeg";
+}
+
+/// associations.txt: `stamp path stamp path` per line. Returns, for every depth.txt path that a
+/// line pairs, the colour path it pairs with (the line's other path). Lines that pair no listed
+/// depth image are skipped; a file that pairs none at all, or a depth image twice, is kCorrupt.
+Result<std::map<std::string, std::string>> readAssociations(
+    const fs::path& path, const std::vector<DatasetFrame>& frames) {
+    auto lines = readLines(path);
+    if (!lines.isOk()) return lines.status();
+    std::set<std::string> depth_names;
+    for (const auto& f : frames) depth_names.insert(f.name);
+    std::map<std::string, std::string> colour_of_depth;
+    for (size_t i = 0; i < lines->size(); ++i) {
+        const std::string& line = (*lines)[i];
+        if (isCommentOrBlank(line)) continue;
+        const std::vector<std::string> tokens = splitWhitespace(line);
+        double a = 0.0;
+        double b = 0.0;
+        if (tokens.size() != 4 || !parseFinite(tokens[0], &a) || !parseFinite(tokens[2], &b)) {
+            return corrupt(fmt::format("{}:{}: expected 'timestamp path timestamp path', got '{}'",
+                                       path.string(), i + 1, line));
+        }
+        std::string depth;
+        std::string colour;
+        if (depth_names.count(tokens[1]) != 0) {
+            depth = tokens[1];
+            colour = tokens[3];
+        } else if (depth_names.count(tokens[3]) != 0) {
+            depth = tokens[3];
+            colour = tokens[1];
+        } else {
+            continue;  // a depth image depth.txt does not list (a trimmed sequence)
+        }
+        if (!colour_of_depth.emplace(depth, colour).second) {
+            return corrupt(
+                fmt::format("{}:{}: pairs {} a second time", path.string(), i + 1, depth));
+        }
+    }
+    if (colour_of_depth.empty()) {
+        return corrupt(fmt::format("{}: pairs none of the depth images listed in {}", path.string(),
+                                   kDepthList));
+    }
+    return colour_of_depth;
+}
+
+/// Colour of the TUM family (header comment): associations.txt, else rgb.txt by stamp, else
+/// ICL-NUIM's rgb/N.png. Sets colour_path of the frames that get one; returns the description
+/// for DatasetInfo::colour_source ("" = the folder has no colour).
+Result<std::string> attachTumFamilyColour(const fs::path& dir, Layout layout,
+                                          const std::vector<std::string>& stamp_tokens,
+                                          const DatasetConfig& config,
+                                          std::vector<DatasetFrame>* frames) {
+    std::error_code ec;
+    if (fs::is_regular_file(dir / kAssociations, ec)) {
+        auto pairs = readAssociations(dir / kAssociations, *frames);
+        if (!pairs.isOk()) return pairs.status();
+        for (DatasetFrame& f : *frames) {
+            const auto it = pairs->find(f.name);
+            if (it != pairs->end()) f.colour_path = dir / it->second;
+        }
+        return std::string(kAssociations);
+    }
+    if (fs::is_regular_file(dir / kColourList, ec)) {
+        if (!(std::isfinite(config.colour_max_difference_s) &&
+              config.colour_max_difference_s > 0.0)) {
+            return invalidArgument(fmt::format("colour association tolerance {} s is not positive",
+                                               config.colour_max_difference_s));
+        }
+        auto colour = readStampedList(dir, kColourList, "colour images");
+        if (!colour.isOk()) return colour.status();
+        std::vector<double> depth_stamps;
+        depth_stamps.reserve(frames->size());
+        for (const auto& f : *frames) depth_stamps.push_back(f.timestamp_s);
+        std::vector<double> colour_stamps;
+        colour_stamps.reserve(colour->frames.size());
+        for (const auto& c : colour->frames) colour_stamps.push_back(c.timestamp_s);
+        for (const auto& [d, c] :
+             io::associate(depth_stamps, colour_stamps, config.colour_max_difference_s)) {
+            (*frames)[d].colour_path = colour->frames[c].depth_path;
+        }
+        return fmt::format("{} by timestamp within {:g} s", kColourList,
+                           config.colour_max_difference_s);
+    }
+    if (layout == Layout::kIclNuim && fs::is_directory(dir / "rgb", ec)) {
+        for (size_t k = 0; k < frames->size(); ++k) {
+            (*frames)[k].colour_path = dir / "rgb" / (stamp_tokens[k] + ".png");
+        }
+        return std::string("rgb/N.png by frame index");
+    }
+    return std::string();
 }
 
 /// First column of the first data line of a TUM-style trajectory ("" when there is none).
@@ -205,6 +308,8 @@ void attachByTime(io::Trajectory gt, const DatasetConfig& config,
 struct Scan {
     Layout layout = Layout::kTumRgbd;
     std::vector<DatasetFrame> frames;
+    std::string colour_source;  ///< "" = no colour
+    bool colour_registered = true;
     fs::path ground_truth;
     PinholeCamera default_camera;
     std::string default_camera_name;
@@ -212,7 +317,7 @@ struct Scan {
 };
 
 Result<Scan> scanTumFamily(const fs::path& dir, const DatasetConfig& config) {
-    auto listing = readDepthList(dir);
+    auto listing = readStampedList(dir, kDepthList, "depth frames");
     if (!listing.isOk()) return listing.status();
     Scan scan;
     const fs::path gt_path = dir / kGroundTruth;
@@ -242,6 +347,12 @@ Result<Scan> scanTumFamily(const fs::path& dir, const DatasetConfig& config) {
     }
     scan.default_camera = cameraPreset(scan.default_camera_name).value();
     scan.frames = std::move(listing->frames);
+    if (config.load_colour) {
+        auto colour =
+            attachTumFamilyColour(dir, scan.layout, listing->stamp_tokens, config, &scan.frames);
+        if (!colour.isOk()) return colour.status();
+        scan.colour_source = std::move(colour).value();
+    }
 
     if (has_gt) {
         auto gt = io::readTumTrajectory(gt_path);
@@ -288,8 +399,8 @@ Result<Eigen::Isometry3d> readSevenScenesPose(const fs::path& path) {
     return lie::orthonormalized(T_W_C);
 }
 
-Result<Scan> scanSevenScenes(const fs::path& dir,
-                             std::vector<std::pair<int64_t, std::string>> ids) {
+Result<Scan> scanSevenScenes(const fs::path& dir, std::vector<std::pair<int64_t, std::string>> ids,
+                             const DatasetConfig& config) {
     Scan scan;
     scan.layout = Layout::kSevenScenes;
     scan.default_camera_name = "7-scenes";
@@ -313,10 +424,68 @@ Result<Scan> scanSevenScenes(const fs::path& dir,
         }
         scan.frames.push_back(std::move(frame));
     }
+    // Colour: every frame's frame-XXXXXX.color.png once the folder has any (a missing one is then
+    // that frame's error). Unregistered: recorded by a second camera beside the depth camera.
+    if (config.load_colour) {
+        std::error_code ec;
+        const bool has_colour = std::any_of(ids.begin(), ids.end(), [&](const auto& id) {
+            return fs::exists(dir / (id.second + kSevenScenesColourSuffix), ec);
+        });
+        if (has_colour) {
+            for (size_t k = 0; k < ids.size(); ++k) {
+                scan.frames[k].colour_path = dir / (ids[k].second + kSevenScenesColourSuffix);
+            }
+            scan.colour_source = fmt::format("frame-XXXXXX{}", kSevenScenesColourSuffix);
+            scan.colour_registered = false;
+        }
+    }
     return scan;
 }
 
-Result<Scan> scanRedwood(const fs::path& dir, std::vector<std::pair<int64_t, std::string>> pngs) {
+/// Redwood colour: the first of color/, rgb/, image/ holding images; each depth frame gets the
+/// image with the same number, and a frame without one gets a kNotFound error.
+Status attachRedwoodColour(const fs::path& dir, Scan* scan) {
+    std::error_code ec;
+    for (const char* folder : kRedwoodColourFolders) {
+        const fs::path colour_dir = dir / folder;
+        if (!fs::is_directory(colour_dir, ec)) continue;
+        std::map<int64_t, std::string> by_number;
+        for (const auto& entry : fs::directory_iterator(colour_dir, ec)) {
+            if (!entry.is_regular_file(ec) || !isImageFile(entry.path())) continue;
+            const std::string file = entry.path().filename().string();
+            const auto number = trailingNumber(entry.path().stem().string());
+            if (!number) {
+                return unsupported(fmt::format(
+                    "{}: Redwood colour images must be numbered (e.g. 000123.jpg) to be paired",
+                    entry.path().string()));
+            }
+            const auto [it, inserted] = by_number.emplace(*number, file);
+            if (!inserted) {
+                return unsupported(fmt::format("{}: {} and {} both have number {}",
+                                               colour_dir.string(), it->second, file, *number));
+            }
+        }
+        if (ec)
+            return ioError(fmt::format("cannot list {}: {}", colour_dir.string(), ec.message()));
+        if (by_number.empty()) continue;
+        for (DatasetFrame& f : scan->frames) {
+            const auto it = by_number.find(static_cast<int64_t>(f.timestamp_s));
+            if (it != by_number.end()) {
+                f.colour_path = colour_dir / it->second;
+            } else if (f.error.isOk()) {
+                f.error = notFound(fmt::format("{}: no colour image numbered {} (for {})",
+                                               colour_dir.string(),
+                                               static_cast<int64_t>(f.timestamp_s), f.name));
+            }
+        }
+        scan->colour_source = fmt::format("{}/ by number", folder);
+        return Status::ok();
+    }
+    return Status::ok();
+}
+
+Result<Scan> scanRedwood(const fs::path& dir, std::vector<std::pair<int64_t, std::string>> pngs,
+                         const DatasetConfig& config) {
     Scan scan;
     scan.layout = Layout::kRedwood;
     scan.default_camera_name = "primesense";
@@ -351,6 +520,7 @@ Result<Scan> scanRedwood(const fs::path& dir, std::vector<std::pair<int64_t, std
         scan.ground_truth = logs.front();
         attachByIndex(*gt, &scan.frames);
     }
+    if (config.load_colour) PLUMB_RETURN_IF_ERROR(attachRedwoodColour(dir, &scan));
     return scan;
 }
 
@@ -375,7 +545,7 @@ Result<Scan> detectAndScan(const fs::path& dir, const DatasetConfig& config) {
         seven_scenes.emplace_back(std::stoll(digits), stem);
     }
     if (ec) return ioError(fmt::format("cannot list {}: {}", dir.string(), ec.message()));
-    if (!seven_scenes.empty()) return scanSevenScenes(dir, std::move(seven_scenes));
+    if (!seven_scenes.empty()) return scanSevenScenes(dir, std::move(seven_scenes), config);
 
     const fs::path depth_dir = dir / "depth";
     if (fs::is_directory(depth_dir, ec)) {
@@ -393,7 +563,7 @@ Result<Scan> detectAndScan(const fs::path& dir, const DatasetConfig& config) {
             }
             pngs.emplace_back(*number, entry.path().filename().string());
         }
-        if (!pngs.empty()) return scanRedwood(dir, std::move(pngs));
+        if (!pngs.empty()) return scanRedwood(dir, std::move(pngs), config);
     }
     return unsupported(fmt::format(
         "{}: no known dataset layout; looked for depth.txt (TUM RGB-D, ICL-NUIM, plumb), "
@@ -498,13 +668,28 @@ size_t DatasetInfo::framesWithGroundTruth() const {
                                              [](const auto& f) { return f.T_W_C_gt.has_value(); }));
 }
 
+size_t DatasetInfo::framesWithColour() const {
+    return static_cast<size_t>(std::count_if(frames.begin(), frames.end(),
+                                             [](const auto& f) { return !f.colour_path.empty(); }));
+}
+
 std::string DatasetInfo::summary() const {
     const size_t with_gt = framesWithGroundTruth();
     const double percent = frames.empty() ? 0.0 : 100.0 * with_gt / frames.size();
+    std::string colour = "no colour";
+    if (!colour_source.empty()) {
+        const size_t with_colour = framesWithColour();
+        colour = with_colour == 0
+                     ? fmt::format("colour {}", colour_source)
+                     : fmt::format("colour for {} frames ({}{})", with_colour, colour_source,
+                                   colour_registered
+                                       ? ""
+                                       : "; not registered to depth, resized to the depth size");
+    }
     return fmt::format(
-        "{} dataset {}: {} frames, GT for {} ({:.1f}%), {} ({}), depth scale {} ({})",
+        "{} dataset {}: {} frames, GT for {} ({:.1f}%), {} ({}), depth scale {} ({}), {}",
         layoutName(layout), root.string(), frames.size(), with_gt, percent, camera.toString(),
-        camera_source, depth_scale, depth_scale_source);
+        camera_source, depth_scale, depth_scale_source, colour);
 }
 
 Result<DatasetInfo> scanDataset(const fs::path& dir, const DatasetConfig& config) {
@@ -528,6 +713,8 @@ Result<DatasetInfo> scanDataset(const fs::path& dir, const DatasetConfig& config
     info.depth_scale_source = std::move(choice->depth_scale_source);
     info.ground_truth = scan->ground_truth;
     info.frames = std::move(scan->frames);
+    info.colour_source = config.load_colour ? scan->colour_source : "ignored (option)";
+    info.colour_registered = scan->colour_registered;
     if (config.max_frames > 0 && info.frames.size() > config.max_frames) {
         info.frames.resize(config.max_frames);
     }
@@ -549,6 +736,15 @@ Result<Frame> loadFrame(const DatasetInfo& info, size_t k) {
         }
     }
     Frame frame;
+    if (!entry.colour_path.empty()) {
+        // Registered colour must match the depth size; unregistered colour (7-Scenes) is only
+        // brought to it.
+        auto colour =
+            readColourImage(entry.colour_path, info.camera.width, info.camera.height,
+                            info.colour_registered ? ColourSize::kExact : ColourSize::kResize);
+        if (!colour.isOk()) return colour.status();
+        frame.colour = std::move(colour).value();
+    }
     frame.index = static_cast<int64_t>(k);
     frame.timestamp_s = entry.timestamp_s;
     frame.depth = toMetres(*raw, info.depth_scale);

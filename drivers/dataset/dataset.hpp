@@ -33,6 +33,24 @@
 // 7-Scenes have no clock: timestamp_s is the frame number (ICL index, number in the file name),
 // which is also the first column of their trajectories (reference §6.2: frame indices as stamps).
 //
+// Colour (Frame::colour, 8-bit RGB of the depth image's size; empty when the dataset has none):
+//   TUM / plumb / ICL-NUIM: associations.txt when present (lines `stamp path stamp path`, the
+//     pair whose path is listed in depth.txt is the depth, the other the colour; the order of
+//     TUM's associate.py and of the ICL-NUIM release both work); else rgb.txt (`stamp path`),
+//     associated with depth.txt by stamp like TUM's associate.py: pairs closer than
+//     colour_max_difference_s (0.02 s), greedy by smallest difference, each colour image used at
+//     most once (ICL-NUIM and plumb stamps are equal for a pair); else, for ICL-NUIM, rgb/N.png
+//     for frame N when an rgb/ folder exists. A TUM depth frame without a colour image within the
+//     tolerance has no colour (DatasetInfo::framesWithColour counts them).
+//   7-Scenes: frame-XXXXXX.color.png beside each depth image when the folder has any. Its colour
+//     camera is NOT registered to the depth camera (DatasetInfo::colour_registered is false, the
+//     summary says so): the image is only resized to the depth size when they differ.
+//   Redwood: the image in color/, rgb/ or image/ (the first that exists, .png or .jpg) whose
+//     number equals the depth image's; a missing number is an error for that frame.
+// A colour image that is missing, undecodable, not 8-bit RGB or of another size than the depth
+// is an error for its frame, naming the file (kNotFound / kCorrupt), like a bad depth image.
+// DatasetConfig::load_colour = false reads depth only, as for a dataset without colour.
+//
 // Ground truth (camera->world, T_W_C):
 //   TUM / plumb: geodesic interpolation between the two GT samples around the frame's stamp when
 //     they are at most gt_max_gap_s apart (io::poseAt); frames outside the GT span fall back to
@@ -75,6 +93,11 @@ struct DatasetConfig {
     /// TUM/plumb GT fallback outside the interpolation span: closest GT sample strictly within
     /// this many seconds (TUM associate.py default).
     double gt_max_difference_s = 0.02;
+    /// Read the colour images the dataset ships; false = depth only (Frame::colour empty).
+    bool load_colour = true;
+    /// rgb.txt association: a colour stamp pairs with a depth stamp when they differ by strictly
+    /// less than this many seconds (TUM associate.py default).
+    double colour_max_difference_s = 0.02;
 };
 
 /// One listed frame, before its image is read.
@@ -83,6 +106,8 @@ struct DatasetFrame {
     std::filesystem::path depth_path;           ///< path to open (root joined with the listed path)
     std::string name;                           ///< path as listed, relative to the dataset root
     std::optional<Eigen::Isometry3d> T_W_C_gt;  ///< camera->world ground truth, when known
+    /// Colour image to open (root joined with the listed path); empty = no colour for this frame.
+    std::filesystem::path colour_path;
     Status error;  ///< a problem found while scanning (malformed pose file); ok otherwise
 };
 
@@ -96,11 +121,20 @@ struct DatasetInfo {
     std::string depth_scale_source;      ///< where the scale came from, for logs
     std::filesystem::path ground_truth;  ///< GT trajectory file (empty: none or per frame)
     std::vector<DatasetFrame> frames;    ///< in stream order
+    /// Where the colour comes from ("associations.txt", "rgb.txt by timestamp within 0.02 s",
+    /// "ignored (option)"); empty when the dataset has none.
+    std::string colour_source;
+    /// False when the colour camera is not registered to the depth camera (7-Scenes): pixel
+    /// (u, v) of the colour only roughly sees what depth pixel (u, v) sees.
+    bool colour_registered = true;
 
     /// Frames that carry a ground-truth pose.
     size_t framesWithGroundTruth() const;
+    /// Frames that carry a colour image.
+    size_t framesWithColour() const;
     /// One line: "TUM RGB-D dataset <root>: 252 frames, GT for 248 (98.4%), 640x480 fx=...
-    /// (preset tum-fr3 ...), depth scale 5000 (layout default)".
+    /// (preset tum-fr3 ...), depth scale 5000 (layout default)", then the colour: ", colour for
+    /// 99 frames (associations.txt)", with "not registered to depth" for 7-Scenes.
     std::string summary() const;
 };
 
@@ -110,9 +144,10 @@ struct DatasetInfo {
 /// kInvalidArgument / kNotFound (bad intrinsics override or depth scale).
 Result<DatasetInfo> scanDataset(const std::filesystem::path& dir, const DatasetConfig& config = {});
 
-/// Reads frame `k` of `info` (depth in metres, GT pose, name, stamp; Frame::index = k).
-/// Errors name the file: kNotFound (listed file missing), kCorrupt (undecodable, not 16-bit, not
-/// one channel, wrong size, or the frame's scan-time error), kIoError.
+/// Reads frame `k` of `info` (depth in metres, colour when listed, GT pose, name, stamp;
+/// Frame::index = k). Errors name the file: kNotFound (listed depth or colour file missing),
+/// kCorrupt (undecodable, depth not 16-bit one channel, colour not 8-bit RGB, wrong size, or the
+/// frame's scan-time error), kUnsupported (JPEG colour without OpenCV), kIoError.
 Result<Frame> loadFrame(const DatasetInfo& info, size_t k);
 
 /// FrameSource over a scanned dataset. next() returns each listed frame in order; a frame that

@@ -3,6 +3,8 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <fstream>
 #include <iterator>
@@ -85,15 +87,16 @@ void pngWriteError(png_structp png, png_const_charp message) {
     png_longjmp(png, 1);
 }
 
-// Encodes a single-channel image of 8 or 16 bits (native-endian samples) as PNG.
+// Encodes an image of 8 or 16 bits per sample (native-endian samples), `channels` 1 (grey) or 3
+// (RGB), as PNG.
 Status encodePng(const std::filesystem::path& path, const void* pixels, int width, int height,
-                 int bit_depth, std::vector<unsigned char>* bytes) {
+                 int bit_depth, int channels, std::vector<unsigned char>* bytes) {
     PngOut out;
     png_structp png =
         png_create_write_struct(PNG_LIBPNG_VER_STRING, &out, pngWriteError, pngWarning);
     if (png == nullptr) return ioError(fmt::format("cannot encode {} as PNG", path.string()));
     png_infop info = png_create_info_struct(png);
-    const size_t bytes_per_row = static_cast<size_t>(width) * (bit_depth / 8);
+    const size_t bytes_per_row = static_cast<size_t>(width) * channels * (bit_depth / 8);
     std::vector<png_bytep> rows(static_cast<size_t>(height));
     for (int v = 0; v < height; ++v) {
         rows[v] = const_cast<png_bytep>(static_cast<const unsigned char*>(pixels) +  // NOLINT
@@ -104,7 +107,8 @@ Status encodePng(const std::filesystem::path& path, const void* pixels, int widt
         return ioError(fmt::format("cannot encode {} as PNG: {}", path.string(), out.error));
     }
     png_set_write_fn(png, &out, pngWrite, pngFlush);
-    png_set_IHDR(png, info, width, height, bit_depth, PNG_COLOR_TYPE_GRAY, PNG_INTERLACE_NONE,
+    png_set_IHDR(png, info, width, height, bit_depth,
+                 channels == 3 ? PNG_COLOR_TYPE_RGB : PNG_COLOR_TYPE_GRAY, PNG_INTERLACE_NONE,
                  PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
     png_write_info(png, info);
     if (bit_depth == 16) png_set_swap(png);  // PNG is big-endian; our samples are native
@@ -115,6 +119,35 @@ Status encodePng(const std::filesystem::path& path, const void* pixels, int widt
     return Status::ok();
 }
 #endif
+
+/// The whole file; `what` ("depth image", "colour image") names it in errors.
+Result<std::vector<unsigned char>> readBytes(const std::filesystem::path& path, const char* what) {
+    const std::string name = path.string();
+    std::error_code ec;
+    const auto file_status = std::filesystem::status(path, ec);
+    if (!std::filesystem::exists(file_status)) {
+        return notFound(fmt::format("{} {} does not exist", what, name));
+    }
+    if (!std::filesystem::is_regular_file(file_status)) {
+        return corrupt(fmt::format("{} {} is not a regular file", what, name));
+    }
+    std::ifstream in(path, std::ios::binary);
+    if (!in) return ioError(fmt::format("cannot open {} {}", what, name));
+    std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)),
+                                     std::istreambuf_iterator<char>());
+    if (in.bad()) return ioError(fmt::format("cannot read {} {}", what, name));
+    return bytes;
+}
+
+bool isPng(const std::vector<unsigned char>& bytes) {
+    return bytes.size() >= sizeof(kPngSignature) &&
+           std::memcmp(bytes.data(), kPngSignature, sizeof(kPngSignature)) == 0;
+}
+
+/// JPEG files start with an SOI marker followed by another marker.
+bool isJpeg(const std::vector<unsigned char>& bytes) {
+    return bytes.size() >= 3 && bytes[0] == 0xff && bytes[1] == 0xd8 && bytes[2] == 0xff;
+}
 
 Status writeBytes(const std::filesystem::path& path, const std::vector<unsigned char>& bytes) {
     std::ofstream out(path, std::ios::binary | std::ios::trunc);
@@ -130,21 +163,10 @@ Status writeBytes(const std::filesystem::path& path, const std::vector<unsigned 
 
 Result<Depth16Image> readDepthPng(const std::filesystem::path& path, int width, int height) {
     const std::string name = path.string();
-    std::error_code ec;
-    const auto file_status = std::filesystem::status(path, ec);
-    if (!std::filesystem::exists(file_status)) {
-        return notFound(fmt::format("depth image {} does not exist", name));
-    }
-    if (!std::filesystem::is_regular_file(file_status)) {
-        return corrupt(fmt::format("depth image {} is not a regular file", name));
-    }
-    std::ifstream in(path, std::ios::binary);
-    if (!in) return ioError(fmt::format("cannot open depth image {}", name));
-    std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)),
-                                     std::istreambuf_iterator<char>());
-    if (in.bad()) return ioError(fmt::format("cannot read depth image {}", name));
-    if (bytes.size() < sizeof(kPngSignature) ||
-        std::memcmp(bytes.data(), kPngSignature, sizeof(kPngSignature)) != 0) {
+    auto file = readBytes(path, "depth image");
+    if (!file.isOk()) return file.status();
+    const std::vector<unsigned char>& bytes = *file;
+    if (!isPng(bytes)) {
         return corrupt(
             fmt::format("{}: not a PNG file ({} bytes, no PNG signature)", name, bytes.size()));
     }
@@ -219,7 +241,8 @@ Status writeDepthPng(const std::filesystem::path& path, const Depth16Image& dept
     PLUMB_CHECK(!depth.empty()) << "writing an empty depth image to " << path;
 #if PLUMB_DRIVERS_LIBPNG
     std::vector<unsigned char> bytes;
-    PLUMB_RETURN_IF_ERROR(encodePng(path, depth.data(), depth.width(), depth.height(), 16, &bytes));
+    PLUMB_RETURN_IF_ERROR(
+        encodePng(path, depth.data(), depth.width(), depth.height(), 16, 1, &bytes));
 #else
     // OpenCV does not modify the buffer when encoding; the const_cast only satisfies cv::Mat.
     const cv::Mat mat(depth.height(), depth.width(), CV_16UC1,
@@ -240,10 +263,190 @@ Status writeGrayPng(const std::filesystem::path& path, const GrayImage& gray) {
     PLUMB_CHECK(!gray.empty()) << "writing an empty grey image to " << path;
     std::vector<unsigned char> bytes;
 #if PLUMB_DRIVERS_LIBPNG
-    PLUMB_RETURN_IF_ERROR(encodePng(path, gray.data(), gray.width(), gray.height(), 8, &bytes));
+    PLUMB_RETURN_IF_ERROR(encodePng(path, gray.data(), gray.width(), gray.height(), 8, 1, &bytes));
 #else
     const cv::Mat mat(gray.height(), gray.width(), CV_8UC1,
                       const_cast<uint8_t*>(gray.data()));  // NOLINT
+    try {
+        if (!cv::imencode(".png", mat, bytes)) {
+            return ioError(fmt::format("cannot encode {} as PNG", path.string()));
+        }
+    } catch (const cv::Exception& e) {
+        return ioError(fmt::format("cannot encode {} as PNG: {}", path.string(), e.what()));
+    }
+#endif
+    return writeBytes(path, bytes);
+}
+
+namespace {
+
+#if PLUMB_DRIVERS_LIBPNG
+/// Decodes an 8-bit PNG to RGB (palettes expanded, alpha dropped); errors name `name`.
+Result<ColourImage> decodeColourPng(const std::vector<unsigned char>& bytes,
+                                    const std::string& name) {
+    PngMemory mem;
+    mem.bytes = &bytes;
+    png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &mem, pngError, pngWarning);
+    if (png == nullptr) return corrupt(fmt::format("{}: cannot decode PNG", name));
+    png_infop info = png_create_info_struct(png);
+    ColourImage out;
+    std::string shape_error;
+    if (info == nullptr || setjmp(png_jmpbuf(png))) {
+        png_destroy_read_struct(&png, &info, nullptr);
+        return corrupt(fmt::format("{}: cannot decode PNG (truncated or damaged, {} bytes): {}",
+                                   name, bytes.size(), mem.error));
+    }
+    png_set_read_fn(png, &mem, pngRead);
+    png_read_info(png, info);
+    const int bit_depth = png_get_bit_depth(png, info);
+    const int color_type = png_get_color_type(png, info);
+    const int channels = png_get_channels(png, info);
+    if (bit_depth == 16) {
+        shape_error = fmt::format("{}: expected 8-bit colour, got 16-bit", name);
+    } else if ((color_type & PNG_COLOR_MASK_COLOR) == 0) {
+        shape_error = fmt::format("{}: expected 3 channels (RGB), got {}", name, channels);
+    }
+    if (!shape_error.empty()) {
+        png_destroy_read_struct(&png, &info, nullptr);
+        return corrupt(shape_error);
+    }
+    if (color_type == PNG_COLOR_TYPE_PALETTE) png_set_palette_to_rgb(png);
+    if ((color_type & PNG_COLOR_MASK_ALPHA) != 0) png_set_strip_alpha(png);
+    png_read_update_info(png, info);
+    const int w = static_cast<int>(png_get_image_width(png, info));
+    const int h = static_cast<int>(png_get_image_height(png, info));
+    if (png_get_channels(png, info) != 3 || png_get_rowbytes(png, info) != size_t{3} * w) {
+        png_destroy_read_struct(&png, &info, nullptr);
+        return corrupt(fmt::format("{}: cannot convert the PNG to 8-bit RGB", name));
+    }
+    out = ColourImage(w, h);
+    std::vector<png_bytep> rows(static_cast<size_t>(h));
+    for (int v = 0; v < h; ++v) rows[v] = reinterpret_cast<png_bytep>(&out(0, v));
+    png_read_image(png, rows.data());
+    png_read_end(png, nullptr);
+    png_destroy_read_struct(&png, &info, nullptr);
+    return out;
+}
+#else
+/// Decodes an 8-bit PNG or JPEG with OpenCV (BGR or BGRA) into RGB; errors name `name`.
+Result<ColourImage> decodeColourOpenCv(const std::vector<unsigned char>& bytes,
+                                       const std::string& name, const char* kind) {
+    cv::Mat mat;
+    try {
+        mat = cv::imdecode(bytes, cv::IMREAD_UNCHANGED);
+    } catch (const cv::Exception& e) {
+        return corrupt(fmt::format("{}: cannot decode {}: {}", name, kind, e.what()));
+    }
+    if (mat.empty()) {
+        return corrupt(fmt::format("{}: cannot decode {} (truncated or damaged, {} bytes)", name,
+                                   kind, bytes.size()));
+    }
+    if (mat.depth() != CV_8U) {
+        return corrupt(
+            fmt::format("{}: expected 8-bit colour, got {}", name, bitDepthName(mat.depth())));
+    }
+    if (mat.channels() != 3 && mat.channels() != 4) {
+        return corrupt(fmt::format("{}: expected 3 channels (RGB), got {}", name, mat.channels()));
+    }
+    const int step = mat.channels();
+    ColourImage out(mat.cols, mat.rows);
+    for (int v = 0; v < mat.rows; ++v) {
+        const uint8_t* row = mat.ptr<uint8_t>(v);
+        for (int u = 0; u < mat.cols; ++u) {
+            const uint8_t* bgr = row + static_cast<size_t>(step) * u;
+            out(u, v) = Rgb8{bgr[2], bgr[1], bgr[0]};
+        }
+    }
+    return out;
+}
+#endif
+
+}  // namespace
+
+Result<ColourImage> readColourImage(const std::filesystem::path& path) {
+    const std::string name = path.string();
+    auto file = readBytes(path, "colour image");
+    if (!file.isOk()) return file.status();
+    const std::vector<unsigned char>& bytes = *file;
+    const bool png = isPng(bytes);
+    if (!png && !isJpeg(bytes)) {
+        return corrupt(fmt::format(
+            "{}: not a PNG or JPEG file ({} bytes, no PNG or JPEG signature)", name, bytes.size()));
+    }
+#if PLUMB_DRIVERS_LIBPNG
+    if (!png) {
+        return unsupported(fmt::format(
+            "{}: JPEG colour needs a build with OpenCV (this build reads PNG only)", name));
+    }
+    return decodeColourPng(bytes, name);
+#else
+    return decodeColourOpenCv(bytes, name, png ? "PNG" : "JPEG");
+#endif
+}
+
+Result<ColourImage> readColourImage(const std::filesystem::path& path, int width, int height,
+                                    ColourSize size) {
+    auto colour = readColourImage(path);
+    if (!colour.isOk()) return colour;
+    if (colour->width() == width && colour->height() == height) return colour;
+    if (size == ColourSize::kExact) {
+        return corrupt(fmt::format("{}: expected {}x{}, got {}x{}", path.string(), width, height,
+                                   colour->width(), colour->height()));
+    }
+    return resizeColour(*colour, width, height);
+}
+
+ColourImage resizeColour(const ColourImage& colour, int width, int height) {
+    PLUMB_CHECK(width > 0 && height > 0 && !colour.empty())
+        << "resizing a " << colour.width() << "x" << colour.height() << " colour image to " << width
+        << "x" << height;
+    if (colour.width() == width && colour.height() == height) return colour;
+    const double sx = static_cast<double>(colour.width()) / width;
+    const double sy = static_cast<double>(colour.height()) / height;
+    const int max_u = colour.width() - 1;
+    const int max_v = colour.height() - 1;
+    ColourImage out(width, height);
+    for (int v = 0; v < height; ++v) {
+        const double y = std::clamp((v + 0.5) * sy - 0.5, 0.0, static_cast<double>(max_v));
+        const int v0 = static_cast<int>(y);
+        const int v1 = std::min(v0 + 1, max_v);
+        const double fy = y - v0;
+        for (int u = 0; u < width; ++u) {
+            const double x = std::clamp((u + 0.5) * sx - 0.5, 0.0, static_cast<double>(max_u));
+            const int u0 = static_cast<int>(x);
+            const int u1 = std::min(u0 + 1, max_u);
+            const double fx = x - u0;
+            const auto blend = [&](uint8_t Rgb8::*channel) {
+                const double top =
+                    (1.0 - fx) * (colour(u0, v0).*channel) + fx * (colour(u1, v0).*channel);
+                const double bottom =
+                    (1.0 - fx) * (colour(u0, v1).*channel) + fx * (colour(u1, v1).*channel);
+                return static_cast<uint8_t>(std::lround((1.0 - fy) * top + fy * bottom));
+            };
+            out(u, v) = Rgb8{blend(&Rgb8::r), blend(&Rgb8::g), blend(&Rgb8::b)};
+        }
+    }
+    return out;
+}
+
+Status writeColourPng(const std::filesystem::path& path, const ColourImage& colour) {
+    PLUMB_CHECK(!colour.empty()) << "writing an empty colour image to " << path;
+    std::vector<unsigned char> bytes;
+#if PLUMB_DRIVERS_LIBPNG
+    PLUMB_RETURN_IF_ERROR(
+        encodePng(path, colour.data(), colour.width(), colour.height(), 8, 3, &bytes));
+#else
+    // OpenCV encodes BGR: swap into a scratch image so the file holds RGB.
+    cv::Mat mat(colour.height(), colour.width(), CV_8UC3);
+    for (int v = 0; v < colour.height(); ++v) {
+        uint8_t* row = mat.ptr<uint8_t>(v);
+        for (int u = 0; u < colour.width(); ++u) {
+            const Rgb8& c = colour(u, v);
+            row[3 * u] = c.b;
+            row[3 * u + 1] = c.g;
+            row[3 * u + 2] = c.r;
+        }
+    }
     try {
         if (!cv::imencode(".png", mat, bytes)) {
             return ioError(fmt::format("cannot encode {} as PNG", path.string()));

@@ -5,11 +5,14 @@
 
 #include <gtest/gtest.h>
 
+#include <fmt/format.h>
 #include <cmath>
 #include <filesystem>
+
 #include <fstream>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -47,6 +50,27 @@ cv::Mat rampDepth(int width, int height, int base) {
 void writePng(const fs::path& path, const cv::Mat& image) {
     fs::create_directories(path.parent_path());
     ASSERT_TRUE(cv::imwrite(path.string(), image)) << path;
+}
+
+/// An 8-bit colour image (OpenCV's BGR order in memory) whose pixel (u, v) is R = red,
+/// G = u mod 256, B = v mod 256: loaded in RGB order it must read back as {red, u, v}.
+cv::Mat taggedColour(int width, int height, int red) {
+    cv::Mat m(height, width, CV_8UC3);
+    for (int v = 0; v < height; ++v) {
+        for (int u = 0; u < width; ++u) {
+            m.at<cv::Vec3b>(v, u) = cv::Vec3b(static_cast<uint8_t>(v), static_cast<uint8_t>(u),
+                                              static_cast<uint8_t>(red));
+        }
+    }
+    return m;
+}
+
+/// The red tag of a colour image written by taggedColour, after checking its G/B ramps.
+int colourTag(const ColourImage& colour) {
+    EXPECT_EQ(colour(7, 3), (Rgb8{colour(0, 0).r, 7, 3}));
+    EXPECT_EQ(colour(colour.width() - 1, colour.height() - 1).g, (colour.width() - 1) % 256);
+    EXPECT_EQ(colour(colour.width() - 1, colour.height() - 1).b, (colour.height() - 1) % 256);
+    return colour(0, 0).r;
 }
 
 /// A tiny plumb-layout folder (depth.txt + intrinsics.json, 160x120, scale 1000).
@@ -91,6 +115,7 @@ TEST(DatasetReal, TumLoadsAllFramesWithInterpolatedGroundTruth) {
     }
     EXPECT_EQ(expected_with_gt, 248u);
     EXPECT_EQ(info.framesWithGroundTruth(), 248u);
+    EXPECT_EQ(info.framesWithColour(), 0u);  // this excerpt ships depth only
     std::printf("[ summary  ] %s\n", info.summary().c_str());
 
     // Frame 5 (537.823406) lies between GT samples 537.8183 and 537.8269: its position is their
@@ -110,6 +135,7 @@ TEST(DatasetReal, TumLoadsAllFramesWithInterpolatedGroundTruth) {
         EXPECT_EQ(frame->depth.height(), 480);
         EXPECT_EQ(frame->name, info.frames[k].name);
         EXPECT_DOUBLE_EQ(frame->timestamp_s, info.frames[k].timestamp_s);
+        EXPECT_TRUE(frame->colour.empty());
         const size_t valid = countValid(frame->depth);
         min_valid = std::min(min_valid, valid);
         max_valid = std::max(max_valid, valid);
@@ -143,6 +169,7 @@ TEST(DatasetReal, IclNuimLoadsListedFramesWithIndexGroundTruth) {
     ASSERT_EQ(info.frames.size(), 100u);
     EXPECT_EQ((*source)->size(), std::optional<size_t>(100));
     EXPECT_EQ(info.framesWithGroundTruth(), 100u);
+    EXPECT_EQ(info.framesWithColour(), 0u);
     std::printf("[ summary  ] %s\n", info.summary().c_str());
     for (size_t k = 0; k < info.frames.size(); ++k) {
         EXPECT_DOUBLE_EQ(info.frames[k].timestamp_s, static_cast<double>(k + 2));
@@ -160,6 +187,7 @@ TEST(DatasetReal, IclNuimLoadsListedFramesWithIndexGroundTruth) {
         EXPECT_EQ(frame->depth.width(), 640);
         EXPECT_EQ(frame->depth.height(), 480);
         ASSERT_TRUE(frame->T_W_C_gt.has_value()) << frame->name;
+        EXPECT_TRUE(frame->colour.empty());
         const size_t valid = countValid(frame->depth);
         min_valid = std::min(min_valid, valid);
         max_valid = std::max(max_valid, valid);
@@ -368,6 +396,413 @@ TEST(DatasetSynthetic, DetectionRuleSeparatesIclFromTum) {
     EXPECT_EQ(c->layout, Layout::kTumRgbd);
     EXPECT_DOUBLE_EQ(c->camera.fx, 525.0);
     EXPECT_EQ(c->framesWithGroundTruth(), 1u);  // exact stamp via the association fallback
+}
+
+// ---------------------------------------------------------------------------------------------
+// Colour.
+
+TEST(DatasetReal, IclNuimKt3HasRegisteredColourForEveryFrame) {
+    PLUMB_REQUIRE_SHARED_DATA(path, "icl-nuim-office-kt3-rgbd");
+    const std::filesystem::path dir = path;
+    auto source = openFrameSource("dataset:" + dir.string());
+    ASSERT_TRUE(source.isOk()) << source.status().toString();
+    auto scanned = scanDataset(dir);
+    ASSERT_TRUE(scanned.isOk()) << scanned.status().toString();
+    const DatasetInfo& info = *scanned;
+    EXPECT_EQ(info.layout, Layout::kIclNuim);
+    ASSERT_EQ(info.frames.size(), 99u);
+    EXPECT_EQ(info.framesWithColour(), 99u);
+    EXPECT_EQ(info.framesWithGroundTruth(), 99u);
+    EXPECT_TRUE(info.colour_registered);
+    EXPECT_EQ(info.colour_source, "associations.txt");
+    EXPECT_NE(info.summary().find("colour for 99 frames"), std::string::npos) << info.summary();
+    std::printf("[ summary  ] %s\n", info.summary().c_str());
+    EXPECT_EQ(info.frames[4].colour_path, dir / "rgb/5.png");
+
+    double min_std = 1.0, max_std = 0.0;
+    for (size_t k = 0; k < info.frames.size(); ++k) {
+        auto frame = (*source)->next();
+        ASSERT_TRUE(frame.isOk()) << k << ": " << frame.status().toString();
+        ASSERT_EQ(frame->colour.width(), frame->depth.width()) << frame->name;
+        ASSERT_EQ(frame->colour.height(), frame->depth.height()) << frame->name;
+        // A textured office: intensity spread over the image, neither black nor saturated.
+        const Image<float> gray = toIntensity(frame->colour);
+        double sum = 0.0, sum2 = 0.0;
+        for (float i : gray.pixels()) {
+            sum += i;
+            sum2 += double{i} * i;
+        }
+        const double n = static_cast<double>(gray.size());
+        const double mean = sum / n;
+        const double std = std::sqrt(std::max(0.0, sum2 / n - mean * mean));
+        EXPECT_GT(mean, 0.1) << frame->name;
+        EXPECT_LT(mean, 0.9) << frame->name;
+        EXPECT_GT(std, 0.05) << frame->name;
+        min_std = std::min(min_std, std);
+        max_std = std::max(max_std, std);
+        // Not a grey image stored as colour: the channels differ somewhere.
+        size_t chromatic = 0;
+        for (const Rgb8& c : frame->colour.pixels()) chromatic += (c.r != c.g || c.g != c.b);
+        EXPECT_GT(chromatic, frame->colour.size() / 10) << frame->name;
+    }
+    std::printf("[ colour   ] kt3 intensity std min %.3f max %.3f\n", min_std, max_std);
+    EXPECT_EQ((*source)->next().status().code(), StatusCode::kOutOfRange);
+
+    // The same folder read with colour off: depth only, like a dataset without colour.
+    DatasetConfig no_colour;
+    no_colour.load_colour = false;
+    auto depth_only = scanDataset(dir, no_colour);
+    ASSERT_TRUE(depth_only.isOk());
+    EXPECT_EQ(depth_only->framesWithColour(), 0u);
+    EXPECT_NE(depth_only->summary().find("colour ignored"), std::string::npos);
+    auto f0 = loadFrame(*depth_only, 0);
+    ASSERT_TRUE(f0.isOk());
+    EXPECT_TRUE(f0->colour.empty());
+    SourceOptions options;
+    options.colour = false;
+    auto src = openFrameSource(dir.string(), options);
+    ASSERT_TRUE(src.isOk());
+    auto first = (*src)->next();
+    ASSERT_TRUE(first.isOk());
+    EXPECT_TRUE(first->colour.empty());
+}
+
+TEST(DatasetColour, TumAssociatesRgbByTimestampLikeAssociatePy) {
+    const fs::path dir = plumb::testing::freshTempDir("dataset-colour-tum");
+    const std::vector<double> depth_stamps = {1.000, 1.033, 1.066, 1.100};
+    std::string depth_txt = "# depth maps\n";
+    for (size_t k = 0; k < depth_stamps.size(); ++k) {
+        const std::string name = "depth/" + std::to_string(k) + ".png";
+        writePng(dir / name, rampDepth(640, 480, 1000));
+        depth_txt += fmt::format("{:.6f} {}\n", depth_stamps[k], name);
+    }
+    writeText(dir / "depth.txt", depth_txt);
+    // Colour i is tagged 10 (i + 1). 1.005 is closest to 1.000 (0.005) and takes it, so 0.990
+    // stays unused; 1.050 is closer to 1.066 (0.016) than to 1.033 (0.017): 1.033 gets nothing;
+    // 1.085 pairs with 1.100 (0.015); 1.1205 is more than 0.02 s from everything.
+    const std::vector<double> colour_stamps = {0.990, 1.005, 1.050, 1.085, 1.1205};
+    std::string rgb_txt = "# colour images\n";
+    for (size_t i = 0; i < colour_stamps.size(); ++i) {
+        const std::string name = "rgb/" + std::to_string(i) + ".png";
+        writePng(dir / name, taggedColour(640, 480, 10 * static_cast<int>(i + 1)));
+        rgb_txt += fmt::format("{:.6f} {}\n", colour_stamps[i], name);
+    }
+    writeText(dir / "rgb.txt", rgb_txt);
+
+    auto source = DatasetSource::open(dir);
+    ASSERT_TRUE(source.isOk()) << source.status().toString();
+    const DatasetInfo& info = (*source)->info();
+    EXPECT_EQ(info.layout, Layout::kTumRgbd);
+    EXPECT_EQ(info.framesWithColour(), 3u);
+    EXPECT_NE(info.summary().find("rgb.txt by timestamp within 0.02 s"), std::string::npos)
+        << info.summary();
+    const std::vector<int> expected_tag = {20, 0, 30, 40};  // 0 = no colour
+    for (size_t k = 0; k < depth_stamps.size(); ++k) {
+        auto frame = (*source)->next();
+        ASSERT_TRUE(frame.isOk()) << frame.status().toString();
+        if (expected_tag[k] == 0) {
+            EXPECT_TRUE(frame->colour.empty()) << k;
+            continue;
+        }
+        ASSERT_EQ(frame->colour.width(), 640) << k;
+        ASSERT_EQ(frame->colour.height(), 480) << k;
+        EXPECT_EQ(colourTag(frame->colour), expected_tag[k]) << k;
+    }
+
+    // A wider tolerance lets 0.990 pair too, but each colour image is still used once.
+    DatasetConfig wide;
+    wide.colour_max_difference_s = 0.05;
+    auto wider = scanDataset(dir, wide);
+    ASSERT_TRUE(wider.isOk()) << wider.status().toString();
+    EXPECT_EQ(wider->framesWithColour(), 4u);
+    std::set<fs::path> used;
+    for (const auto& f : wider->frames) used.insert(f.colour_path);
+    EXPECT_EQ(used.size(), 4u);
+    DatasetConfig zero;
+    zero.colour_max_difference_s = 0.0;
+    EXPECT_EQ(scanDataset(dir, zero).status().code(), StatusCode::kInvalidArgument);
+}
+
+TEST(DatasetColour, IclUsesAssociationsThenRgbListThenRgbFolder) {
+    const fs::path dir = plumb::testing::freshTempDir("dataset-colour-icl");
+    writeText(dir / "depth.txt", "0 depth/0.png\n1 depth/1.png\n2 depth/2.png\n");
+    for (int k = 0; k < 3; ++k) {
+        writePng(dir / ("depth/" + std::to_string(k) + ".png"), rampDepth(640, 480, 1000));
+        writePng(dir / ("rgb/" + std::to_string(k) + ".png"), taggedColour(640, 480, 100 + k));
+    }
+    const auto tags = [&](const DatasetConfig& config = {}) {
+        auto info = scanDataset(dir, config);
+        EXPECT_TRUE(info.isOk()) << info.status().toString();
+        std::vector<int> out;
+        if (!info.isOk()) return out;
+        EXPECT_EQ(info->layout, Layout::kIclNuim);
+        for (size_t k = 0; k < info->frames.size(); ++k) {
+            auto frame = loadFrame(*info, k);
+            EXPECT_TRUE(frame.isOk()) << frame.status().toString();
+            out.push_back(frame.isOk() && !frame->colour.empty() ? colourTag(frame->colour) : 0);
+        }
+        return out;
+    };
+    // associations.txt in the ICL-NUIM order (depth first) and deliberately crossed: it wins.
+    writeText(dir / "associations.txt",
+              "0 depth/0.png 2 rgb/2.png\n1 depth/1.png 1 rgb/1.png\n2 depth/2.png 0 rgb/0.png\n");
+    writeText(dir / "rgb.txt", "0 rgb/0.png\n1 rgb/1.png\n2 rgb/2.png\n");
+    EXPECT_EQ(tags(), (std::vector<int>{102, 101, 100}));
+    // associate.py's order (colour first), frame 2 not paired: it has no colour.
+    writeText(dir / "associations.txt",
+              "# rgb depth\n1 rgb/0.png 0 depth/0.png\n"
+              "1 rgb/1.png 1 depth/1.png\n5 rgb/2.png 5 depth/9.png\n");
+    EXPECT_EQ(tags(), (std::vector<int>{100, 101, 0}));
+    // Without associations.txt: rgb.txt, equal indices pair.
+    fs::remove(dir / "associations.txt");
+    writeText(dir / "rgb.txt", "2 rgb/2.png\n0 rgb/0.png\n1 rgb/1.png\n");
+    EXPECT_EQ(tags(), (std::vector<int>{100, 101, 102}));
+    // Without either list: rgb/N.png by frame index; a missing one is that frame's error.
+    fs::remove(dir / "rgb.txt");
+    EXPECT_EQ(tags(), (std::vector<int>{100, 101, 102}));
+    fs::remove(dir / "rgb/1.png");
+    auto source = DatasetSource::open(dir);
+    ASSERT_TRUE(source.isOk());
+    EXPECT_TRUE((*source)->next().isOk());
+    auto missing = (*source)->next();
+    ASSERT_FALSE(missing.isOk());
+    EXPECT_EQ(missing.status().code(), StatusCode::kNotFound);
+    EXPECT_NE(missing.status().message().find("rgb/1.png"), std::string::npos)
+        << missing.status().message();
+    auto after = (*source)->next();
+    ASSERT_TRUE(after.isOk()) << after.status().toString();
+    EXPECT_EQ(colourTag(after->colour), 102);
+}
+
+TEST(DatasetColour, PlumbSimOutputKeepsRgbOrderInTheFile) {
+    // plumb sim writes rgb.txt + rgb/NNNNN.png with the same stamps as depth.txt.
+    const fs::path dir =
+        writePlumbFolder("dataset-colour-plumb", {"depth/00000.png", "depth/00001.png"});
+    std::string rgb_txt = "# timestamp filename\n";
+    for (int k = 0; k < 2; ++k) {
+        writePng(dir / fmt::format("depth/{:05d}.png", k), rampDepth(160, 120, 1000));
+        ColourImage colour(160, 120);
+        for (int v = 0; v < 120; ++v) {
+            for (int u = 0; u < 160; ++u) {
+                colour(u, v) = Rgb8{static_cast<uint8_t>(200 + k), static_cast<uint8_t>(u),
+                                    static_cast<uint8_t>(v)};
+            }
+        }
+        const std::string name = fmt::format("rgb/{:05d}.png", k);
+        fs::create_directories(dir / "rgb");
+        ASSERT_TRUE(writeColourPng(dir / name, colour).isOk());
+        rgb_txt += std::to_string(10.0 + 0.1 * k) + " " + name + "\n";
+        // The file holds real RGB: OpenCV, which reads BGR, finds red in its third channel.
+        const cv::Mat bgr = cv::imread((dir / name).string(), cv::IMREAD_UNCHANGED);
+        ASSERT_EQ(bgr.type(), CV_8UC3);
+        EXPECT_EQ(bgr.at<cv::Vec3b>(3, 7), cv::Vec3b(3, 7, static_cast<uint8_t>(200 + k)));
+    }
+    writeText(dir / "rgb.txt", rgb_txt);
+    auto source = DatasetSource::open(dir);
+    ASSERT_TRUE(source.isOk()) << source.status().toString();
+    EXPECT_EQ((*source)->info().layout, Layout::kPlumb);
+    EXPECT_EQ((*source)->info().framesWithColour(), 2u);
+    for (int k = 0; k < 2; ++k) {
+        auto frame = (*source)->next();
+        ASSERT_TRUE(frame.isOk()) << frame.status().toString();
+        EXPECT_EQ(colourTag(frame->colour), 200 + k);
+    }
+}
+
+TEST(DatasetColour, SevenScenesColourIsUnregisteredAndResizedToTheDepth) {
+    const fs::path dir = plumb::testing::freshTempDir("dataset-colour-7scenes");
+    for (int id = 0; id < 3; ++id) {
+        const std::string stem = fmt::format("frame-{:06d}", id);
+        writePng(dir / (stem + ".depth.png"), rampDepth(640, 480, 2000));
+        if (id == 2) continue;  // frame 2 has no colour image
+        // Half the depth's size: left half red, right half blue.
+        cv::Mat colour(240, 320, CV_8UC3, cv::Scalar(0, 0, 255));
+        colour(cv::Rect(160, 0, 160, 240)).setTo(cv::Scalar(255, 0, 0));
+        writePng(dir / (stem + ".color.png"), colour);
+    }
+    auto source = DatasetSource::open(dir);
+    ASSERT_TRUE(source.isOk()) << source.status().toString();
+    const DatasetInfo& info = (*source)->info();
+    EXPECT_FALSE(info.colour_registered);
+    EXPECT_EQ(info.framesWithColour(), 3u);
+    EXPECT_NE(info.summary().find("not registered to depth"), std::string::npos) << info.summary();
+    auto frame = (*source)->next();
+    ASSERT_TRUE(frame.isOk()) << frame.status().toString();
+    ASSERT_EQ(frame->colour.width(), 640);
+    ASSERT_EQ(frame->colour.height(), 480);
+    EXPECT_EQ(frame->colour(10, 10), (Rgb8{255, 0, 0}));
+    EXPECT_EQ(frame->colour(630, 470), (Rgb8{0, 0, 255}));
+    // The boundary blends over the two pixels that straddle it.
+    EXPECT_EQ(frame->colour(318, 100), (Rgb8{255, 0, 0}));
+    EXPECT_EQ(frame->colour(321, 100), (Rgb8{0, 0, 255}));
+    ASSERT_TRUE((*source)->next().isOk());
+    auto missing = (*source)->next();
+    ASSERT_FALSE(missing.isOk());
+    EXPECT_EQ(missing.status().code(), StatusCode::kNotFound);
+    EXPECT_NE(missing.status().message().find("frame-000002.color.png"), std::string::npos)
+        << missing.status().message();
+}
+
+TEST(DatasetColour, RedwoodPairsColourFoldersByNumber) {
+    for (const std::string folder : {"color", "rgb", "image"}) {
+        const fs::path dir = plumb::testing::freshTempDir("dataset-colour-redwood-" + folder);
+        for (int id : {0, 1, 2, 10}) {
+            writePng(dir / fmt::format("depth/{:06d}.png", id), rampDepth(640, 480, 1000));
+        }
+        writePng(dir / folder / "000000.png", taggedColour(640, 480, 50));
+        writePng(dir / folder / "000001.png", taggedColour(640, 480, 51));
+        // Redwood ships JPEG: lossy, so a uniform colour is compared with a tolerance.
+        writePng(dir / folder / "000002.jpg", cv::Mat(480, 640, CV_8UC3, cv::Scalar(30, 90, 200)));
+        auto source = DatasetSource::open(dir);
+        ASSERT_TRUE(source.isOk()) << source.status().toString();
+        EXPECT_EQ((*source)->info().layout, Layout::kRedwood);
+        EXPECT_EQ((*source)->info().framesWithColour(), 3u);
+        EXPECT_NE((*source)->info().summary().find(folder + "/ by number"), std::string::npos);
+        auto f0 = (*source)->next();
+        auto f1 = (*source)->next();
+        auto f2 = (*source)->next();
+        ASSERT_TRUE(f0.isOk() && f1.isOk() && f2.isOk()) << f2.status().toString();
+        EXPECT_EQ(colourTag(f0->colour), 50);
+        EXPECT_EQ(colourTag(f1->colour), 51);
+        const Rgb8 c = f2->colour(320, 240);
+        EXPECT_NEAR(c.r, 200, 3);
+        EXPECT_NEAR(c.g, 90, 3);
+        EXPECT_NEAR(c.b, 30, 3);
+        auto f10 = (*source)->next();  // depth/000010.png has no colour image
+        ASSERT_FALSE(f10.isOk());
+        EXPECT_EQ(f10.status().code(), StatusCode::kNotFound);
+        EXPECT_NE(f10.status().message().find("no colour image numbered 10"), std::string::npos)
+            << f10.status().message();
+    }
+}
+
+TEST(DatasetColourErrors, EachBadColourImageGetsItsSpecificErrorAndTheStreamGoesOn) {
+    const std::vector<std::string> colour = {"rgb/good.png", "rgb/truncated.png", "rgb/gray.png",
+                                             "rgb/deep.png", "rgb/small.png",     "rgb/missing.png",
+                                             "rgb/text.png", "rgb/rgba.png"};
+    std::vector<std::string> depth;
+    for (size_t k = 0; k < colour.size(); ++k) depth.push_back(fmt::format("depth/{}.png", k));
+    const fs::path dir = writePlumbFolder("dataset-colour-errors", depth);
+    std::string rgb_txt;
+    for (size_t k = 0; k < colour.size(); ++k) {
+        writePng(dir / depth[k], rampDepth(160, 120, 800));
+        rgb_txt += std::to_string(10.0 + 0.1 * static_cast<double>(k)) + " " + colour[k] + "\n";
+    }
+    writeText(dir / "rgb.txt", rgb_txt);
+    writePng(dir / "rgb/good.png", taggedColour(160, 120, 1));
+    writePng(dir / "rgb/truncated.png", taggedColour(160, 120, 2));
+    fs::resize_file(dir / "rgb/truncated.png", fs::file_size(dir / "rgb/truncated.png") / 2);
+    writePng(dir / "rgb/gray.png", cv::Mat(120, 160, CV_8UC1, cv::Scalar(7)));
+    writePng(dir / "rgb/deep.png", cv::Mat(120, 160, CV_16UC3, cv::Scalar(1, 2, 3)));
+    writePng(dir / "rgb/small.png", taggedColour(80, 60, 3));
+    writeText(dir / "rgb/text.png", "this is not an image\n");
+    cv::Mat rgba(120, 160, CV_8UC4, cv::Scalar(5, 6, 7, 128));
+    writePng(dir / "rgb/rgba.png", rgba);
+
+    auto source = openFrameSource("dataset:" + dir.string());
+    ASSERT_TRUE(source.isOk()) << source.status().toString();
+    struct Expected {
+        StatusCode code;
+        std::vector<std::string> fragments;
+    };
+    const std::vector<Expected> expected = {
+        {StatusCode::kOk, {}},
+        {StatusCode::kCorrupt, {"truncated.png", "cannot decode"}},
+        {StatusCode::kCorrupt, {"gray.png", "expected 3 channels (RGB), got 1"}},
+        {StatusCode::kCorrupt, {"deep.png", "expected 8-bit colour, got 16-bit"}},
+        {StatusCode::kCorrupt, {"small.png", "expected 160x120, got 80x60"}},
+        {StatusCode::kNotFound, {"missing.png", "does not exist"}},
+        {StatusCode::kCorrupt, {"text.png", "not a PNG or JPEG"}},
+        {StatusCode::kOk, {}},
+    };
+    for (size_t k = 0; k < expected.size(); ++k) {
+        auto frame = (*source)->next();
+        EXPECT_EQ(frame.status().code(), expected[k].code)
+            << "frame " << k << ": " << frame.status().toString();
+        for (const auto& fragment : expected[k].fragments) {
+            EXPECT_NE(frame.status().message().find(fragment), std::string::npos)
+                << "frame " << k << ": '" << frame.status().message() << "' lacks '" << fragment
+                << "'";
+        }
+        if (k == 7 && frame.isOk()) {
+            // RGBA: the alpha is dropped, the colour kept in RGB order.
+            EXPECT_EQ(frame->colour(5, 5), (Rgb8{7, 6, 5}));
+        }
+    }
+    EXPECT_EQ((*source)->next().status().code(), StatusCode::kOutOfRange);
+}
+
+TEST(DatasetColourErrors, MalformedColourListsNameFileAndLine) {
+    const fs::path dir = writePlumbFolder("dataset-colour-lists", {"depth/0.png", "depth/1.png"});
+    writeText(dir / "rgb.txt", "10.0 rgb/0.png\nnot a line at all\n");
+    auto garbage = scanDataset(dir);
+    ASSERT_FALSE(garbage.isOk());
+    EXPECT_EQ(garbage.status().code(), StatusCode::kCorrupt);
+    EXPECT_NE(garbage.status().message().find("rgb.txt:2: expected 'timestamp path'"),
+              std::string::npos)
+        << garbage.status().message();
+    writeText(dir / "rgb.txt", "# nothing\n");
+    auto empty = scanDataset(dir);
+    EXPECT_EQ(empty.status().code(), StatusCode::kCorrupt);
+    EXPECT_NE(empty.status().message().find("rgb.txt: lists no colour images"), std::string::npos)
+        << empty.status().message();
+
+    writeText(dir / "associations.txt", "10.0 depth/0.png 10.0\n");
+    auto short_line = scanDataset(dir);
+    EXPECT_EQ(short_line.status().code(), StatusCode::kCorrupt);
+    EXPECT_NE(short_line.status().message().find("associations.txt:1:"), std::string::npos)
+        << short_line.status().message();
+    writeText(dir / "associations.txt", "10.0 depth/7.png 10.0 rgb/7.png\n");
+    auto unrelated = scanDataset(dir);
+    EXPECT_EQ(unrelated.status().code(), StatusCode::kCorrupt);
+    EXPECT_NE(unrelated.status().message().find("pairs none of the depth images"),
+              std::string::npos)
+        << unrelated.status().message();
+    writeText(dir / "associations.txt",
+              "10.0 depth/0.png 10.0 rgb/0.png\n10.1 depth/0.png 10.1 rgb/1.png\n");
+    auto twice = scanDataset(dir);
+    EXPECT_EQ(twice.status().code(), StatusCode::kCorrupt);
+    EXPECT_NE(twice.status().message().find("associations.txt:2: pairs depth/0.png a second time"),
+              std::string::npos)
+        << twice.status().message();
+    // With colour off, none of the colour files is read.
+    DatasetConfig no_colour;
+    no_colour.load_colour = false;
+    EXPECT_TRUE(scanDataset(dir, no_colour).isOk());
+}
+
+TEST(ColourPng, WriteReadRoundTripIsExactAndResizeInterpolates) {
+    const fs::path dir = plumb::testing::freshTempDir("dataset-colour-png");
+    ColourImage colour(33, 17);
+    for (int v = 0; v < 17; ++v) {
+        for (int u = 0; u < 33; ++u) {
+            colour(u, v) = Rgb8{static_cast<uint8_t>(u * 7), static_cast<uint8_t>(v * 13),
+                                static_cast<uint8_t>(u + v)};
+        }
+    }
+    ASSERT_TRUE(writeColourPng(dir / "c.png", colour).isOk());
+    auto back = readColourImage(dir / "c.png");
+    ASSERT_TRUE(back.isOk()) << back.status().toString();
+    EXPECT_EQ(*back, colour);
+    auto exact = readColourImage(dir / "c.png", 33, 17, ColourSize::kExact);
+    EXPECT_TRUE(exact.isOk());
+    auto wrong = readColourImage(dir / "c.png", 32, 17, ColourSize::kExact);
+    EXPECT_EQ(wrong.status().code(), StatusCode::kCorrupt);
+
+    // 2x1 -> 4x1 with pixel centres aligned: the outer pixels clamp, the inner ones blend 3:1.
+    ColourImage two(2, 1);
+    two(0, 0) = Rgb8{0, 100, 200};
+    two(1, 0) = Rgb8{200, 100, 0};
+    const ColourImage four = resizeColour(two, 4, 1);
+    EXPECT_EQ(four(0, 0), (Rgb8{0, 100, 200}));
+    EXPECT_EQ(four(1, 0), (Rgb8{50, 100, 150}));
+    EXPECT_EQ(four(2, 0), (Rgb8{150, 100, 50}));
+    EXPECT_EQ(four(3, 0), (Rgb8{200, 100, 0}));
+    EXPECT_EQ(resizeColour(colour, 33, 17), colour);
+    auto resized = readColourImage(dir / "c.png", 66, 34, ColourSize::kResize);
+    ASSERT_TRUE(resized.isOk());
+    EXPECT_EQ(resized->width(), 66);
+    EXPECT_EQ(resized->height(), 34);
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -81,6 +81,7 @@ constexpr const char* kUsage =
     "  --noise MODE       simulator noise: redwood (default), off, parametric, undistorted\n"
     "  --depth-calibration X  undistort depth: sensor (default: the sensor's own table), none,\n"
     "                     or a CLAMS/Redwood dist-model.txt\n"
+    "  --no-colour        read depth only, even when the source has colour\n"
     "  --threads N        worker threads (default: all); results do not depend on it\n"
     "  --config FILE      configuration file (see `plumb config doc fusion`)\n"
     "  --set KEY=VALUE    override one configuration key, e.g. frames_per_fragment=100\n"
@@ -263,6 +264,8 @@ int runFuse(const std::vector<std::string>& arguments) {
                 return usageError("--depth-calibration needs a value");
             if (Status s = checkDepthCalibration(o.source_options.depth_calibration); !s.isOk())
                 return usageError(s.message());
+        } else if (a == "--no-colour") {
+            o.source_options.colour = false;
         } else if (a == "--noise") {
             if (!value(&o.source_options.sim_noise)) return usageError("--noise needs a mode");
             if (Status s = sim::checkNoiseMode(o.source_options.sim_noise); !s.isOk())

@@ -73,6 +73,7 @@ constexpr const char* kUsage =
     "  --depth-calibration X  undistort depth: sensor (default: the sensor's own table; the\n"
     "                     simulated sensor with the measured table is calibrated with it,\n"
     "                     recordings and real cameras have none), none, or a dist-model.txt\n"
+    "  --no-colour        read depth only, even when the source has colour\n"
     "  --gt DIR           ground truth folder (groundtruth.txt or trajectory.log,\n"
     "                     gt_points.ply, layout.json; default: the dataset folder)\n"
     "  --no-gt            do not evaluate against ground truth\n"
@@ -216,6 +217,8 @@ int runReconstruct(const std::vector<std::string>& arguments) {
                 return usageError("--depth-calibration needs a value");
             if (Status s = checkDepthCalibration(o.source_options.depth_calibration); !s.isOk())
                 return usageError(s.message());
+        } else if (a == "--no-colour") {
+            o.source_options.colour = false;
         } else if (a == "--noise") {
             if (!value(&o.source_options.sim_noise)) return usageError("--noise needs a mode");
             if (Status s = sim::checkNoiseMode(o.source_options.sim_noise); !s.isOk())
