@@ -35,7 +35,7 @@ struct PhotometricConfig {
     bool enabled = true;
     /// Relative weight lambda of the photometric term: the tracker minimises
     /// sum (r_icp / depth_sigma_m)^2 + lambda sum rho(r / intensity_sigma)^2, unit-free.
-    double weight = 0.3;
+    double weight = 0.1;
     /// Scale of the point-to-plane residual that the photometric term is weighed against, metres.
     double depth_sigma_m = 0.01;
     /// Scale of the intensity residual (intensities in [0, 1]).
