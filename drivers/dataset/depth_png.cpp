@@ -85,15 +85,16 @@ void pngWriteError(png_structp png, png_const_charp message) {
     png_longjmp(png, 1);
 }
 
-// Encodes a single-channel image of 8 or 16 bits (native-endian samples) as PNG.
+// Encodes a single-channel image of 8 or 16 bits (native-endian samples), or with `channels` = 3
+// an 8-bit RGB image, as PNG.
 Status encodePng(const std::filesystem::path& path, const void* pixels, int width, int height,
-                 int bit_depth, std::vector<unsigned char>* bytes) {
+                 int bit_depth, std::vector<unsigned char>* bytes, int channels = 1) {
     PngOut out;
     png_structp png =
         png_create_write_struct(PNG_LIBPNG_VER_STRING, &out, pngWriteError, pngWarning);
     if (png == nullptr) return ioError(fmt::format("cannot encode {} as PNG", path.string()));
     png_infop info = png_create_info_struct(png);
-    const size_t bytes_per_row = static_cast<size_t>(width) * (bit_depth / 8);
+    const size_t bytes_per_row = static_cast<size_t>(width) * channels * (bit_depth / 8);
     std::vector<png_bytep> rows(static_cast<size_t>(height));
     for (int v = 0; v < height; ++v) {
         rows[v] = const_cast<png_bytep>(static_cast<const unsigned char*>(pixels) +  // NOLINT
@@ -104,7 +105,8 @@ Status encodePng(const std::filesystem::path& path, const void* pixels, int widt
         return ioError(fmt::format("cannot encode {} as PNG: {}", path.string(), out.error));
     }
     png_set_write_fn(png, &out, pngWrite, pngFlush);
-    png_set_IHDR(png, info, width, height, bit_depth, PNG_COLOR_TYPE_GRAY, PNG_INTERLACE_NONE,
+    png_set_IHDR(png, info, width, height, bit_depth,
+                 channels == 3 ? PNG_COLOR_TYPE_RGB : PNG_COLOR_TYPE_GRAY, PNG_INTERLACE_NONE,
                  PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
     png_write_info(png, info);
     if (bit_depth == 16) png_set_swap(png);  // PNG is big-endian; our samples are native
@@ -246,6 +248,35 @@ Status writeGrayPng(const std::filesystem::path& path, const GrayImage& gray) {
                       const_cast<uint8_t*>(gray.data()));  // NOLINT
     try {
         if (!cv::imencode(".png", mat, bytes)) {
+            return ioError(fmt::format("cannot encode {} as PNG", path.string()));
+        }
+    } catch (const cv::Exception& e) {
+        return ioError(fmt::format("cannot encode {} as PNG: {}", path.string(), e.what()));
+    }
+#endif
+    return writeBytes(path, bytes);
+}
+
+Status writeColourPng(const std::filesystem::path& path, const ColourImage& colour) {
+    PLUMB_CHECK(!colour.empty()) << "writing an empty colour image to " << path;
+    std::vector<unsigned char> bytes;
+#if PLUMB_DRIVERS_LIBPNG
+    PLUMB_RETURN_IF_ERROR(
+        encodePng(path, colour.data(), colour.width(), colour.height(), 8, &bytes, 3));
+#else
+    // OpenCV encodes BGR; the file holds RGB.
+    cv::Mat bgr(colour.height(), colour.width(), CV_8UC3);
+    for (int v = 0; v < colour.height(); ++v) {
+        const Rgb8* in = &colour(0, v);
+        auto* out = bgr.ptr<unsigned char>(v);
+        for (int u = 0; u < colour.width(); ++u) {
+            out[3 * u] = in[u].b;
+            out[3 * u + 1] = in[u].g;
+            out[3 * u + 2] = in[u].r;
+        }
+    }
+    try {
+        if (!cv::imencode(".png", bgr, bytes)) {
             return ioError(fmt::format("cannot encode {} as PNG", path.string()));
         }
     } catch (const cv::Exception& e) {

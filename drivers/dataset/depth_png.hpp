@@ -25,4 +25,7 @@ Status writeDepthPng(const std::filesystem::path& path, const Depth16Image& dept
 /// Writes an 8-bit single-channel PNG (grey images of the simulator).
 Status writeGrayPng(const std::filesystem::path& path, const GrayImage& gray);
 
+/// Writes an 8-bit 3-channel PNG in RGB order (colour images of the simulator; lossless).
+Status writeColourPng(const std::filesystem::path& path, const ColourImage& colour);
+
 }  // namespace plumb::dataset
