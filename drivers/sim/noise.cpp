@@ -20,7 +20,7 @@ namespace {
 
 constexpr int kCells = 80;
 constexpr int kNumbersPerCell = 23;
-constexpr int kTableBins = 4096;
+constexpr int kTableBins = kNormalTableBins;
 
 // Inverse of the standard normal CDF by bisection on erfc (used once, to fill the table).
 double inverseNormalCdf(double p) {
@@ -116,6 +116,8 @@ uint64_t mixSeed(uint64_t x) {
 }
 
 float standardNormalFromBits(uint32_t bits) { return normalFromBits(normalTable().data(), bits); }
+
+const float* standardNormalTable() { return normalTable().data(); }
 
 Result<DistortionTable> DistortionTable::parse(const std::string& text, const std::string& source) {
     std::istringstream in(text);

@@ -138,6 +138,12 @@ class DepthNoiseModel {
 /// interpolation (tails truncated at 3.7 sigma; variance within 0.5 % of 1). Deterministic.
 float standardNormalFromBits(uint32_t bits);
 
+/// The kNormalTableBins + 1 entries behind standardNormalFromBits, for loops that draw many
+/// samples: with b = bits >> 20 and f = (bits & 0xFFFFF) / 2^20 the sample is
+/// t[b] + f (t[b + 1] - t[b]). Built on first use; thread-safe.
+constexpr int kNormalTableBins = 4096;
+const float* standardNormalTable();
+
 /// MT19937-64: the exact output sequence of std::mt19937_64 (same seeding, same tempering), with
 /// the state regenerated in blocks by loops the compiler vectorises and tempered in bulk. The
 /// noise draws ~2 values per pixel and reseeds per row, so this generator is on the hot path.

@@ -266,8 +266,10 @@ RayHit RayCaster::cast(const OriginTerms& terms, const Eigen::Vector3d& d,
     return finish(n);
 }
 
-Renderer::Renderer(const Scene& scene, const PinholeCamera& camera)
-    : caster_(scene), camera_(camera) {
+Renderer::Renderer(const Scene& scene, const PinholeCamera& camera, const RenderConfig& config)
+    : caster_(scene), textures_(scene), config_(config), camera_(camera) {
+    PLUMB_CHECK(config.ambient >= 0.0F && config.ambient <= 1.0F)
+        << "RenderConfig::ambient = " << config.ambient;
     const size_t n = static_cast<size_t>(camera.width) * camera.height;
     rays_C_.resize(n);
     inv_norm_.resize(n);
@@ -382,6 +384,11 @@ void Renderer::render(const Eigen::Isometry3d& T_W_C, RenderedView* view) const 
     fitImage(w, h, &view->cos_view);
     fitImage(w, h, &view->label);
     fitImage(w, h, &view->gray);
+    if (config_.colour) {
+        fitImage(w, h, &view->colour);
+    } else {
+        view->colour = ColourImage();
+    }
     const Eigen::Matrix3d R = T_W_C.linear();
     // Per frame: the primitives' camera-relative terms and their screen rectangles.
     const RayCaster::OriginTerms terms = caster_.originTerms(T_W_C.translation());
@@ -439,6 +446,12 @@ void Renderer::renderTile(const Eigen::Matrix3d& R, const RayCaster::OriginTerms
     const Scene& scene = caster_.scene();
     const int num_walls = scene.numWalls();
     const int num_boxes = static_cast<int>(scene.boxes.size());
+    const bool colour = config_.colour;
+    // Colour shading: 255 (ambient + (1 - ambient) cos); footprint of a pixel on the surface:
+    // range / (f cos), cos clamped so grazing views stay finite.
+    const float shade_ambient = 255.0F * config_.ambient;
+    const float shade_direct = 255.0F * (1.0F - config_.ambient);
+    const double inv_focal = 2.0 / (camera_.fx + camera_.fy);
     for (int v = tile.v0; v <= tile.v1; ++v) {
         for (int u = tile.u0; u <= tile.u1; ++u) {
             const size_t i = static_cast<size_t>(v) * w + u;
@@ -449,6 +462,7 @@ void Renderer::renderTile(const Eigen::Matrix3d& R, const RayCaster::OriginTerms
                 view->cos_view(u, v) = 0.0F;
                 view->label(u, v) = static_cast<int16_t>(kNoPrimitive);
                 view->gray(u, v) = 0;
+                if (colour) view->colour(u, v) = Rgb8{};
                 continue;
             }
             const double cosv = std::abs(hit.normal_W.dot(d)) * inv_norm_[i];
@@ -467,6 +481,16 @@ void Renderer::renderTile(const Eigen::Matrix3d& R, const RayCaster::OriginTerms
             }
             const float shade = 20.0F + 235.0F * albedo * static_cast<float>(cosv);
             view->gray(u, v) = static_cast<uint8_t>(std::min(255.0F, shade));
+            if (colour) {
+                const Eigen::Vector3d p_W = terms.o + hit.t * d;
+                const double footprint_m = hit.t / inv_norm_[i] * inv_focal / std::max(cosv, 0.1);
+                const Colour rho = textures_.albedo(hit.label, p_W, hit.normal_W, footprint_m);
+                const float light = shade_ambient + shade_direct * static_cast<float>(cosv);
+                auto level = [&](float r) {
+                    return static_cast<uint8_t>(std::min(255.0F, r * light) + 0.5F);
+                };
+                view->colour(u, v) = Rgb8{level(rho.x()), level(rho.y()), level(rho.z())};
+            }
         }
     }
 }

@@ -13,6 +13,7 @@
 #include "common/camera/pinhole.hpp"
 #include "common/image/image.hpp"
 #include "drivers/sim/scene.hpp"
+#include "drivers/sim/texture.hpp"
 
 namespace plumb::sim {
 
@@ -98,13 +99,27 @@ struct RenderedView {
     Image<float> cos_view;  ///< |cos| of the angle between surface normal and viewing ray, 0 = none
     Image<int16_t> label;   ///< primitive label per pixel (kNoPrimitive where nothing is hit)
     GrayImage gray;         ///< Lambertian shading with a light at the camera (albedo * cos)
+    /// Clean colour (no exposure change, no noise), registered to `depth`: per channel
+    /// round(255 * rho * (ambient + (1 - ambient) * cos)) with rho the surface's textured RGB
+    /// reflectance (SurfaceTextures), black where nothing is hit. Empty when the renderer was
+    /// built without colour.
+    ColourImage colour;
+};
+
+/// Options of a Renderer.
+struct RenderConfig {
+    /// Render RenderedView::colour (textures and shading); false leaves it empty.
+    bool colour = true;
+    /// Colour shading: fraction of the light that is ambient (the rest comes from a point light
+    /// at the camera, Lambertian), in [0, 1].
+    float ambient = 0.1F;
 };
 
 /// Renders views of one scene through one camera. Thread-safe; render() uses TBB over tiles and
 /// gives the same result for any thread count.
 class Renderer {
   public:
-    Renderer(const Scene& scene, const PinholeCamera& camera);
+    Renderer(const Scene& scene, const PinholeCamera& camera, const RenderConfig& config = {});
 
     /// Renders the view from camera pose T_W_C (camera -> world) into `view` (resized as needed;
     /// buffers of the right size are reused, so rendering into the same view allocates nothing).
@@ -112,6 +127,8 @@ class Renderer {
 
     const PinholeCamera& camera() const { return camera_; }
     const RayCaster& caster() const { return caster_; }
+    const SurfaceTextures& textures() const { return textures_; }
+    const RenderConfig& config() const { return config_; }
 
   private:
     // Inclusive pixel rectangle; empty when u0 > u1 or v0 > v1.
@@ -129,6 +146,8 @@ class Renderer {
                     RenderedView* view) const;
 
     RayCaster caster_;
+    SurfaceTextures textures_;
+    RenderConfig config_;
     PinholeCamera camera_;
     std::vector<Eigen::Vector3d> rays_C_;  // per-pixel direction, z = 1
     std::vector<double> inv_norm_;         // 1 / |d_C| per pixel

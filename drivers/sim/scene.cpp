@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <limits>
 #include <sstream>
 
 #include <fmt/format.h>
@@ -66,8 +67,10 @@ bool insideCylinder(const Cylinder& cyl, const Eigen::Vector3d& p, double margin
 // ---- built-in scenes ---------------------------------------------------------------------------
 
 Box makeBox(double x, double y, double z_min, double sx, double sy, double sz, double yaw_deg,
-            float albedo) {
+            float albedo, const Colour& colour, FurniturePattern pattern) {
     Box b;
+    b.colour = colour;
+    b.pattern = pattern;
     b.center_W = {x, y, z_min + 0.5 * sz};
     b.size_m = {sx, sy, sz};
     b.yaw_rad = yaw_deg * kPi / 180.0;
@@ -75,8 +78,11 @@ Box makeBox(double x, double y, double z_min, double sx, double sy, double sz, d
     return b;
 }
 
-Cylinder makeCylinder(double x, double y, double r, double z_min, double z_max, float albedo) {
+Cylinder makeCylinder(double x, double y, double r, double z_min, double z_max, float albedo,
+                      const Colour& colour, FurniturePattern pattern) {
     Cylinder c;
+    c.colour = colour;
+    c.pattern = pattern;
     c.center_xy = {x, y};
     c.radius_m = r;
     c.z_min_m = z_min;
@@ -102,15 +108,27 @@ Scene livingRoom() {
     s.height_m = 2.6;
     s.path_inset_m = 1.5;
     s.boxes = {
-        makeBox(2.6, 0.4, 0.0, 2.0, 0.8, 0.85, 0.0, 0.45F),    // sofa against the south wall
-        makeBox(3.0, 2.3, 0.0, 1.1, 0.6, 0.45, 12.0, 0.7F),    // coffee table, yawed
-        makeBox(5.8, 3.2, 0.0, 0.4, 1.4, 1.9, 0.0, 0.55F),     // shelf against the east wall
-        makeBox(0.3, 3.4, 0.0, 0.6, 1.2, 0.9, 0.0, 0.65F),     // sideboard against the west wall
-        makeBox(1.3, 4.05, 0.0, 1.0, 0.6, 0.75, -20.0, 0.5F),  // armchair, yawed, near north wall
+        // sofa against the south wall
+        makeBox(2.6, 0.4, 0.0, 2.0, 0.8, 0.85, 0.0, 0.45F, {0.20F, 0.32F, 0.55F},
+                FurniturePattern::kNoise),
+        // coffee table, yawed
+        makeBox(3.0, 2.3, 0.0, 1.1, 0.6, 0.45, 12.0, 0.7F, {0.62F, 0.45F, 0.28F},
+                FurniturePattern::kStripes),
+        // shelf against the east wall
+        makeBox(5.8, 3.2, 0.0, 0.4, 1.4, 1.9, 0.0, 0.55F, {0.85F, 0.84F, 0.80F},
+                FurniturePattern::kChecker),
+        // sideboard against the west wall
+        makeBox(0.3, 3.4, 0.0, 0.6, 1.2, 0.9, 0.0, 0.65F, {0.45F, 0.25F, 0.15F},
+                FurniturePattern::kStripes),
+        // armchair, yawed, near north wall
+        makeBox(1.3, 4.05, 0.0, 1.0, 0.6, 0.75, -20.0, 0.5F, {0.65F, 0.18F, 0.16F},
+                FurniturePattern::kNoise),
     };
     s.cylinders = {
-        makeCylinder(5.4, 0.5, 0.15, 0.0, 1.6, 0.4F),   // floor lamp
-        makeCylinder(0.6, 0.7, 0.25, 0.0, 0.6, 0.35F),  // plant pot
+        makeCylinder(5.4, 0.5, 0.15, 0.0, 1.6, 0.4F, {0.30F, 0.30F, 0.32F},
+                     FurniturePattern::kSolid),  // floor lamp
+        makeCylinder(0.6, 0.7, 0.25, 0.0, 0.6, 0.35F, {0.70F, 0.40F, 0.25F},
+                     FurniturePattern::kChecker),  // plant pot
     };
     s.openings = {
         makeOpening(3, 2.2, 0.9, 0.0, 2.05),  // door in the west wall
@@ -122,16 +140,27 @@ Scene livingRoom() {
 Scene weakManhattan() {
     Scene s;
     s.name = "weak_manhattan";
+    s.wall_colour = {0.72F, 0.78F, 0.74F};  // pale green
+    s.floor_pattern = FloorPattern::kTiles;
+    s.floor_colour = {0.70F, 0.66F, 0.58F};
+    s.texture_seed = 2;
     // The east wall leans 12 degrees off the y axis; the others are axis-aligned.
     s.polygon = {{0.0, 0.0}, {5.6, 0.0}, {6.5, 4.4}, {0.0, 4.4}};
     s.height_m = 2.7;
     s.path_inset_m = 1.5;
     s.boxes = {
-        makeBox(2.5, 0.35, 0.0, 1.6, 0.7, 0.8, 0.0, 0.5F),   // bench against the south wall
-        makeBox(3.0, 2.2, 0.0, 1.4, 0.8, 0.74, 25.0, 0.7F),  // desk, yawed
-        makeBox(0.25, 2.4, 0.0, 0.5, 1.6, 2.0, 0.0, 0.55F),  // wardrobe against the west wall
+        // bench against the south wall
+        makeBox(2.5, 0.35, 0.0, 1.6, 0.7, 0.8, 0.0, 0.5F, {0.35F, 0.50F, 0.30F},
+                FurniturePattern::kStripes),
+        // desk, yawed
+        makeBox(3.0, 2.2, 0.0, 1.4, 0.8, 0.74, 25.0, 0.7F, {0.75F, 0.70F, 0.60F},
+                FurniturePattern::kNoise),
+        // wardrobe against the west wall
+        makeBox(0.25, 2.4, 0.0, 0.5, 1.6, 2.0, 0.0, 0.55F, {0.50F, 0.33F, 0.20F},
+                FurniturePattern::kChecker),
     };
-    s.cylinders = {makeCylinder(4.9, 3.8, 0.2, 0.0, 1.1, 0.4F)};
+    s.cylinders = {makeCylinder(4.9, 3.8, 0.2, 0.0, 1.1, 0.4F, {0.20F, 0.45F, 0.60F},
+                                FurniturePattern::kStripes)};
     s.openings = {makeOpening(2, 2.0, 1.0, 0.0, 2.1)};
     return s;
 }
@@ -139,15 +168,26 @@ Scene weakManhattan() {
 Scene lShape() {
     Scene s;
     s.name = "l_shape";
+    s.wall_colour = {0.82F, 0.74F, 0.62F};  // warm beige
+    s.floor_pattern = FloorPattern::kTiles;
+    s.floor_colour = {0.55F, 0.57F, 0.60F};
+    s.texture_seed = 3;
     s.polygon = {{0.0, 0.0}, {7.0, 0.0}, {7.0, 3.2}, {3.2, 3.2}, {3.2, 7.0}, {0.0, 7.0}};
     s.height_m = 2.6;
     s.path_inset_m = 1.3;
     s.boxes = {
-        makeBox(4.5, 0.3, 0.0, 2.0, 0.6, 0.9, 0.0, 0.55F),  // counter against the south wall
-        makeBox(0.3, 5.0, 0.0, 0.6, 1.6, 1.8, 0.0, 0.6F),   // shelf against the west wall
-        makeBox(6.6, 2.2, 0.0, 0.8, 0.8, 1.0, 10.0, 0.5F),  // crate in the east arm
+        // counter against the south wall
+        makeBox(4.5, 0.3, 0.0, 2.0, 0.6, 0.9, 0.0, 0.55F, {0.80F, 0.80F, 0.78F},
+                FurniturePattern::kChecker),
+        // shelf against the west wall
+        makeBox(0.3, 5.0, 0.0, 0.6, 1.6, 1.8, 0.0, 0.6F, {0.55F, 0.38F, 0.22F},
+                FurniturePattern::kStripes),
+        // crate in the east arm
+        makeBox(6.6, 2.2, 0.0, 0.8, 0.8, 1.0, 10.0, 0.5F, {0.60F, 0.50F, 0.30F},
+                FurniturePattern::kNoise),
     };
-    s.cylinders = {makeCylinder(2.4, 2.4, 0.25, 0.0, 2.6, 0.45F)};  // pillar at the inner corner
+    s.cylinders = {makeCylinder(2.4, 2.4, 0.25, 0.0, 2.6, 0.45F, {0.75F, 0.74F, 0.70F},
+                                FurniturePattern::kNoise)};  // pillar at the inner corner
     s.openings = {makeOpening(4, 1.0, 1.0, 0.0, 2.1)};
     return s;
 }
@@ -155,14 +195,22 @@ Scene lShape() {
 Scene corridor() {
     Scene s;
     s.name = "corridor";
+    s.wall_colour = {0.76F, 0.76F, 0.80F};  // cool grey
+    s.floor_colour = {0.45F, 0.30F, 0.20F};
+    s.texture_seed = 4;
     s.polygon = {{0.0, 0.0}, {10.0, 0.0}, {10.0, 2.4}, {0.0, 2.4}};
     s.height_m = 2.5;
     s.path_inset_m = 0.8;
     s.boxes = {
-        makeBox(4.0, 0.2, 0.0, 1.5, 0.4, 0.45, 0.0, 0.5F),  // bench against the south wall
-        makeBox(7.5, 2.2, 0.0, 0.8, 0.4, 1.2, 0.0, 0.6F),   // cabinet against the north wall
+        // bench against the south wall
+        makeBox(4.0, 0.2, 0.0, 1.5, 0.4, 0.45, 0.0, 0.5F, {0.55F, 0.40F, 0.25F},
+                FurniturePattern::kStripes),
+        // cabinet against the north wall
+        makeBox(7.5, 2.2, 0.0, 0.8, 0.4, 1.2, 0.0, 0.6F, {0.40F, 0.45F, 0.50F},
+                FurniturePattern::kChecker),
     };
-    s.cylinders = {makeCylinder(9.6, 0.35, 0.2, 0.0, 0.7, 0.4F)};  // bin
+    s.cylinders = {makeCylinder(9.6, 0.35, 0.2, 0.0, 0.7, 0.4F, {0.25F, 0.55F, 0.30F},
+                                FurniturePattern::kSolid)};  // bin
     s.openings = {
         makeOpening(0, 6.0, 0.9, 0.0, 2.05),  // side door
         makeOpening(2, 2.5, 0.9, 0.0, 2.05),  // door opposite
@@ -287,11 +335,61 @@ Status assignTo(Result<T> result, U* out) {
     return Status::ok();
 }
 
+// An RGB reflectance [r, g, b] with every channel in [0, 1]; `fallback` when the key is absent.
+Result<Colour> getColour(const toml::table& table, const std::string& key, const Colour& fallback,
+                         const std::string& source, const std::string& context) {
+    if (table.get(key) == nullptr) return fallback;
+    std::vector<double> rgb;
+    PLUMB_RETURN_IF_ERROR(assignTo(getVector(table, key, 3, false, source, context), &rgb));
+    for (const double c : rgb) {
+        if (!(c >= 0.0 && c <= 1.0)) {
+            return invalidArgument(
+                fmt::format("{}: {}: '{}' must hold 3 numbers in [0, 1] (r, g, b)",
+                            where(source, *table.get(key)), context, key));
+        }
+    }
+    return Colour(static_cast<float>(rgb[0]), static_cast<float>(rgb[1]),
+                  static_cast<float>(rgb[2]));
+}
+
+// A name from a fixed list (`parse` maps it, `names` lists the valid ones for the message).
+template <typename T, typename Parse>
+Result<T> getName(const toml::table& table, const std::string& key, T fallback, Parse&& parse,
+                  const char* names, const std::string& source, const std::string& context) {
+    const toml::node* node = table.get(key);
+    if (node == nullptr) return fallback;
+    const std::optional<std::string> text = node->value<std::string>();
+    const std::optional<T> value = text ? parse(*text) : std::nullopt;
+    if (!value) {
+        return invalidArgument(
+            fmt::format("{}: {}: '{}' must be {}, got {}", where(source, *node), context, key,
+                        names, text ? "\"" + *text + "\"" : std::string("a non-string")));
+    }
+    return *value;
+}
+
+// A non-negative integer no larger than `max_value`.
+Result<int64_t> getCount(const toml::table& table, const std::string& key, int64_t fallback,
+                         int64_t max_value, const std::string& source, const std::string& context) {
+    const toml::node* node = table.get(key);
+    if (node == nullptr) return fallback;
+    const std::optional<int64_t> v = node->is_integer() ? node->value<int64_t>() : std::nullopt;
+    if (!v || *v < 0 || *v > max_value) {
+        return invalidArgument(fmt::format("{}: {}: '{}' must be an integer in [0, {}]",
+                                           where(source, *node), context, key, max_value));
+    }
+    return *v;
+}
+
+constexpr const char* kFurniturePatternNames = "\"solid\", \"noise\", \"stripes\" or \"checker\"";
+
 Result<Scene> parseTable(const toml::table& root, const std::string& source) {
-    PLUMB_RETURN_IF_ERROR(checkKeys(root,
-                                    {"name", "height_m", "polygon", "path", "path_inset_m",
-                                     "wall_albedo", "box", "cylinder", "opening"},
-                                    source));
+    PLUMB_RETURN_IF_ERROR(
+        checkKeys(root,
+                  {"name", "height_m", "polygon", "path", "path_inset_m", "wall_albedo", "texture",
+                   "texture_seed", "wall_colour", "floor_colour", "ceiling_colour", "floor_pattern",
+                   "pictures_per_wall", "box", "cylinder", "opening"},
+                  source));
     Scene s;
     s.name = root["name"].value_or(std::string("custom"));
     PLUMB_RETURN_IF_ERROR(
@@ -304,10 +402,33 @@ Result<Scene> parseTable(const toml::table& root, const std::string& source) {
     PLUMB_RETURN_IF_ERROR(
         assignTo(getNumber(root, "wall_albedo", 0.8, false, source, "scene"), &wall_albedo));
     s.wall_albedo = static_cast<float>(wall_albedo);
+    PLUMB_RETURN_IF_ERROR(assignTo(getName(root, "texture", s.texture, parseTextureMode,
+                                           "\"textured\" or \"plain\"", source, "scene"),
+                                   &s.texture));
+    int64_t texture_seed = 0, pictures = 0;
+    PLUMB_RETURN_IF_ERROR(assignTo(
+        getCount(root, "texture_seed", 1, std::numeric_limits<int64_t>::max(), source, "scene"),
+        &texture_seed));
+    s.texture_seed = static_cast<uint64_t>(texture_seed);
+    PLUMB_RETURN_IF_ERROR(assignTo(getCount(root, "pictures_per_wall", s.pictures_per_wall,
+                                            kMaxPicturesPerWall, source, "scene"),
+                                   &pictures));
+    s.pictures_per_wall = static_cast<int>(pictures);
+    PLUMB_RETURN_IF_ERROR(
+        assignTo(getColour(root, "wall_colour", s.wall_colour, source, "scene"), &s.wall_colour));
+    PLUMB_RETURN_IF_ERROR(assignTo(getColour(root, "floor_colour", s.floor_colour, source, "scene"),
+                                   &s.floor_colour));
+    PLUMB_RETURN_IF_ERROR(assignTo(
+        getColour(root, "ceiling_colour", s.ceiling_colour, source, "scene"), &s.ceiling_colour));
+    PLUMB_RETURN_IF_ERROR(
+        assignTo(getName(root, "floor_pattern", s.floor_pattern, parseFloorPattern,
+                         "\"wood\" or \"tiles\"", source, "scene"),
+                 &s.floor_pattern));
 
     PLUMB_RETURN_IF_ERROR(forEachTable(
         root, "box", source, [&](const toml::table& t, const std::string& ctx) -> Status {
-            PLUMB_RETURN_IF_ERROR(checkKeys(t, {"center", "size", "yaw_deg", "albedo"}, source));
+            PLUMB_RETURN_IF_ERROR(
+                checkKeys(t, {"center", "size", "yaw_deg", "albedo", "colour", "pattern"}, source));
             Box b;
             std::vector<double> c, sz;
             double yaw = 0.0, albedo = 0.6;
@@ -320,13 +441,19 @@ Result<Scene> parseTable(const toml::table& root, const std::string& source) {
             b.size_m = {sz[0], sz[1], sz[2]};
             b.yaw_rad = yaw * kPi / 180.0;
             b.albedo = static_cast<float>(albedo);
+            PLUMB_RETURN_IF_ERROR(assignTo(
+                getColour(t, "colour", Colour::Constant(b.albedo), source, ctx), &b.colour));
+            PLUMB_RETURN_IF_ERROR(assignTo(getName(t, "pattern", b.pattern, parseFurniturePattern,
+                                                   kFurniturePatternNames, source, ctx),
+                                           &b.pattern));
             s.boxes.push_back(b);
             return Status::ok();
         }));
     PLUMB_RETURN_IF_ERROR(forEachTable(
         root, "cylinder", source, [&](const toml::table& t, const std::string& ctx) -> Status {
-            PLUMB_RETURN_IF_ERROR(
-                checkKeys(t, {"center", "radius_m", "z_min_m", "z_max_m", "albedo"}, source));
+            PLUMB_RETURN_IF_ERROR(checkKeys(
+                t, {"center", "radius_m", "z_min_m", "z_max_m", "albedo", "colour", "pattern"},
+                source));
             Cylinder cyl;
             std::vector<double> c;
             double albedo = 0.5;
@@ -341,6 +468,11 @@ Result<Scene> parseTable(const toml::table& root, const std::string& source) {
                 assignTo(getNumber(t, "albedo", 0.5, false, source, ctx), &albedo));
             cyl.center_xy = {c[0], c[1]};
             cyl.albedo = static_cast<float>(albedo);
+            PLUMB_RETURN_IF_ERROR(assignTo(
+                getColour(t, "colour", Colour::Constant(cyl.albedo), source, ctx), &cyl.colour));
+            PLUMB_RETURN_IF_ERROR(assignTo(getName(t, "pattern", cyl.pattern, parseFurniturePattern,
+                                                   kFurniturePatternNames, source, ctx),
+                                           &cyl.pattern));
             s.cylinders.push_back(cyl);
             return Status::ok();
         }));
@@ -375,6 +507,48 @@ Result<Scene> parseTable(const toml::table& root, const std::string& source) {
 }
 
 }  // namespace
+
+const char* textureModeName(TextureMode mode) {
+    return mode == TextureMode::kPlain ? "plain" : "textured";
+}
+
+std::optional<TextureMode> parseTextureMode(const std::string& name) {
+    if (name == "textured") return TextureMode::kTextured;
+    if (name == "plain") return TextureMode::kPlain;
+    return std::nullopt;
+}
+
+const char* floorPatternName(FloorPattern pattern) {
+    return pattern == FloorPattern::kTiles ? "tiles" : "wood";
+}
+
+std::optional<FloorPattern> parseFloorPattern(const std::string& name) {
+    if (name == "wood") return FloorPattern::kWood;
+    if (name == "tiles") return FloorPattern::kTiles;
+    return std::nullopt;
+}
+
+const char* furniturePatternName(FurniturePattern pattern) {
+    switch (pattern) {
+        case FurniturePattern::kSolid:
+            return "solid";
+        case FurniturePattern::kNoise:
+            return "noise";
+        case FurniturePattern::kStripes:
+            return "stripes";
+        case FurniturePattern::kChecker:
+            return "checker";
+    }
+    return "?";
+}
+
+std::optional<FurniturePattern> parseFurniturePattern(const std::string& name) {
+    if (name == "solid") return FurniturePattern::kSolid;
+    if (name == "noise") return FurniturePattern::kNoise;
+    if (name == "stripes") return FurniturePattern::kStripes;
+    if (name == "checker") return FurniturePattern::kChecker;
+    return std::nullopt;
+}
 
 bool insidePolygon(const std::vector<Eigen::Vector2d>& polygon, const Eigen::Vector2d& p) {
     bool inside = false;
@@ -454,6 +628,27 @@ Status validateScene(const Scene& s) {
                 fmt::format("opening[{}]: must lie inside wall {} ({:.3f} m long, {:.3f} m high)",
                             i, o.wall, len, s.height_m));
         }
+    }
+    auto colour_ok = [](const Colour& c) {
+        return (c.array() >= 0.0F).all() && (c.array() <= 1.0F).all();
+    };
+    if (!colour_ok(s.wall_colour) || !colour_ok(s.floor_colour) || !colour_ok(s.ceiling_colour)) {
+        return invalidArgument("wall, floor and ceiling colours need channels in [0, 1]");
+    }
+    for (size_t i = 0; i < s.boxes.size(); ++i) {
+        if (!colour_ok(s.boxes[i].colour)) {
+            return invalidArgument(fmt::format("box[{}]: colour channels must be in [0, 1]", i));
+        }
+    }
+    for (size_t i = 0; i < s.cylinders.size(); ++i) {
+        if (!colour_ok(s.cylinders[i].colour)) {
+            return invalidArgument(
+                fmt::format("cylinder[{}]: colour channels must be in [0, 1]", i));
+        }
+    }
+    if (s.pictures_per_wall < 0 || s.pictures_per_wall > kMaxPicturesPerWall) {
+        return invalidArgument(fmt::format("pictures_per_wall must be in [0, {}], got {}",
+                                           kMaxPicturesPerWall, s.pictures_per_wall));
     }
     for (size_t i = 0; i < s.path_waypoints.size(); ++i) {
         if (!insidePolygon(s.polygon, s.path_waypoints[i])) {

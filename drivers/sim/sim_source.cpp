@@ -68,8 +68,10 @@ Status checkNoiseMode(const std::string& mode) {
 
 Result<std::unique_ptr<SimSource>> SimSource::create(const SimConfig& config) {
     PLUMB_RETURN_IF_ERROR(config.camera.validate());
+    PLUMB_RETURN_IF_ERROR(validateColourConfig(config.colour));
     auto scene = resolveScene(config.scene);
     if (!scene.isOk()) return scene.status();
+    if (config.texture) scene->texture = *config.texture;
     std::unique_ptr<SimSource> source(new SimSource());
     source->config_ = config;
     if (config.trajectory_file.empty()) {
@@ -108,7 +110,9 @@ Result<std::unique_ptr<SimSource>> SimSource::create(const SimConfig& config) {
         table = std::move(loaded).value();
         source->noise_source_ = path->string();
     }
-    source->renderer_ = std::make_unique<Renderer>(*scene, config.camera);
+    RenderConfig render_config;
+    render_config.colour = config.colour.enabled;
+    source->renderer_ = std::make_unique<Renderer>(*scene, config.camera, render_config);
     source->noise_ = std::make_unique<DepthNoiseModel>(config.noise, std::move(table),
                                                        config.camera.cx, config.camera.cy);
     return source;
@@ -131,6 +135,13 @@ Status SimSource::render(size_t k, SimFrame* out) const {
     out->frame.timestamp_s = pose.timestamp_s;
     noise_->apply(out->view.depth, out->view.cos_view, config_.seed, k, &out->frame.depth);
     out->frame.gray = out->view.gray;  // copy-assignment reuses the buffer
+    if (config_.colour.enabled) {
+        out->exposure_gain = exposureGain(config_.colour, config_.seed, k);
+        applyColourNoise(out->view.colour, config_.colour, config_.seed, k, &out->frame.colour);
+    } else {
+        out->exposure_gain = 1.0;
+        out->frame.colour = ColourImage();
+    }
     out->frame.name = fmt::format("sim:{}/{:05d}", scene().name, k);
     out->frame.T_W_C_gt = pose.T_W_C;
     return Status::ok();
@@ -148,12 +159,13 @@ Result<Frame> SimSource::next() {
 std::string SimSource::description() const {
     const NoiseConfig& n = config_.noise;
     return fmt::format(
-        "simulated scan of '{}' ({} frames, {} trajectory, {}, noise {}{})", scene().name,
-        trajectory_.size(),
+        "simulated scan of '{}' ({} frames, {} trajectory, {}, noise {}{}, colour {})",
+        scene().name, trajectory_.size(),
         config_.trajectory_file.empty() ? (config_.trajectory.loop ? "loop" : "no-loop")
                                         : config_.trajectory_file,
         camera().toString(), n.enabled ? "on" : "off",
-        n.enabled ? fmt::format(", distortion {}", distortionName(n.distortion)) : std::string());
+        n.enabled ? fmt::format(", distortion {}", distortionName(n.distortion)) : std::string(),
+        config_.colour.enabled ? textureModeName(scene().texture) : "off");
 }
 
 Status writeSimDataset(const SimSource& source, const std::filesystem::path& dir,
@@ -162,11 +174,14 @@ Status writeSimDataset(const SimSource& source, const std::filesystem::path& dir
     std::filesystem::create_directories(dir / "depth", ec);
     if (!ec && options.write_clean) std::filesystem::create_directories(dir / "depth_clean", ec);
     if (!ec && options.write_gray) std::filesystem::create_directories(dir / "gray", ec);
+    const bool write_rgb = options.write_rgb && source.config().colour.enabled;
+    if (!ec && write_rgb) std::filesystem::create_directories(dir / "rgb", ec);
     if (ec) {
         return ioError(
             fmt::format("{}: cannot create the output folders: {}", dir.string(), ec.message()));
     }
     std::string depth_txt = "# depth maps\n# simulated by plumb sim\n# timestamp filename\n";
+    std::string rgb_txt = "# color images\n# simulated by plumb sim\n# timestamp filename\n";
     io::Trajectory gt;
     const size_t n = *source.size();
     for (size_t k = 0; k < n; ++k) {
@@ -183,10 +198,15 @@ Status writeSimDataset(const SimSource& source, const std::filesystem::path& dir
         if (options.write_gray) {
             PLUMB_RETURN_IF_ERROR(dataset::writeGrayPng(dir / "gray" / name, f.frame.gray));
         }
+        if (write_rgb) {
+            PLUMB_RETURN_IF_ERROR(dataset::writeColourPng(dir / "rgb" / name, f.frame.colour));
+            rgb_txt += fmt::format("{:.6f} rgb/{}\n", f.frame.timestamp_s, name);
+        }
         depth_txt += fmt::format("{:.6f} depth/{}\n", f.frame.timestamp_s, name);
         gt.push_back({f.frame.timestamp_s, *f.frame.T_W_C_gt});
     }
     PLUMB_RETURN_IF_ERROR(writeText(dir / "depth.txt", depth_txt));
+    if (write_rgb) PLUMB_RETURN_IF_ERROR(writeText(dir / "rgb.txt", rgb_txt));
     PLUMB_RETURN_IF_ERROR(io::writeTumTrajectory(dir / "groundtruth.txt", gt));
     PLUMB_RETURN_IF_ERROR(io::writeLogTrajectory(dir / "trajectory.log", gt));
     PLUMB_RETURN_IF_ERROR(
@@ -235,6 +255,25 @@ Status writeSimDataset(const SimSource& source, const std::filesystem::path& dir
                   .string()
             : std::string();
     meta["noise"] = noise;
+    const ColourConfig& cc = c.colour;
+    nlohmann::ordered_json colour;
+    colour["enabled"] = cc.enabled;
+    colour["written"] = write_rgb;
+    colour["texture"] = textureModeName(scene.texture);
+    colour["texture_seed"] = scene.texture_seed;
+    colour["floor_pattern"] = floorPatternName(scene.floor_pattern);
+    colour["pictures_per_wall"] = scene.pictures_per_wall;
+    colour["ambient"] = source.renderer().config().ambient;
+    colour["noise_std_levels"] = cc.noise_std_levels;
+    colour["exposure_log_std"] = cc.exposure_log_std;
+    colour["exposure_period_frames"] = cc.exposure_period_frames;
+    nlohmann::ordered_json jumps = nlohmann::ordered_json::array();
+    for (const ExposureJump& j : cc.exposure_jumps) {
+        jumps.push_back({{"frame", j.frame}, {"factor", j.factor}});
+    }
+    colour["exposure_jumps"] = jumps;
+    colour["response"] = "linear";
+    meta["colour"] = colour;
     PLUMB_RETURN_IF_ERROR(writeText(dir / "sim.json", meta.dump(2) + "\n"));
     return Status::ok();
 }

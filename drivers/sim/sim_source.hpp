@@ -2,7 +2,8 @@
 #pragma once
 
 // The simulated handheld scanner: a FrameSource (`sim:<scene>`) that renders each frame of a
-// generated (or loaded) trajectory through a Scene and applies the depth-noise model. Frame k is
+// generated (or loaded) trajectory through a Scene and applies the depth-noise model; the colour
+// camera (drivers/sim/colour.hpp) sees the scene's textures, registered to the depth. Frame k is
 // a pure function of (config, k): random access, any order, any thread count.
 
 #include <filesystem>
@@ -12,6 +13,7 @@
 
 #include "common/io/trajectory.hpp"
 #include "drivers/frame_source.hpp"
+#include "drivers/sim/colour.hpp"
 #include "drivers/sim/noise.hpp"
 #include "drivers/sim/render.hpp"
 #include "drivers/sim/scene.hpp"
@@ -34,18 +36,24 @@ struct SimConfig {
     std::string noise_model_path;
     /// Seed of the noise (the trajectory has its own seed in `trajectory`).
     uint64_t seed = 1;
+    /// Colour camera: on, per-channel noise std 2 levels, constant exposure (ColourConfig).
+    ColourConfig colour;
+    /// Overrides the scene's own `texture` (unset: the scene's, textured for built-in rooms).
+    std::optional<TextureMode> texture;
 };
 
 /// A frame with the clean render it was made from.
 struct SimFrame {
-    Frame frame;        ///< noisy depth, shaded grey image, GT pose, timestamp k / rate
-    RenderedView view;  ///< clean depth, view-angle cosines, primitive labels
+    Frame frame;        ///< noisy depth, shaded grey image, colour, GT pose, timestamp k / rate
+    RenderedView view;  ///< clean depth, view-angle cosines, primitive labels, clean colour
+    double exposure_gain = 1.0;  ///< the colour camera's gain in this frame (exposureGain)
 };
 
 class SimSource final : public FrameSource {
   public:
-    /// Resolves the scene, builds or reads the trajectory, loads the distortion table when the
-    /// noise needs it. Errors name what is wrong (unknown scene, bad file, missing table).
+    /// Resolves the scene (applying config.texture), builds or reads the trajectory, loads the
+    /// distortion table when the noise needs it, checks the colour settings. Errors name what is
+    /// wrong (unknown scene, bad file, missing table, bad colour setting).
     static Result<std::unique_ptr<SimSource>> create(const SimConfig& config);
 
     const PinholeCamera& camera() const override { return renderer_->camera(); }
@@ -60,6 +68,8 @@ class SimSource final : public FrameSource {
     Status render(size_t k, SimFrame* out) const;
 
     const Scene& scene() const { return renderer_->caster().scene(); }
+    /// The renderer (its scene, textures and shading settings).
+    const Renderer& renderer() const { return *renderer_; }
     const io::Trajectory& trajectory() const { return trajectory_; }
     const SimConfig& config() const { return config_; }
 
@@ -81,12 +91,16 @@ struct SimDatasetOptions {
     /// Also write the clean depth (depth_clean/) and the grey images (gray/).
     bool write_clean = true;
     bool write_gray = true;
+    /// Write the colour images (rgb/ and rgb.txt) when the source renders colour.
+    bool write_rgb = true;
 };
 
 /// Writes every frame of `source` as a TUM-layout dataset that drivers/dataset reads back:
 /// depth/NNNNN.png (uint16, mm), depth.txt, groundtruth.txt (TUM), trajectory.log (Redwood),
 /// intrinsics.json (depth_scale 1000), gt_points.ply, layout.json, sim.json (scene, seeds, noise
-/// parameters), optional depth_clean/ and gray/. `dir` is created; existing files are replaced.
+/// and colour parameters), rgb/NNNNN.png (8-bit RGB, the noisy Frame::colour) with rgb.txt (TUM
+/// list, the depth timestamps) when the source renders colour, optional depth_clean/ and gray/.
+/// `dir` is created; existing files are replaced.
 Status writeSimDataset(const SimSource& source, const std::filesystem::path& dir,
                        const SimDatasetOptions& options = {});
 

@@ -148,9 +148,9 @@ TEST(SimDataset, SameSeedGivesByteIdenticalFiles) {
         EXPECT_EQ(slurp(entry.path()), slurp(dir_b / rel)) << rel;
         ++files;
     }
-    // 12 x (depth, depth_clean, gray) + depth.txt, groundtruth.txt, trajectory.log,
-    // intrinsics.json, gt_points.ply, layout.json, sim.json.
-    EXPECT_EQ(files, 12U * 3 + 7);
+    // 12 x (depth, depth_clean, gray, rgb) + depth.txt, rgb.txt, groundtruth.txt,
+    // trajectory.log, intrinsics.json, gt_points.ply, layout.json, sim.json.
+    EXPECT_EQ(files, 12U * 4 + 8);
     // A different seed changes the noisy depth but not the clean render.
     SimConfig other = smallConfig();
     other.seed = 6;
@@ -160,6 +160,7 @@ TEST(SimDataset, SameSeedGivesByteIdenticalFiles) {
     ASSERT_TRUE(writeSimDataset(**source, dir_c, options).isOk());
     EXPECT_NE(slurp(dir_a / "depth/00003.png"), slurp(dir_c / "depth/00003.png"));
     EXPECT_EQ(slurp(dir_a / "depth_clean/00003.png"), slurp(dir_c / "depth_clean/00003.png"));
+    EXPECT_NE(slurp(dir_a / "rgb/00003.png"), slurp(dir_c / "rgb/00003.png"));
 }
 
 TEST(SimDataset, ReloadsThroughDatasetDriverAndPassesGtWarpCheck) {

@@ -2,6 +2,7 @@
 // `plumb sim`: renders a simulated handheld scan of a room into a TUM-layout dataset.
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -20,8 +21,9 @@ constexpr const char* kUsage =
     "\n"
     "Renders a simulated handheld depth scan of <scene> (a built-in room: living_room,\n"
     "weak_manhattan, l_shape, corridor; or a .toml scene file) and writes a TUM-layout dataset:\n"
-    "depth/ (uint16 mm), depth.txt, groundtruth.txt, trajectory.log, intrinsics.json,\n"
-    "gt_points.ply, layout.json, sim.json, depth_clean/ and gray/.\n"
+    "depth/ (uint16 mm), depth.txt, rgb/ (8-bit RGB PNG, registered to depth), rgb.txt,\n"
+    "groundtruth.txt, trajectory.log, intrinsics.json, gt_points.ply, layout.json, sim.json,\n"
+    "depth_clean/ and gray/.\n"
     "\n"
     "options:\n"
     "  --out DIR            output folder (required)\n"
@@ -40,7 +42,17 @@ constexpr const char* kUsage =
     "  --seed S             seed of noise and hand shake (default 1)\n"
     "  --gt-spacing M       spacing of gt_points.ply samples in metres (default 0.01)\n"
     "  --no-clean           do not write depth_clean/\n"
-    "  --no-gray            do not write gray/\n";
+    "  --no-gray            do not write gray/\n"
+    "\n"
+    "colour camera (rgb/):\n"
+    "  --texture MODE       textured (patterned walls with pictures, floor, furniture) |\n"
+    "                       plain (one uniform colour per surface); default: the scene's\n"
+    "                       own setting (built-in rooms are textured)\n"
+    "  --rgb-noise L        Gaussian noise std per channel in 8-bit levels (default 2; 0 = none)\n"
+    "  --exposure-std X     std of ln(gain) of a smooth random exposure drift (default 0 = off)\n"
+    "  --exposure-period N  frames between independent drift values (default 90)\n"
+    "  --exposure-jump K:F  multiply the gain by F from frame K on (repeatable; default none)\n"
+    "  --no-rgb             render no colour and write no rgb/ or rgb.txt\n";
 
 bool parseDouble(const std::string& text, double* out) {
     char* end = nullptr;
@@ -56,6 +68,22 @@ bool parseUnsigned(const std::string& text, uint64_t* out) {
     const unsigned long long v = std::strtoull(text.c_str(), &end, 10);
     if (end == text.c_str() || *end != '\0') return false;
     *out = v;
+    return true;
+}
+
+// "K:F": frame K (non-negative integer), factor F (positive number).
+bool parseExposureJump(const std::string& text, sim::ExposureJump* jump) {
+    const size_t colon = text.find(':');
+    if (colon == std::string::npos) return false;
+    uint64_t frame = 0;
+    double factor = 0.0;
+    if (!parseUnsigned(text.substr(0, colon), &frame) ||
+        !parseDouble(text.substr(colon + 1), &factor) || !(factor > 0.0) ||
+        !std::isfinite(factor)) {
+        return false;
+    }
+    jump->frame = frame;
+    jump->factor = factor;
     return true;
 }
 
@@ -142,6 +170,36 @@ int runSim(const std::vector<std::string>& args) {
             options.write_clean = false;
         } else if (a == "--no-gray") {
             options.write_gray = false;
+        } else if (a == "--texture") {
+            if (!value(&v)) return usageError("--texture needs textured or plain");
+            config.texture = sim::parseTextureMode(v);
+            if (!config.texture) {
+                return usageError("--texture: unknown mode '" + v + "' (use textured or plain)");
+            }
+        } else if (a == "--rgb-noise") {
+            if (!value(&v) || !parseDouble(v, &config.colour.noise_std_levels) ||
+                !(config.colour.noise_std_levels >= 0.0)) {
+                return usageError("--rgb-noise needs a non-negative number of 8-bit levels");
+            }
+        } else if (a == "--exposure-std") {
+            if (!value(&v) || !parseDouble(v, &config.colour.exposure_log_std) ||
+                !(config.colour.exposure_log_std >= 0.0)) {
+                return usageError("--exposure-std needs a non-negative number");
+            }
+        } else if (a == "--exposure-period") {
+            if (!value(&v) || !parseDouble(v, &config.colour.exposure_period_frames) ||
+                !(config.colour.exposure_period_frames > 0.0)) {
+                return usageError("--exposure-period needs a positive number of frames");
+            }
+        } else if (a == "--exposure-jump") {
+            sim::ExposureJump jump;
+            if (!value(&v) || !parseExposureJump(v, &jump)) {
+                return usageError("--exposure-jump needs FRAME:FACTOR (e.g. 30:0.6, factor > 0)");
+            }
+            config.colour.exposure_jumps.push_back(jump);
+        } else if (a == "--no-rgb") {
+            config.colour.enabled = false;
+            options.write_rgb = false;
         } else if (!a.empty() && a[0] == '-') {
             return usageError("unknown option '" + a + "'");
         } else if (scene.empty()) {

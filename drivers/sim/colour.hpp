@@ -1,0 +1,58 @@
+// SPDX-License-Identifier: Apache-2.0
+#pragma once
+
+// The simulated colour camera (reference §7b): the renderer's clean, shaded colour image times a
+// per-frame exposure gain, plus per-pixel Gaussian noise on each channel, rounded and clamped to
+// 8 bits. The response is linear (no gamma), so a gain g scales every unclipped value by g.
+//
+// Randomness: the noise of pixel i in frame k is a hash of (seed, k, i) and the exposure drift a
+// hash of (seed, lattice frame), on streams of their own: the colour draws nothing from the
+// depth noise's generators, and a frame is a pure function of (clean image, config, seed, k),
+// whatever the thread count or the order of the frames.
+
+#include <cstdint>
+#include <vector>
+
+#include "common/core/status.hpp"
+#include "common/image/image.hpp"
+
+namespace plumb::sim {
+
+/// A sudden exposure change: from frame `frame` on, the gain is multiplied by `factor`.
+struct ExposureJump {
+    uint64_t frame = 0;   ///< first frame with the new exposure
+    double factor = 1.0;  ///< gain multiplier, > 0 (e.g. 0.6: 40 % darker)
+};
+
+struct ColourConfig {
+    /// false: no colour image (Frame::colour stays empty and the renderer skips the textures).
+    bool enabled = true;
+    /// Std of the additive Gaussian noise on each channel, 8-bit levels (2 = 2/255 of full
+    /// scale); 0 = none.
+    double noise_std_levels = 2.0;
+    /// Std of ln(gain) of a smooth random exposure drift (auto-exposure wander); 0 = constant
+    /// exposure (default). 0.1 is about +-10 %.
+    double exposure_log_std = 0.0;
+    /// Correlation length of the drift, frames: independent values this many frames apart,
+    /// smoothly interpolated in between.
+    double exposure_period_frames = 90.0;
+    /// Sudden exposure changes (cumulative, any order); none by default.
+    std::vector<ExposureJump> exposure_jumps;
+};
+
+/// Exposure gain of frame `frame_index`: exp(exposure_log_std * z_k) times the factors of every
+/// jump at or before the frame, where z_k is a standard normal at every frame (unit variance at
+/// every k, not only at the lattice frames) that varies smoothly over exposure_period_frames.
+double exposureGain(const ColourConfig& config, uint64_t seed, uint64_t frame_index);
+
+/// The camera's image of frame `frame_index`: out = clamp(round(gain * clean + n), 0, 255) per
+/// channel, n ~ N(0, noise_std_levels^2), gain = exposureGain(). `out` is resized as needed (a
+/// buffer of the right size is reused) and must not alias `clean`. Uses TBB over rows.
+void applyColourNoise(const ColourImage& clean, const ColourConfig& config, uint64_t seed,
+                      uint64_t frame_index, ColourImage* out);
+
+/// Checks a colour configuration: finite, non-negative noise and drift, a positive period,
+/// positive finite jump factors. Errors name the field.
+Status validateColourConfig(const ColourConfig& config);
+
+}  // namespace plumb::sim

@@ -1,0 +1,126 @@
+// SPDX-License-Identifier: Apache-2.0
+#pragma once
+
+// Procedural albedo of the simulated room: what the colour camera sees before shading (reference
+// §7b: photometric tracking needs textured walls). Every pattern lives in the surface's own
+// metric coordinates, so it is glued to the geometry and the colour image stays registered to
+// the depth image:
+//   walls     (s, z): s metres along the wall from its start vertex, z above the floor;
+//   floor, ceiling, cylinder caps (x, y) in W; cylinder sides (arc length, z);
+//   box faces: the two box-frame coordinates spanning the face (sides: horizontal, z).
+//
+// Patterns (TextureMode::kTextured; kPlain gives every surface its base colour):
+//   walls    "plaster": value noise in 4 octaves, cells 24, 12, 6, 3 cm, brightness std ~15 %,
+//            plus `Scene::pictures_per_wall` framed pictures (checker, stripes or blobs in two
+//            contrasting colours, features 4-12 cm) placed by `Scene::texture_seed`;
+//   floor    wood: planks 14 cm x 1.2 m along x with 5 mm gaps, per-plank tint, grain;
+//            tiles: 40 cm squares, 8 mm grout lines, per-tile tint, faint mottling;
+//   ceiling  faint value noise (cells 40, 20 cm, brightness std ~2 %);
+//   furniture (FurniturePattern) solid, noise, stripes or checker.
+// Features are 3 cm or larger (>= 4 px at 4 m with fx = 525). Detail finer than a pixel's
+// footprint on the surface is averaged out analytically (box-filtered edges and stripes, noise
+// octaves faded), so distant and grazing views neither alias nor speckle.
+
+#include <Eigen/Core>
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "drivers/sim/scene.hpp"
+
+namespace plumb::sim {
+
+/// A framed picture on a wall, in the wall's coordinates (see above), metres.
+struct Picture {
+    enum class Kind { kChecker, kStripes, kBlobs };
+    double s_min_m = 0.0;  ///< outer edge of the frame along the wall
+    double s_max_m = 0.0;
+    double z_min_m = 0.0;  ///< outer edge of the frame in height
+    double z_max_m = 0.0;
+    double frame_m = 0.03;  ///< width of the frame around the pattern
+    Kind kind = Kind::kChecker;
+    double scale_m = 0.06;   ///< checker square, stripe period or blob cell
+    double angle_rad = 0.0;  ///< stripes: direction of the stripe normal from the s axis
+    Colour light = Colour::Ones();
+    Colour dark = Colour::Zero();
+    Colour frame = Colour::Zero();
+};
+
+/// The textures of one scene. Immutable after construction; albedo() is thread-safe.
+class SurfaceTextures {
+  public:
+    explicit SurfaceTextures(const Scene& scene);
+
+    /// RGB reflectance in [0, 1] of primitive `label` (scene.hpp) at the point p_W on its surface
+    /// with unit normal `normal_W` (either side). `footprint_m` >= 0 is the width of a pixel's
+    /// footprint on the surface, metres: detail finer than it is averaged out. A pure function of
+    /// (scene, label, p_W, normal_W, footprint_m).
+    Colour albedo(int label, const Eigen::Vector3d& p_W, const Eigen::Vector3d& normal_W,
+                  double footprint_m) const;
+
+    /// The pictures on wall k (empty for a plain scene).
+    const std::vector<Picture>& pictures(int wall) const { return walls_[wall].pictures; }
+
+    /// Side of the value-noise lattice table; the noise repeats every kNoiseSize cells.
+    static constexpr int kNoiseSize = 64;
+
+  private:
+    static constexpr int kMaxOctaves = 4;
+    struct Octaves {  // lattice offsets of one surface's noise octaves (decorrelates surfaces)
+        std::array<float, 2 * kMaxOctaves> offset;
+    };
+    struct WallTexture {
+        Eigen::Vector2d a, dir;  // start vertex and unit direction
+        Octaves octaves;
+        std::vector<Picture> pictures;
+    };
+    struct BoxTexture {
+        Eigen::Vector3d center;
+        double c, s;  // cos, sin of yaw
+        Colour colour;
+        FurniturePattern pattern;
+        Octaves octaves;
+    };
+    struct CylinderTexture {
+        Eigen::Vector2d center;
+        double radius;
+        double checker_cell;  // arc length of a checker square: a whole number fits around
+        Colour colour;
+        FurniturePattern pattern;
+        Octaves octaves;
+    };
+
+    Octaves makeOctaves(uint64_t salt) const;
+    float valueNoise(float x, float y) const;
+    // Sum of `octaves` value-noise octaves of (x, y) metres: cells cell_m, cell_m / 2, ...,
+    // amplitudes amplitude, amplitude * persistence, ...; octaves whose cell is below 4x the
+    // footprint fade out (gone at 2x). Zero mean.
+    float fractalNoise(double x, double y, const Octaves& oct, double cell_m, int octaves,
+                       float amplitude, float persistence, double footprint_m) const;
+
+    Colour wallAlbedo(const WallTexture& w, const Eigen::Vector3d& p_W, double fp) const;
+    // The wall colour `wall` at (s, z) with the picture over it (frame and pattern).
+    Colour pictureAlbedo(const Picture& pic, const Octaves& oct, double s, double z, double fp,
+                         const Colour& wall) const;
+    Colour floorAlbedo(const Eigen::Vector3d& p_W, double fp) const;
+    Colour ceilingAlbedo(const Eigen::Vector3d& p_W, double fp) const;
+    Colour furnitureAlbedo(const Colour& colour, FurniturePattern pattern, const Octaves& oct,
+                           double u, double v, double checker_u_cell, double fp) const;
+    Colour boxAlbedo(const BoxTexture& b, const Eigen::Vector3d& p_W,
+                     const Eigen::Vector3d& normal_W, double fp) const;
+    Colour cylinderAlbedo(const CylinderTexture& c, const Eigen::Vector3d& p_W,
+                          const Eigen::Vector3d& normal_W, double fp) const;
+
+    TextureMode mode_;
+    int num_walls_;
+    uint64_t seed_;
+    Colour wall_colour_, floor_colour_, ceiling_colour_;
+    FloorPattern floor_pattern_;
+    Octaves floor_octaves_, ceiling_octaves_;
+    std::vector<WallTexture> walls_;
+    std::vector<BoxTexture> boxes_;
+    std::vector<CylinderTexture> cylinders_;
+    std::vector<float> noise_;  // kNoiseSize^2 lattice values, uniform in [-1, 1]
+};
+
+}  // namespace plumb::sim
