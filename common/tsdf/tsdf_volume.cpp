@@ -91,14 +91,13 @@ struct RowIntegrator {
         std::memcpy(static_cast<void*>(row), vox, sizeof(vox));
     }
 
-    /// C <- (W C + c) / (W + 1), rounded to nearest, W saturating at max_w.
+    /// C <- (W C + c) / (W + 1) per channel (blendColourChannel), W saturating at max_w.
     void blendColour(const Rgb8& c, VoxelColour* v) const {
-        const int w = v->weight;
-        const int w1 = w + 1;
-        v->r = static_cast<uint8_t>((w * v->r + c.r + w1 / 2) / w1);
-        v->g = static_cast<uint8_t>((w * v->g + c.g + w1 / 2) / w1);
-        v->b = static_cast<uint8_t>((w * v->b + c.b + w1 / 2) / w1);
-        if (static_cast<float>(w1) <= max_w && w1 <= 255) v->weight = static_cast<uint8_t>(w1);
+        const uint32_t w = v->weight;
+        v->r = blendColourChannel(v->r, w, c.r);
+        v->g = blendColourChannel(v->g, w, c.g);
+        v->b = blendColourChannel(v->b, w, c.b);
+        if (static_cast<float>(w + 1) <= max_w && w < 255) v->weight = static_cast<uint8_t>(w + 1);
     }
 };
 

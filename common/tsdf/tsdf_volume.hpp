@@ -45,6 +45,22 @@ struct VoxelColour {
 };
 static_assert(sizeof(VoxelColour) == 4, "a voxel colour must stay 4 bytes");
 
+/// One channel of the colour running average, round((w avg + sample) / (w + 1)) with halves
+/// rounded up, for w in [0, 255], computed as a multiplication by the reciprocal ceil(2^26 /
+/// (w + 1)): exact, since the numerator stays below 2^17 (the error is below 2^17 / 2^26, less
+/// than the 1 / 256 a quotient's fraction can come near an integer).
+constexpr std::array<uint32_t, 256> colourReciprocals() {
+    std::array<uint32_t, 256> r{};
+    for (uint32_t w = 0; w < 256; ++w) r[w] = ((uint32_t{1} << 26) + w) / (w + 1);
+    return r;
+}
+inline constexpr std::array<uint32_t, 256> kColourReciprocal = colourReciprocals();
+
+inline uint8_t blendColourChannel(uint32_t avg, uint32_t w, uint32_t sample) {
+    const uint64_t x = 2 * (w * avg + sample) + w + 1;  // round(. / (w + 1)) = floor(x / 2(w + 1))
+    return static_cast<uint8_t>((x * kColourReciprocal[w]) >> 27);
+}
+
 class BlockCache;
 
 /// What a trilinear sample found (TsdfVolume::sample).
@@ -74,7 +90,7 @@ struct TsdfConfig {
     /// Colour is fused into voxels within this fraction of the truncation from the measured
     /// surface (|sdf| <= colour_band * truncation_m): the voxels that surface points and mesh
     /// vertices interpolate, not the free space in front or the far side.
-    float colour_band = 0.5f;
+    float colour_band = 0.25f;
     /// Worker threads (0 = TBB default). Results do not depend on it.
     int num_threads = 0;
 

@@ -136,7 +136,8 @@ Result<FrameReport> FragmentBuilder::processImpl(const Frame& frame) {
     }
     std::vector<IntensityLevel> intensity;  // empty: track by depth only
     if (config_.tracking.enabled && !frame.colour.empty()) {
-        intensity = buildIntensityPyramid(frame.colour, pyramid, config_.tracking);
+        intensity = buildIntensityPyramid(frame.colour, pyramid, config_.tracking,
+                                          config_.preprocess.num_threads);
     }
     FrameReport report;
     report.frame_index = frame.index;

@@ -46,31 +46,41 @@ Image<float> gaussianBlur(const Image<float>& in, float sigma_px, int num_thread
     return out;
 }
 
+/// Intensity (image.hpp intensity()) of every pixel, rows in parallel.
+Image<float> intensityOf(const ColourImage& colour, int num_threads) {
+    Image<float> out(colour.width(), colour.height());
+    const int w = colour.width();
+    tsdf::parallelFor(num_threads, colour.height(), [&](int v) {
+        for (int u = 0; u < w; ++u) out(u, v) = intensity(colour(u, v));
+    });
+    return out;
+}
+
 /// 2x2 mean to the given size (pixel centres kept: level l+1 pixel u covers 2u and 2u+1).
-Image<float> halve(const Image<float>& in, int w, int h) {
+Image<float> halve(const Image<float>& in, int w, int h, int num_threads) {
     Image<float> out(w, h);
-    for (int v = 0; v < h; ++v) {
+    tsdf::parallelFor(num_threads, h, [&](int v) {
         for (int u = 0; u < w; ++u) {
             out(u, v) = 0.25f * (in(2 * u, 2 * v) + in(2 * u + 1, 2 * v) + in(2 * u, 2 * v + 1) +
                                  in(2 * u + 1, 2 * v + 1));
         }
-    }
+    });
     return out;
 }
 
 /// Central-difference gradients; one-sided at the border.
-void gradients(const Image<float>& I, Image<float>* gu, Image<float>* gv) {
+void gradients(const Image<float>& I, Image<float>* gu, Image<float>* gv, int num_threads) {
     const int w = I.width(), h = I.height();
     *gu = Image<float>(w, h);
     *gv = Image<float>(w, h);
-    for (int v = 0; v < h; ++v) {
+    tsdf::parallelFor(num_threads, h, [&](int v) {
         const int v0 = std::max(v - 1, 0), v1 = std::min(v + 1, h - 1);
         for (int u = 0; u < w; ++u) {
             const int u0 = std::max(u - 1, 0), u1 = std::min(u + 1, w - 1);
             (*gu)(u, v) = (I(u1, v) - I(u0, v)) / static_cast<float>(std::max(u1 - u0, 1));
             (*gv)(u, v) = (I(u, v1) - I(u, v0)) / static_cast<float>(std::max(v1 - v0, 1));
         }
-    }
+    });
 }
 
 /// What one reference point contributes: the warped pixel, residual and Jacobian.
@@ -149,17 +159,19 @@ bool sampleBilinear(const Image<float>& image, float x, float y, float* value) {
     return true;
 }
 
-IntensityLevel makeIntensityLevel(const PinholeCamera& camera, Image<float> intensity) {
+IntensityLevel makeIntensityLevel(const PinholeCamera& camera, Image<float> intensity,
+                                  int num_threads) {
     IntensityLevel level;
     level.camera = camera;
     level.intensity = std::move(intensity);
-    gradients(level.intensity, &level.grad_u, &level.grad_v);
+    gradients(level.intensity, &level.grad_u, &level.grad_v, num_threads);
     return level;
 }
 
 std::vector<IntensityLevel> buildIntensityPyramid(const ColourImage& colour,
                                                   const FramePyramid& frame,
-                                                  const PhotometricConfig& config) {
+                                                  const PhotometricConfig& config,
+                                                  int num_threads) {
     PLUMB_CHECK(!frame.levels.empty()) << "empty frame pyramid";
     PLUMB_CHECK(colour.width() == frame.levels[0].camera.width &&
                 colour.height() == frame.levels[0].camera.height)
@@ -169,8 +181,11 @@ std::vector<IntensityLevel> buildIntensityPyramid(const ColourImage& colour,
     for (size_t l = 0; l < levels.size(); ++l) {
         const PinholeCamera& camera = frame.levels[l].camera;
         levels[l] = makeIntensityLevel(
-            camera, l == 0 ? gaussianBlur(toIntensity(colour), config.smoothing_sigma_px, 0)
-                           : halve(levels[l - 1].intensity, camera.width, camera.height));
+            camera,
+            l == 0 ? gaussianBlur(intensityOf(colour, num_threads), config.smoothing_sigma_px,
+                                  num_threads)
+                   : halve(levels[l - 1].intensity, camera.width, camera.height, num_threads),
+            num_threads);
     }
     return levels;
 }

@@ -74,7 +74,9 @@ struct IntensityLevel {
 };
 
 /// A level from an intensity image (already smoothed): its central-difference gradients.
-IntensityLevel makeIntensityLevel(const PinholeCamera& camera, Image<float> intensity);
+/// `num_threads` workers (0 = TBB default); the result does not depend on it.
+IntensityLevel makeIntensityLevel(const PinholeCamera& camera, Image<float> intensity,
+                                  int num_threads = 0);
 
 /// Intensity pyramid of a colour image registered to `frame`'s depth: level 0 is the smoothed
 /// full-resolution intensity, each next level the 2x2 mean of the finer one (pixel centres kept,
@@ -82,7 +84,8 @@ IntensityLevel makeIntensityLevel(const PinholeCamera& camera, Image<float> inte
 /// level 0 (checked by the caller).
 std::vector<IntensityLevel> buildIntensityPyramid(const ColourImage& colour,
                                                   const FramePyramid& frame,
-                                                  const PhotometricConfig& config);
+                                                  const PhotometricConfig& config,
+                                                  int num_threads = 0);
 
 /// A selected reference pixel: its point in the reference camera R and its intensity.
 struct ReferencePoint {

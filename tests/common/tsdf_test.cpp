@@ -186,6 +186,18 @@ Rgb8 worldColour(const Eigen::Vector3d& p) {
     return {level(128.0 + 300.0 * p.x()), level(128.0 + 300.0 * p.y()), 60};
 }
 
+TEST(TsdfVolume, ColourBlendIsTheRoundedRunningAverage) {
+    for (uint32_t w = 0; w < 256; ++w) {
+        for (uint32_t avg = 0; avg < 256; ++avg) {
+            for (uint32_t c = 0; c < 256; ++c) {
+                const uint32_t exact = (2 * (w * avg + c) + w + 1) / (2 * (w + 1));
+                ASSERT_EQ(blendColourChannel(avg, w, c), exact)
+                    << "w " << w << " avg " << avg << " sample " << c;
+            }
+        }
+    }
+}
+
 TEST(TsdfVolume, ColourFollowsTheSurfaceAndLeavesTheTsdfUnchanged) {
     const PinholeCamera cam = smallCamera();
     const Plane plane{Eigen::Vector3d(0, 0, -1), 1.5};
