@@ -55,6 +55,7 @@ Result<std::unique_ptr<FrameSource>> openRawSource(const std::string& uri,
         config.seed = options.seed;
         config.trajectory.seed = options.seed;
         config.trajectory.num_frames = options.max_frames > 0 ? options.max_frames : 600;
+        config.colour.enabled = options.colour;  // --no-colour: the camera renders depth only
         if (!options.intrinsics.empty()) {
             auto camera = cameraPreset(options.intrinsics);
             if (!camera.isOk()) return camera.status();
