@@ -77,6 +77,7 @@ Result<std::unique_ptr<FrameSource>> openRawSource(const std::string& uri,
         config.uri = scheme == "openni2" ? rest : "";
         config.max_frames = options.max_frames;
         config.intrinsics = options.intrinsics;
+        config.colour = options.colour;
         PLUMB_RETURN_IF_ERROR(
             parseDepthMode(options.depth_mode, &config.width, &config.height, &config.fps));
         auto source = openni2::OpenNI2Source::open(config);
