@@ -86,7 +86,8 @@ Result<std::unique_ptr<FrameSource>> openRawSource(const std::string& uri,
     }
     if (scheme == "v4l2") {
         v4l2::V4l2Config config;
-        config.device = rest;
+        PLUMB_RETURN_IF_ERROR(v4l2::parseV4l2Target(rest, &config));
+        if (!options.colour) config.colour_device.clear();
         config.max_frames = options.max_frames;
         config.intrinsics = options.intrinsics;
         if (options.depth_scale > 0.0) config.units_per_m = options.depth_scale;
@@ -98,7 +99,8 @@ Result<std::unique_ptr<FrameSource>> openRawSource(const std::string& uri,
     }
     return unsupported("unknown frame source '" + uri + "' (scheme '" + scheme + "', target '" +
                        rest +
-                       "'); use dataset:<dir>, sim:<scene>, openni2[:<uri>] or v4l2:/dev/videoN");
+                       "'); use dataset:<dir>, sim:<scene>, openni2[:<uri>] or "
+                       "v4l2:/dev/videoN[?colour=/dev/videoM]");
 }
 
 }  // namespace
