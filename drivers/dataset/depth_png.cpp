@@ -367,8 +367,8 @@ Result<ColourImage> decodeColourImage(std::span<const uint8_t> data, const std::
     const std::vector<unsigned char> bytes(data.begin(), data.end());
     const bool png = isPng(bytes);
     if (!png && !isJpeg(bytes)) {
-        return corrupt(fmt::format("{}: not a PNG or JPEG file ({} bytes, no PNG or JPEG signature)",
-                                   name, bytes.size()));
+        return corrupt(fmt::format(
+            "{}: not a PNG or JPEG file ({} bytes, no PNG or JPEG signature)", name, bytes.size()));
     }
 #if PLUMB_DRIVERS_LIBPNG
     if (!png) {
