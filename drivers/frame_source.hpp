@@ -25,7 +25,7 @@ struct Frame {
     /// size), or empty when the source has no colour. Sources whose colour camera is not
     /// registered to the depth camera (7-Scenes) say so in their description.
     ColourImage colour;
-    std::string name;          ///< file name or other identifier, for messages
+    std::string name;  ///< file name or other identifier, for messages
     /// Ground-truth camera-to-world pose, when the source knows it (datasets, simulator).
     std::optional<Eigen::Isometry3d> T_W_C_gt;
 };

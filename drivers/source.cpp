@@ -17,6 +17,18 @@
 namespace plumb {
 namespace {
 
+/// Passes frames on without their colour (SourceOptions::colour = false for sources that cannot
+/// leave it out themselves: the simulator).
+class DepthOnlySource final : public FrameSourceDecorator {
+  public:
+    using FrameSourceDecorator::FrameSourceDecorator;
+    Result<Frame> next() override {
+        auto frame = inner().next();
+        if (frame.isOk()) frame->colour = ColourImage();
+        return frame;
+    }
+};
+
 /// "640x480@30" -> width, height, fps.
 Status parseDepthMode(const std::string& mode, int* width, int* height, int* fps) {
     char x = 0;
@@ -71,6 +83,10 @@ Result<std::unique_ptr<FrameSource>> openRawSource(const std::string& uri,
             if (!table.isOk()) return table.status();
             *sensor_calibration = table->string();
         }
+        if (!options.colour) {
+            return std::unique_ptr<FrameSource>(
+                std::make_unique<DepthOnlySource>(std::move(source).value()));
+        }
         return std::unique_ptr<FrameSource>(std::move(source).value());
     }
     if (scheme == "openni2" || uri == "openni2") {
@@ -78,6 +94,7 @@ Result<std::unique_ptr<FrameSource>> openRawSource(const std::string& uri,
         config.uri = scheme == "openni2" ? rest : "";
         config.max_frames = options.max_frames;
         config.intrinsics = options.intrinsics;
+        config.colour = options.colour;
         PLUMB_RETURN_IF_ERROR(
             parseDepthMode(options.depth_mode, &config.width, &config.height, &config.fps));
         auto source = openni2::OpenNI2Source::open(config);
@@ -86,7 +103,8 @@ Result<std::unique_ptr<FrameSource>> openRawSource(const std::string& uri,
     }
     if (scheme == "v4l2") {
         v4l2::V4l2Config config;
-        config.device = rest;
+        PLUMB_RETURN_IF_ERROR(v4l2::parseV4l2Target(rest, &config));
+        if (!options.colour) config.colour_device.clear();
         config.max_frames = options.max_frames;
         config.intrinsics = options.intrinsics;
         if (options.depth_scale > 0.0) config.units_per_m = options.depth_scale;
@@ -98,7 +116,8 @@ Result<std::unique_ptr<FrameSource>> openRawSource(const std::string& uri,
     }
     return unsupported("unknown frame source '" + uri + "' (scheme '" + scheme + "', target '" +
                        rest +
-                       "'); use dataset:<dir>, sim:<scene>, openni2[:<uri>] or v4l2:/dev/videoN");
+                       "'); use dataset:<dir>, sim:<scene>, openni2[:<uri>] or "
+                       "v4l2:/dev/videoN[?colour=/dev/videoM]");
 }
 
 }  // namespace

@@ -5,7 +5,8 @@
 //   dataset:<dir>     recorded dataset, layout detected (drivers/dataset)
 //   sim:<scene>       simulated handheld scanner (drivers/sim)
 //   openni2[:<uri>]   OpenNI2 device (first one without a URI) or .oni recording (drivers/openni2)
-//   v4l2:/dev/videoN  UVC/V4L2 depth camera (drivers/v4l2)
+//   v4l2:/dev/videoN[?colour=/dev/videoM&colour_format=F&colour_size=WxH]
+//                     UVC/V4L2 depth camera, with the colour of a second node (drivers/v4l2)
 // A bare directory path is taken as dataset:<dir>.
 //
 // A live camera (openni2 device, v4l2 node) may not be plugged in yet when a program starts;

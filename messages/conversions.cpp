@@ -4,6 +4,9 @@
 #include <fmt/format.h>
 
 #include <cmath>
+#include <cstring>
+
+#include "messages/colour_codec.hpp"
 
 namespace plumb::messages {
 
@@ -83,85 +86,98 @@ Result<CameraInfo> fromMessage(const plumb::camera_info_t& m) {
     return info;
 }
 
-Result<plumb::depth_frame_t> toMessage(const RawDepthFrame& frame, DepthEncoding encoding,
-                                       int64_t seq) {
-    const Depth16Image& d = frame.depth;
+namespace {
+
+/// Checks what every raw frame needs before encoding: a depth image of a sane size, a positive
+/// depth scale, colour (when present) of the depth's size.
+Status checkRawFrame(int64_t frame_index, const Depth16Image& d, double depth_scale,
+                     const ColourImage* colour) {
     if (d.empty() || d.width() > kMaxDepthSide || d.height() > kMaxDepthSide) {
         return invalidArgument(
-            fmt::format("depth frame {}: size {}x{}", frame.frame_index, d.width(), d.height()));
+            fmt::format("depth frame {}: size {}x{}", frame_index, d.width(), d.height()));
     }
-    if (!std::isfinite(frame.depth_scale) || frame.depth_scale <= 0.0) {
+    if (!std::isfinite(depth_scale) || depth_scale <= 0.0) {
         return invalidArgument(
-            fmt::format("depth frame {}: depth scale {}", frame.frame_index, frame.depth_scale));
+            fmt::format("depth frame {}: depth scale {}", frame_index, depth_scale));
     }
-    plumb::depth_frame_t m{};
-    m.utime = frame.utime;
-    m.seq = seq;
-    m.frame_index = frame.frame_index;
-    m.width = d.width();
-    m.height = d.height();
-    m.depth_scale = frame.depth_scale;
-    m.encoding = static_cast<int8_t>(encoding);
-    if (encoding == DepthEncoding::kRaw16) {
-        m.data.reserve(d.size() * 2);
-        for (const uint16_t v : d.pixels()) {
-            m.data.push_back(static_cast<uint8_t>(v & 0xFF));
-            m.data.push_back(static_cast<uint8_t>(v >> 8));
-        }
-    } else {
-        m.data.reserve(d.size() + d.size() / 4);
-        for (int v = 0; v < d.height(); ++v) {
-            int32_t prev = 0;
-            for (int u = 0; u < d.width(); ++u) {
-                const int32_t delta = static_cast<int32_t>(d(u, v)) - prev;
-                prev = d(u, v);
-                // Zig-zag: 0, -1, 1, -2, ... -> 0, 1, 2, 3, ...
-                uint32_t z =
-                    (static_cast<uint32_t>(delta) << 1) ^ static_cast<uint32_t>(delta >> 31);
-                while (z >= 0x80) {
-                    m.data.push_back(static_cast<uint8_t>(z | 0x80));
-                    z >>= 7;
-                }
-                m.data.push_back(static_cast<uint8_t>(z));
-            }
-        }
+    if (colour != nullptr && !colour->empty() &&
+        (colour->width() != d.width() || colour->height() != d.height())) {
+        return invalidArgument(fmt::format("depth frame {}: {}x{} colour for {}x{} depth",
+                                           frame_index, colour->width(), colour->height(),
+                                           d.width(), d.height()));
     }
-    m.size = static_cast<int32_t>(m.data.size());
-    return m;
+    return Status::ok();
 }
 
-Result<RawDepthFrame> fromMessage(const plumb::depth_frame_t& m) {
+/// Depth as the wire carries it (see depth_frame_t.lcm for the encodings).
+std::vector<uint8_t> encodeDepth(const Depth16Image& d, DepthEncoding encoding) {
+    std::vector<uint8_t> data;
+    if (encoding == DepthEncoding::kRaw16) {
+        data.reserve(d.size() * 2);
+        for (const uint16_t v : d.pixels()) {
+            data.push_back(static_cast<uint8_t>(v & 0xFF));
+            data.push_back(static_cast<uint8_t>(v >> 8));
+        }
+        return data;
+    }
+    data.reserve(d.size() + d.size() / 4);
+    for (int v = 0; v < d.height(); ++v) {
+        int32_t prev = 0;
+        for (int u = 0; u < d.width(); ++u) {
+            const int32_t delta = static_cast<int32_t>(d(u, v)) - prev;
+            prev = d(u, v);
+            // Zig-zag: 0, -1, 1, -2, ... -> 0, 1, 2, 3, ...
+            uint32_t z = (static_cast<uint32_t>(delta) << 1) ^ static_cast<uint32_t>(delta >> 31);
+            while (z >= 0x80) {
+                data.push_back(static_cast<uint8_t>(z | 0x80));
+                z >>= 7;
+            }
+            data.push_back(static_cast<uint8_t>(z));
+        }
+    }
+    return data;
+}
+
+/// The header fields both raw frame types share, as they came off the wire.
+struct WireDepth {
+    const char* type;  ///< "depth_frame_t", for errors
+    int64_t frame_index;
+    int32_t width;
+    int32_t height;
+    double depth_scale;
+    int8_t encoding;
+    int32_t size;
+    const std::vector<uint8_t>* data;
+};
+
+/// Validates and decodes the depth part of a raw frame message.
+Result<Depth16Image> decodeDepth(const WireDepth& m) {
     if (m.width <= 0 || m.height <= 0 || m.width > kMaxDepthSide || m.height > kMaxDepthSide) {
-        return corrupt(
-            fmt::format("depth_frame_t {}: size {}x{}", m.frame_index, m.width, m.height));
+        return corrupt(fmt::format("{} {}: size {}x{}", m.type, m.frame_index, m.width, m.height));
     }
     if (!std::isfinite(m.depth_scale) || m.depth_scale <= 0.0) {
-        return corrupt(
-            fmt::format("depth_frame_t {}: depth scale {}", m.frame_index, m.depth_scale));
+        return corrupt(fmt::format("{} {}: depth scale {}", m.type, m.frame_index, m.depth_scale));
     }
-    if (m.size != static_cast<int32_t>(m.data.size())) {
-        return corrupt(fmt::format("depth_frame_t {}: size field {} but {} bytes", m.frame_index,
-                                   m.size, m.data.size()));
+    const std::vector<uint8_t>& data = *m.data;
+    if (m.size != static_cast<int32_t>(data.size())) {
+        return corrupt(fmt::format("{} {}: size field {} but {} bytes", m.type, m.frame_index,
+                                   m.size, data.size()));
     }
-    RawDepthFrame f;
-    f.utime = m.utime;
-    f.frame_index = m.frame_index;
-    f.depth_scale = m.depth_scale;
-    f.depth = Depth16Image(m.width, m.height);
-    const size_t pixels = f.depth.size();
+    Depth16Image depth(m.width, m.height);
+    const size_t pixels = depth.size();
     if (m.encoding == plumb::depth_frame_t::ENCODING_RAW16_LE) {
-        if (m.data.size() != pixels * 2) {
-            return corrupt(fmt::format("depth_frame_t {}: {} bytes for {} raw pixels",
-                                       m.frame_index, m.data.size(), pixels));
+        if (data.size() != pixels * 2) {
+            return corrupt(fmt::format("{} {}: {} bytes for {} raw pixels", m.type, m.frame_index,
+                                       data.size(), pixels));
         }
         for (size_t i = 0; i < pixels; ++i) {
-            f.depth.pixels()[i] = static_cast<uint16_t>(m.data[2 * i] | (m.data[2 * i + 1] << 8));
+            depth.pixels()[i] = static_cast<uint16_t>(data[2 * i] | (data[2 * i + 1] << 8));
         }
-        return f;
+        return depth;
     }
     if (m.encoding != plumb::depth_frame_t::ENCODING_DELTA_VARINT) {
         return corrupt(
-            fmt::format("depth_frame_t {}: unknown encoding {}", m.frame_index, m.encoding));
+            fmt::format("{} {}: unknown encoding {}", m.type, m.frame_index, m.encoding));
     }
     size_t pos = 0;
     for (int v = 0; v < m.height; ++v) {
@@ -170,13 +186,12 @@ Result<RawDepthFrame> fromMessage(const plumb::depth_frame_t& m) {
             uint32_t z = 0;
             int shift = 0;
             while (true) {
-                if (pos >= m.data.size() || shift > 14) {
+                if (pos >= data.size() || shift > 14) {
                     return corrupt(
-                        fmt::format("depth_frame_t {}: truncated or overlong varint at "
-                                    "pixel ({}, {})",
+                        fmt::format("{} {}: truncated or overlong varint at pixel ({}, {})", m.type,
                                     m.frame_index, u, v));
                 }
-                const uint8_t b = m.data[pos++];
+                const uint8_t b = data[pos++];
                 z |= static_cast<uint32_t>(b & 0x7F) << shift;
                 if (!(b & 0x80)) break;
                 shift += 7;
@@ -184,18 +199,145 @@ Result<RawDepthFrame> fromMessage(const plumb::depth_frame_t& m) {
             const int32_t delta = static_cast<int32_t>(z >> 1) ^ -static_cast<int32_t>(z & 1);
             const int32_t value = prev + delta;
             if (value < 0 || value > 65535) {
-                return corrupt(fmt::format("depth_frame_t {}: pixel ({}, {}) decodes to {}",
+                return corrupt(fmt::format("{} {}: pixel ({}, {}) decodes to {}", m.type,
                                            m.frame_index, u, v, value));
             }
-            f.depth(u, v) = static_cast<uint16_t>(value);
+            depth(u, v) = static_cast<uint16_t>(value);
             prev = value;
         }
     }
-    if (pos != m.data.size()) {
+    if (pos != data.size()) {
         return corrupt(
-            fmt::format("depth_frame_t {}: {} trailing bytes", m.frame_index, m.data.size() - pos));
+            fmt::format("{} {}: {} trailing bytes", m.type, m.frame_index, data.size() - pos));
     }
+    return depth;
+}
+
+/// Validates and decodes the colour part of a depth_frame2_t (empty image for COLOUR_NONE).
+Result<ColourImage> decodeColour(const plumb::depth_frame2_t& m) {
+    if (m.colour_size != static_cast<int32_t>(m.colour_data.size())) {
+        return corrupt(fmt::format("depth_frame2_t {}: colour size field {} but {} bytes",
+                                   m.frame_index, m.colour_size, m.colour_data.size()));
+    }
+    const size_t pixels = static_cast<size_t>(m.width) * static_cast<size_t>(m.height);
+    switch (m.colour_encoding) {
+        case plumb::depth_frame2_t::COLOUR_NONE:
+            if (!m.colour_data.empty()) {
+                return corrupt(fmt::format("depth_frame2_t {}: {} colour bytes without colour",
+                                           m.frame_index, m.colour_data.size()));
+            }
+            return ColourImage();
+        case plumb::depth_frame2_t::COLOUR_RGB8: {
+            if (m.colour_data.size() != pixels * 3) {
+                return corrupt(fmt::format("depth_frame2_t {}: {} colour bytes for {} RGB pixels",
+                                           m.frame_index, m.colour_data.size(), pixels));
+            }
+            ColourImage colour(m.width, m.height);
+            std::memcpy(colour.data(), m.colour_data.data(), pixels * 3);
+            return colour;
+        }
+        case plumb::depth_frame2_t::COLOUR_DELTA_RICE: {
+            auto colour = decodeColourRice(m.colour_data, m.width, m.height);
+            if (!colour.isOk()) {
+                return corrupt(
+                    fmt::format("depth_frame2_t {}: {}", m.frame_index, colour.status().message()));
+            }
+            return colour;
+        }
+        default:
+            return corrupt(fmt::format("depth_frame2_t {}: unknown colour encoding {}",
+                                       m.frame_index, m.colour_encoding));
+    }
+}
+
+}  // namespace
+
+Result<plumb::depth_frame_t> toMessage(const RawDepthFrame& frame, DepthEncoding encoding,
+                                       int64_t seq) {
+    PLUMB_RETURN_IF_ERROR(
+        checkRawFrame(frame.frame_index, frame.depth, frame.depth_scale, nullptr));
+    plumb::depth_frame_t m{};
+    m.utime = frame.utime;
+    m.seq = seq;
+    m.frame_index = frame.frame_index;
+    m.width = frame.depth.width();
+    m.height = frame.depth.height();
+    m.depth_scale = frame.depth_scale;
+    m.encoding = static_cast<int8_t>(encoding);
+    m.data = encodeDepth(frame.depth, encoding);
+    m.size = static_cast<int32_t>(m.data.size());
+    return m;
+}
+
+Result<RawDepthFrame> fromMessage(const plumb::depth_frame_t& m) {
+    auto depth = decodeDepth({"depth_frame_t", m.frame_index, m.width, m.height, m.depth_scale,
+                              m.encoding, m.size, &m.data});
+    if (!depth.isOk()) return depth.status();
+    RawDepthFrame f;
+    f.utime = m.utime;
+    f.frame_index = m.frame_index;
+    f.depth_scale = m.depth_scale;
+    f.depth = std::move(depth).value();
     return f;
+}
+
+Result<plumb::depth_frame2_t> toMessage(const RawRgbdFrame& frame, DepthEncoding encoding,
+                                        ColourEncoding colour_encoding, int64_t seq) {
+    PLUMB_RETURN_IF_ERROR(
+        checkRawFrame(frame.frame_index, frame.depth, frame.depth_scale, &frame.colour));
+    plumb::depth_frame2_t m{};
+    m.utime = frame.utime;
+    m.seq = seq;
+    m.frame_index = frame.frame_index;
+    m.width = frame.depth.width();
+    m.height = frame.depth.height();
+    m.depth_scale = frame.depth_scale;
+    m.encoding = static_cast<int8_t>(encoding);
+    m.data = encodeDepth(frame.depth, encoding);
+    m.size = static_cast<int32_t>(m.data.size());
+    const ColourEncoding used = frame.colour.empty() ? ColourEncoding::kNone : colour_encoding;
+    m.colour_encoding = static_cast<int8_t>(used);
+    if (used == ColourEncoding::kRgb8) {
+        const auto* bytes = reinterpret_cast<const uint8_t*>(frame.colour.data());
+        m.colour_data.assign(bytes, bytes + frame.colour.size() * 3);
+    } else if (used == ColourEncoding::kDeltaRice) {
+        m.colour_data = encodeColourRice(frame.colour);
+    }
+    m.colour_size = static_cast<int32_t>(m.colour_data.size());
+    return m;
+}
+
+Result<RawRgbdFrame> fromMessage(const plumb::depth_frame2_t& m) {
+    auto depth = decodeDepth({"depth_frame2_t", m.frame_index, m.width, m.height, m.depth_scale,
+                              m.encoding, m.size, &m.data});
+    if (!depth.isOk()) return depth.status();
+    auto colour = decodeColour(m);
+    if (!colour.isOk()) return colour.status();
+    RawRgbdFrame f;
+    f.utime = m.utime;
+    f.frame_index = m.frame_index;
+    f.depth_scale = m.depth_scale;
+    f.depth = std::move(depth).value();
+    f.colour = std::move(colour).value();
+    return f;
+}
+
+Result<RawRgbdFrame> decodeRawFrame(std::span<const uint8_t> bytes) {
+    if (hasFingerprint<plumb::depth_frame_t>(bytes)) {
+        auto msg = decodeMessage<plumb::depth_frame_t>(bytes);
+        if (!msg.isOk()) return msg.status();
+        auto frame = fromMessage(*msg);
+        if (!frame.isOk()) return frame.status();
+        RawRgbdFrame f;
+        f.utime = frame->utime;
+        f.frame_index = frame->frame_index;
+        f.depth_scale = frame->depth_scale;
+        f.depth = std::move(frame->depth);
+        return f;
+    }
+    auto msg = decodeMessage<plumb::depth_frame2_t>(bytes);
+    if (!msg.isOk()) return msg.status();
+    return fromMessage(*msg);
 }
 
 plumb::config_snapshot_t toMessage(const std::string& program, const std::string& version,

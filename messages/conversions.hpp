@@ -5,6 +5,7 @@
 // validates what came off the wire and returns a Status naming the bad field.
 
 #include <cstdint>
+#include <span>
 #include <string>
 
 #include "common/camera/pinhole.hpp"
@@ -72,6 +73,38 @@ Result<plumb::depth_frame_t> toMessage(const RawDepthFrame& frame, DepthEncoding
                                        int64_t seq);
 /// Corrupt for bad sizes, unknown encodings, truncated or overlong data, out-of-range values.
 Result<RawDepthFrame> fromMessage(const plumb::depth_frame_t& msg);
+
+/// How depth_frame2_t carries the colour (see depth_frame2_t.lcm).
+enum class ColourEncoding : int8_t {
+    kNone = plumb::depth_frame2_t::COLOUR_NONE,  ///< leave the colour out
+    kRgb8 = plumb::depth_frame2_t::COLOUR_RGB8,  ///< 3 bytes per pixel
+    /// Lossless, about half the raw size on indoor images (messages/colour_codec.hpp); the
+    /// companion of kDeltaVarint depth.
+    kDeltaRice = plumb::depth_frame2_t::COLOUR_DELTA_RICE,
+};
+
+/// A raw frame with its colour (depth_frame2_t).
+struct RawRgbdFrame {
+    int64_t utime = 0;        ///< capture time, microseconds
+    int64_t frame_index = 0;  ///< index in the capture stream
+    double depth_scale = 1000.0;
+    Depth16Image depth;
+    ColourImage colour;  ///< 8-bit RGB registered to `depth` (same size), or empty
+};
+
+/// InvalidArgument for an empty or oversized depth image, a bad depth scale, or colour of
+/// another size than the depth. A frame without colour is sent with COLOUR_NONE whatever
+/// `colour_encoding` says.
+Result<plumb::depth_frame2_t> toMessage(const RawRgbdFrame& frame, DepthEncoding encoding,
+                                        ColourEncoding colour_encoding, int64_t seq);
+/// Corrupt as for depth_frame_t, and for a colour size field that disagrees with the bytes, an
+/// unknown colour encoding, RGB8 data of the wrong length, or a damaged DELTA_RICE stream.
+Result<RawRgbdFrame> fromMessage(const plumb::depth_frame2_t& msg);
+
+/// A raw frame off the wire: a depth_frame2_t, or a depth_frame_t (logs from before colour; the
+/// colour stays empty), told apart by the type fingerprint. Corrupt (naming the type) for
+/// anything that does not check and decode as one of them.
+Result<RawRgbdFrame> decodeRawFrame(std::span<const uint8_t> bytes);
 
 plumb::config_snapshot_t toMessage(const std::string& program, const std::string& version,
                                    const std::string& toml, int64_t utime, int64_t seq);

@@ -63,6 +63,13 @@ const WireSchema& wireSchema<plumb::depth_frame_t>() {
     return kSchema;
 }
 template <>
+const WireSchema& wireSchema<plumb::depth_frame2_t>() {
+    static const WireSchema kSchema{"depth_frame2_t",
+                                    {F::kI64, F::kI64, F::kI64, F::kI32, F::kI32, F::kI64, F::kI8,
+                                     F::kCount, F::kBytes, F::kI8, F::kCount, F::kBytes}};
+    return kSchema;
+}
+template <>
 const WireSchema& wireSchema<plumb::config_snapshot_t>() {
     static const WireSchema kSchema{"config_snapshot_t",
                                     {F::kI64, F::kI64, F::kString, F::kString, F::kString}};

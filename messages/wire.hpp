@@ -17,6 +17,7 @@
 #include "common/core/status.hpp"
 #include "messages/lcm/plumb/camera_info_t.hpp"
 #include "messages/lcm/plumb/config_snapshot_t.hpp"
+#include "messages/lcm/plumb/depth_frame2_t.hpp"
 #include "messages/lcm/plumb/depth_frame_t.hpp"
 #include "messages/lcm/plumb/device_status_t.hpp"
 #include "messages/lcm/plumb/envelope_t.hpp"
@@ -68,6 +69,8 @@ template <>
 const WireSchema& wireSchema<plumb::camera_info_t>();
 template <>
 const WireSchema& wireSchema<plumb::depth_frame_t>();
+template <>
+const WireSchema& wireSchema<plumb::depth_frame2_t>();
 template <>
 const WireSchema& wireSchema<plumb::config_snapshot_t>();
 template <>

@@ -63,7 +63,9 @@ Ingestor::~Ingestor() = default;
 
 std::vector<std::string> Ingestor::channels() {
     return {messages::kChannelFragmentHeader, messages::kChannelFragmentChunk,
-            messages::kChannelStatus, messages::kChannelCameraInfo, messages::kChannelConfig};
+            messages::kChannelStatus,         messages::kChannelCameraInfo,
+            messages::kChannelConfig,         messages::kChannelRgbd,
+            messages::kChannelDepth};
 }
 
 void Ingestor::noteRequest(const Key& key, const std::vector<int32_t>& chunks) {
@@ -84,6 +86,8 @@ void Ingestor::onMessage(const std::string& channel, std::span<const uint8_t> by
         onCameraInfo(bytes);
     } else if (channel == messages::kChannelConfig) {
         onConfig(bytes);
+    } else if (channel == messages::kChannelRgbd || channel == messages::kChannelDepth) {
+        onRawFrame(bytes);
     }
     poll(now_s);
 }
@@ -117,6 +121,17 @@ void Ingestor::onStatus(std::span<const uint8_t> bytes) {
     if (status->tracking == messages::TrackingState::kStopped) {
         end_of_scan_[status->session_id] = status->fragments_cut;
     }
+}
+
+void Ingestor::onRawFrame(std::span<const uint8_t> bytes) {
+    auto frame = messages::decodeRawFrame(bytes);
+    if (!frame.isOk()) {
+        ++counters_.raw_frames_malformed;
+        return;
+    }
+    ++counters_.raw_frames;
+    if (!frame->colour.empty()) ++counters_.raw_frames_colour;
+    last_raw_ = std::move(frame).value();
 }
 
 void Ingestor::onCameraInfo(std::span<const uint8_t> bytes) {
@@ -254,13 +269,16 @@ nlohmann::json Ingestor::metrics(const messages::AuthStats& auth) const {
     j["chunks_recovered"] = counters_.chunks_recovered;
     j["retransmit_requests"] = a.requests_sent;
     j["acks_sent"] = a.acks_sent;
+    j["raw_frames"] = {{"received", counters_.raw_frames},
+                       {"with_colour", counters_.raw_frames_colour}};
     j["messages_accepted"] = auth.accepted;
     j["messages_rejected"] = {
         {"unsigned", auth.rejected_unsigned},
         {"wrong_key", auth.rejected_wrong_key},
         {"forged", auth.rejected_forged},
         {"replayed", auth.rejected_replayed},
-        {"malformed", a.malformed_messages + counters_.malformed_other},
+        {"malformed",
+         a.malformed_messages + counters_.malformed_other + counters_.raw_frames_malformed},
         {"chunk_crc", a.chunk_crc_failures},
         {"fragment_crc", a.fragment_crc_failures},
         {"inconsistent", a.inconsistent_chunks},

@@ -8,7 +8,9 @@
 // and only then acknowledges it. On open() it resumes from the store: fragments already there are
 // acknowledged again when announced and never stored twice. It also keeps the device's latest
 // heartbeat, camera info and configuration snapshot, and notices the end of a scan (a heartbeat
-// with TRACKING_STOPPED carries the final fragment count).
+// with TRACKING_STOPPED carries the final fragment count). Raw frames (depth_frame2_t on
+// PLUMB_RGBD, with colour; depth_frame_t on PLUMB_DEPTH from older devices) are decoded and
+// counted, and the latest one is kept.
 //
 // Pure apart from the store: no threads, no clock (time is passed in, seconds), no LCM; the owner
 // routes messages (already authenticated) to onMessage() and calls poll(). Not thread-safe.
@@ -42,15 +44,18 @@ struct IngestConfig {
 };
 
 struct IngestCounters {
-    uint64_t fragments_received = 0;   ///< new fragments persisted by this process
-    uint64_t fragments_resumed = 0;    ///< already in the store at open()
-    uint64_t fragments_duplicate = 0;  ///< reassembled again although stored (ignored)
-    uint64_t fragments_rejected = 0;   ///< reassembled but undecodable or conflicting
-    uint64_t persist_errors = 0;       ///< disk errors (the fragment is received again)
-    uint64_t chunks_lost = 0;          ///< distinct chunks requested again (lost or late)
-    uint64_t chunks_recovered = 0;     ///< of these, received afterwards
-    uint64_t status_messages = 0;      ///< device heartbeats
-    uint64_t malformed_other = 0;      ///< undecodable status, camera info or config messages
+    uint64_t fragments_received = 0;    ///< new fragments persisted by this process
+    uint64_t fragments_resumed = 0;     ///< already in the store at open()
+    uint64_t fragments_duplicate = 0;   ///< reassembled again although stored (ignored)
+    uint64_t fragments_rejected = 0;    ///< reassembled but undecodable or conflicting
+    uint64_t persist_errors = 0;        ///< disk errors (the fragment is received again)
+    uint64_t chunks_lost = 0;           ///< distinct chunks requested again (lost or late)
+    uint64_t chunks_recovered = 0;      ///< of these, received afterwards
+    uint64_t status_messages = 0;       ///< device heartbeats
+    uint64_t malformed_other = 0;       ///< undecodable status, camera info or config messages
+    uint64_t raw_frames = 0;            ///< raw frames decoded (depth_frame2_t and depth_frame_t)
+    uint64_t raw_frames_colour = 0;     ///< of these, with colour
+    uint64_t raw_frames_malformed = 0;  ///< raw frames that did not decode
 };
 
 class Ingestor {
@@ -85,6 +90,8 @@ class Ingestor {
     const std::string& deviceConfigToml() const { return device_config_; }
     /// Latest heartbeat per device session.
     const std::map<int64_t, messages::DeviceStatus>& deviceStatus() const { return status_; }
+    /// The latest raw frame that decoded (colour empty for depth_frame_t or a colourless frame).
+    const std::optional<messages::RawRgbdFrame>& lastRawFrame() const { return last_raw_; }
 
     /// The metrics.json document (deterministic for a given message sequence).
     nlohmann::json metrics(const messages::AuthStats& auth) const;
@@ -96,6 +103,7 @@ class Ingestor {
     void onStatus(std::span<const uint8_t> bytes);
     void onCameraInfo(std::span<const uint8_t> bytes);
     void onConfig(std::span<const uint8_t> bytes);
+    void onRawFrame(std::span<const uint8_t> bytes);
     void noteRequest(const std::pair<int64_t, uint32_t>& key, const std::vector<int32_t>& chunks);
 
     IngestConfig config_;
@@ -109,6 +117,7 @@ class Ingestor {
     std::map<int64_t, messages::DeviceStatus> status_;
     std::map<int64_t, int32_t> end_of_scan_;  ///< session -> final fragment count
     std::optional<messages::CameraInfo> camera_;
+    std::optional<messages::RawRgbdFrame> last_raw_;
     std::string device_config_;
 };
 

@@ -61,6 +61,12 @@ void describe(config::Schema& s, StreamConfig& c) {
             "at the end of a finite source, wait this long for the last acknowledgements", "s")
         .min(0);
     s.field("include_colors", c.include_colors, "keep per-point colours in encoded fragments");
+    s.field("raw_frame_every", c.raw_frame_every,
+            "publish every N-th captured frame raw on PLUMB_RGBD (depth_frame2_t); 0: none",
+            "frames")
+        .min(0);
+    s.field("raw_frame_colour", c.raw_frame_colour,
+            "send the frame's colour in raw frames when it has one");
 }
 
 void describe(config::Schema& s, DeviceConfig& c) {

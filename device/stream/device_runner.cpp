@@ -41,6 +41,8 @@ struct Shared {
     std::atomic<int64_t> processed{0};
     std::atomic<int64_t> dropped{0};
     std::atomic<int64_t> cut{0};
+    std::atomic<int64_t> raw_published{0};
+    std::atomic<int64_t> raw_dropped{0};  ///< raw frames a live sensor had to drop
     std::atomic<int> tracking{static_cast<int>(messages::TrackingState::kInitializing)};
     std::atomic<bool> fusion_done{false};
     std::atomic<bool> camera_gone{false};  ///< the source reports kUnavailable (unplugged)
@@ -49,8 +51,14 @@ struct Shared {
     std::string fusion_error;
 };
 
+/// Raw frames for the network thread: every `every`-th captured frame (0 = none).
+struct RawFrameTap {
+    int every = 0;
+    BoundedQueue<Frame>* queue = nullptr;
+};
+
 void captureLoop(FrameSource& source, const CaptureConfig& config, BoundedQueue<Frame>& frames,
-                 Shared& shared, const std::atomic<int>& stop) {
+                 RawFrameTap raw, Shared& shared, const std::atomic<int>& stop) {
     const bool live = !source.size().has_value();
     const bool drop_when_full = live || config.realtime;
     const auto start = Clock::now();
@@ -86,6 +94,12 @@ void captureLoop(FrameSource& source, const CaptureConfig& config, BoundedQueue<
             std::this_thread::sleep_until(start + std::chrono::duration_cast<Clock::duration>(
                                                       std::chrono::duration<double>(offset)));
         }
+        if (raw.every > 0 && (shared.captured.load() - 1) % raw.every == 0) {
+            Frame copy = *frame;
+            if (drop_when_full ? !raw.queue->tryPush(copy) : !raw.queue->push(std::move(copy))) {
+                ++shared.raw_dropped;
+            }
+        }
         if (drop_when_full) {
             Frame f = std::move(frame).value();
             if (!frames.tryPush(f)) ++shared.dropped;
@@ -94,6 +108,22 @@ void captureLoop(FrameSource& source, const CaptureConfig& config, BoundedQueue<
         }
     }
     frames.close();
+    if (raw.queue != nullptr) raw.queue->close();
+}
+
+/// A captured frame as a depth_frame2_t (depth in millimetres, delta-varint; colour DELTA_RICE
+/// unless `colour` is false).
+Result<messages::Bytes> encodeRawFrame(const Frame& frame, bool colour, int64_t seq) {
+    messages::RawRgbdFrame raw;
+    raw.utime = messages::toUtime(frame.timestamp_s);
+    raw.frame_index = frame.index;
+    raw.depth_scale = 1000.0;
+    raw.depth = toRaw(frame.depth, raw.depth_scale);
+    if (colour) raw.colour = frame.colour;
+    auto msg = messages::toMessage(raw, messages::DepthEncoding::kDeltaVarint,
+                                   messages::ColourEncoding::kDeltaRice, seq);
+    if (!msg.isOk()) return msg.status();
+    return messages::encodeMessage(*msg);
 }
 
 void fusionLoop(const PinholeCamera& camera, const DeviceConfig& config,
@@ -232,11 +262,26 @@ Result<DeviceRunReport> runDevice(FrameSource& source, const DeviceRunOptions& o
     Shared shared;
     BoundedQueue<Frame> frames(static_cast<size_t>(options.config.capture.queue_frames));
     BoundedQueue<EncodedFragment> fragments(4);
+    BoundedQueue<Frame> raw_frames(2);
+    const RawFrameTap raw_tap{sc.raw_frame_every, sc.raw_frame_every > 0 ? &raw_frames : nullptr};
     std::atomic<int> capture_stop{0};
-    std::thread capture(
-        [&] { captureLoop(source, options.config.capture, frames, shared, capture_stop); });
+    std::thread capture([&] {
+        captureLoop(source, options.config.capture, frames, raw_tap, shared, capture_stop);
+    });
     std::thread fusion(
         [&] { fusionLoop(source.camera(), options.config, frames, fragments, shared); });
+
+    auto publishRawFrames = [&] {
+        while (auto raw = raw_frames.tryPop()) {
+            auto bytes = encodeRawFrame(*raw, sc.raw_frame_colour, ++seq);
+            if (!bytes.isOk()) {
+                log::warn("device: raw frame {}: {}", raw->index, bytes.status().toString());
+                continue;
+            }
+            publish(messages::kChannelRgbd, *bytes);
+            ++shared.raw_published;
+        }
+    };
 
     DeviceRunReport report;
     std::deque<EncodedFragment> pending;  // cut, not yet in the spool (spool full)
@@ -284,6 +329,7 @@ Result<DeviceRunReport> runDevice(FrameSource& source, const DeviceRunOptions& o
             log::info("device: stop requested; closing the open fragment and flushing");
             capture_stop = 1;
         }
+        publishRawFrames();
         while (auto f = fragments.tryPop()) {
             if (!options.dump_dir.empty()) {
                 const auto path =
@@ -323,17 +369,25 @@ Result<DeviceRunReport> runDevice(FrameSource& source, const DeviceRunOptions& o
     }
     capture_stop = 1;
     frames.close();
+    raw_frames.close();  // capture may wait on it (recorded sources)
     capture.join();
     fusion.join();
     // Anything fusion emitted after the loop ended still goes to the spool.
     while (auto f = fragments.tryPop()) pending.push_back(std::move(*f));
     for (auto& f : pending) (void)publisher->submit(f.id, std::move(f.bytes), wallSeconds());
     if (!failure.isOk()) return failure;
+    publishRawFrames();  // the last ones captured while the loop was ending
 
     report.frames_captured = shared.captured.load();
     report.frames_processed = shared.processed.load();
     report.frames_dropped = shared.dropped.load();
     report.fragments_cut = shared.cut.load();
+    report.raw_frames_published = shared.raw_published.load();
+    report.raw_frames_dropped = shared.raw_dropped.load();
+    if (report.raw_frames_dropped > 0) {
+        log::info("device: {} raw frames published, {} dropped (the network thread lagged)",
+                  report.raw_frames_published, report.raw_frames_dropped);
+    }
     report.fragments_acked = static_cast<int64_t>(publisher->stats().fragments_acked);
     report.unacknowledged = publisher->unacknowledgedKeys();
     {

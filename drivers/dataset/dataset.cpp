@@ -682,9 +682,9 @@ std::string DatasetInfo::summary() const {
         colour = with_colour == 0
                      ? fmt::format("colour {}", colour_source)
                      : fmt::format("colour for {} frames ({}{})", with_colour, colour_source,
-                                   colour_registered
-                                       ? ""
-                                       : "; not registered to depth, resized to the depth size");
+                                   colour_registered ? ""
+                                                     : "; not registered to depth, resized to the "
+                                                       "depth size where it differs");
     }
     return fmt::format(
         "{} dataset {}: {} frames, GT for {} ({:.1f}%), {} ({}), depth scale {} ({}), {}",

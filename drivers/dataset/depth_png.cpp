@@ -363,11 +363,8 @@ Result<ColourImage> decodeColourOpenCv(const std::vector<unsigned char>& bytes,
 
 }  // namespace
 
-Result<ColourImage> readColourImage(const std::filesystem::path& path) {
-    const std::string name = path.string();
-    auto file = readBytes(path, "colour image");
-    if (!file.isOk()) return file.status();
-    const std::vector<unsigned char>& bytes = *file;
+Result<ColourImage> decodeColourImage(std::span<const uint8_t> data, const std::string& name) {
+    const std::vector<unsigned char> bytes(data.begin(), data.end());
     const bool png = isPng(bytes);
     if (!png && !isJpeg(bytes)) {
         return corrupt(fmt::format(
@@ -382,6 +379,20 @@ Result<ColourImage> readColourImage(const std::filesystem::path& path) {
 #else
     return decodeColourOpenCv(bytes, name, png ? "PNG" : "JPEG");
 #endif
+}
+
+bool canDecodeJpeg() {
+#if PLUMB_DRIVERS_LIBPNG
+    return false;
+#else
+    return true;
+#endif
+}
+
+Result<ColourImage> readColourImage(const std::filesystem::path& path) {
+    auto file = readBytes(path, "colour image");
+    if (!file.isOk()) return file.status();
+    return decodeColourImage(*file, path.string());
 }
 
 Result<ColourImage> readColourImage(const std::filesystem::path& path, int width, int height,

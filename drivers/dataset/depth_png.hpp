@@ -7,6 +7,8 @@
 // RGB order whatever the decoder's own channel order is.
 
 #include <filesystem>
+#include <span>
+#include <string>
 
 #include "common/core/status.hpp"
 #include "common/image/image.hpp"
@@ -36,6 +38,13 @@ Status writeGrayPng(const std::filesystem::path& path, const GrayImage& gray);
 ///                 got 16-bit", "expected 3 channels (RGB), got 1";
 ///   kUnsupported  a JPEG in a build without OpenCV (the aarch64 device build).
 Result<ColourImage> readColourImage(const std::filesystem::path& path);
+
+/// Decodes an 8-bit colour image held in memory (PNG or JPEG, as readColourImage; `name` names
+/// it in errors, e.g. "V4L2 colour frame 12").
+Result<ColourImage> decodeColourImage(std::span<const uint8_t> bytes, const std::string& name);
+
+/// True when this build decodes JPEG (OpenCV builds; not the libpng-only device build).
+bool canDecodeJpeg();
 
 /// How readColourImage treats an image whose size differs from the depth image's.
 enum class ColourSize {

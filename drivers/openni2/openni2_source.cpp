@@ -8,11 +8,16 @@
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
+#include <cstdlib>
+#include <cstring>
+#include <deque>
 #include <filesystem>
 #include <mutex>
 #include <set>
 #include <thread>
 
+#include "common/core/logging.hpp"
+#include "drivers/dataset/depth_png.hpp"
 #include "drivers/device_clock.hpp"
 
 namespace plumb::openni2 {
@@ -57,6 +62,16 @@ const char* pixelFormatName(openni::PixelFormat f) {
 
 bool isDepthFormat(openni::PixelFormat f) {
     return f == openni::PIXEL_FORMAT_DEPTH_1_MM || f == openni::PIXEL_FORMAT_DEPTH_100_UM;
+}
+
+/// How well a colour mode fits the depth mode: 3 same size and rate, 2 same size, 1 same rate,
+/// 0 other; -1 not RGB888.
+int colourModeScore(const openni::VideoMode& colour, const openni::VideoMode& depth) {
+    if (colour.getPixelFormat() != openni::PIXEL_FORMAT_RGB888) return -1;
+    const bool size = colour.getResolutionX() == depth.getResolutionX() &&
+                      colour.getResolutionY() == depth.getResolutionY();
+    const bool rate = colour.getFps() == depth.getFps();
+    return size && rate ? 3 : size ? 2 : rate ? 1 : 0;
 }
 
 double unitsPerMetre(openni::PixelFormat f) {
@@ -111,6 +126,22 @@ struct OpenNI2Source::Impl : openni::OpenNI::DeviceConnectedListener,
     openni::Device device;
     openni::VideoStream stream;
     openni::VideoMode mode;
+    /// Colour: the stream (valid when has_colour), its mode, frames read but not yet paired.
+    struct ColourSample {
+        uint64_t timestamp_us = 0;  ///< device clock
+        int device_index = 0;
+        ColourImage image;  ///< already at the depth's size
+    };
+    openni::VideoStream colour_stream;
+    openni::VideoMode colour_mode;
+    bool has_colour = false;
+    bool colour_synced = false;
+    std::string colour_problem;  ///< why a colour sensor is not used, for description()
+    std::deque<ColourSample> colour_frames;
+    Clock::time_point last_colour_time;  ///< when the last colour frame came
+    bool colour_seen = false;            ///< a colour frame came since the stream opened
+    size_t with_colour = 0;
+    size_t without_colour = 0;
     PinholeCamera camera;
     DeviceClock clock;
     bool open = false;
@@ -151,6 +182,14 @@ struct OpenNI2Source::Impl : openni::OpenNI::DeviceConnectedListener,
     }
 
     void closeDevice() {
+        if (colour_stream.isValid()) {
+            if (colour_synced) device.setDepthColorSyncEnabled(false);
+            colour_stream.stop();
+            colour_stream.destroy();
+        }
+        has_colour = false;
+        colour_synced = false;
+        colour_frames.clear();
         if (stream.isValid()) {
             stream.stop();
             stream.destroy();
@@ -189,6 +228,65 @@ struct OpenNI2Source::Impl : openni::OpenNI::DeviceConnectedListener,
             return ioError("OpenNI2 refused the depth mode: " + oniError());
         }
         return Status::ok();
+    }
+
+    /// Opens the colour stream when there is one (config.colour); never fails the device: a
+    /// colour stream that cannot be used is logged and left out (has_colour stays false).
+    void openColour(bool start) {
+        has_colour = false;
+        colour_problem.clear();
+        if (!config.colour || !device.hasSensor(openni::SENSOR_COLOR)) return;
+        const auto give_up = [&](const std::string& why) {
+            colour_problem = why;
+            log::warn("OpenNI2 device '{}': {}; streaming depth without colour", uri, why);
+            if (colour_stream.isValid()) colour_stream.destroy();
+        };
+        if (colour_stream.create(device, openni::SENSOR_COLOR) != openni::STATUS_OK) {
+            return give_up("cannot create the colour stream: " + oniError());
+        }
+        if (!is_file) {
+            const openni::SensorInfo* info = device.getSensorInfo(openni::SENSOR_COLOR);
+            const openni::VideoMode depth_mode = stream.getVideoMode();
+            const openni::VideoMode* best = nullptr;
+            int best_score = -1;
+            if (info != nullptr) {
+                const auto& modes = info->getSupportedVideoModes();
+                for (int i = 0; i < modes.getSize(); ++i) {
+                    const int score = colourModeScore(modes[i], depth_mode);
+                    if (score > best_score) {
+                        best_score = score;
+                        best = &modes[i];
+                    }
+                }
+            }
+            if (best == nullptr || best_score < 0)
+                return give_up("the colour sensor has no RGB888 mode");
+            if (colour_stream.setVideoMode(*best) != openni::STATUS_OK) {
+                return give_up("OpenNI2 refused the colour mode: " + oniError());
+            }
+            if (colour_stream.setMirroringEnabled(false) != openni::STATUS_OK &&
+                colour_stream.getMirroringEnabled()) {
+                return give_up("cannot switch mirroring off on the colour stream: " + oniError());
+            }
+        }
+        colour_mode = colour_stream.getVideoMode();
+        if (is_file && device.getPlaybackControl()->getNumberOfFrames(colour_stream) <= 0) {
+            // Waiting for colour that never comes would advance the player past depth frames.
+            colour_problem = "the recording has no colour frames";
+            colour_stream.destroy();
+            return;
+        }
+        if (colour_mode.getPixelFormat() != openni::PIXEL_FORMAT_RGB888) {
+            return give_up(std::string("the colour stream is ") +
+                           pixelFormatName(colour_mode.getPixelFormat()) + ", not RGB888");
+        }
+        if (start && colour_stream.start() != openni::STATUS_OK) {
+            return give_up("cannot start the colour stream: " + oniError());
+        }
+        // Frame sync where the device offers it; without it frames pair by timestamp alone.
+        colour_synced = !is_file && device.setDepthColorSyncEnabled(true) == openni::STATUS_OK;
+        has_colour = true;
+        colour_seen = false;
     }
 
     Status openDevice(bool start = true) {
@@ -259,6 +357,7 @@ struct OpenNI2Source::Impl : openni::OpenNI::DeviceConnectedListener,
             num_recorded = playback->getNumberOfFrames(stream);
             playback->setRepeatEnabled(num_recorded > 0);
         }
+        openColour(start);
         if (start && stream.start() != openni::STATUS_OK) {
             const std::string why = oniError();
             closeDevice();
@@ -364,6 +463,128 @@ struct OpenNI2Source::Impl : openni::OpenNI::DeviceConnectedListener,
         return frame;
     }
 
+    /// An RGB888 frame as a colour image of the depth's size.
+    Result<ColourImage> convertColour(const openni::VideoFrameRef& ref) const {
+        if (!ref.isValid()) return corrupt("OpenNI2 returned an invalid colour frame");
+        const openni::PixelFormat format = ref.getVideoMode().getPixelFormat();
+        if (ref.getSensorType() != openni::SENSOR_COLOR || format != openni::PIXEL_FORMAT_RGB888) {
+            return unsupported(std::string("OpenNI2 colour frame has pixel format ") +
+                               pixelFormatName(format) + ", not RGB888");
+        }
+        const int w = ref.getWidth();
+        const int h = ref.getHeight();
+        if (w <= 0 || h <= 0 || ref.getDataSize() <= 0 || ref.getData() == nullptr) {
+            return corrupt(fmt::format("OpenNI2 colour frame {} is empty ({}x{}, {} bytes)",
+                                       ref.getFrameIndex(), w, h, ref.getDataSize()));
+        }
+        const int stride = ref.getStrideInBytes() > 0 ? ref.getStrideInBytes() : w * 3;
+        const int64_t needed = static_cast<int64_t>(stride) * (h - 1) + int64_t{w} * 3;
+        if (stride < w * 3 || ref.getDataSize() < needed) {
+            return corrupt(fmt::format(
+                "OpenNI2 colour frame {} is short: {} bytes (stride {}) for {}x{} RGB888 needs {}",
+                ref.getFrameIndex(), ref.getDataSize(), stride, w, h, needed));
+        }
+        ColourImage colour(w, h);
+        const auto* bytes = static_cast<const uint8_t*>(ref.getData());
+        for (int v = 0; v < h; ++v) {
+            std::memcpy(&colour(0, v), bytes + int64_t{stride} * v, static_cast<size_t>(w) * 3);
+        }
+        if (w == camera.width && h == camera.height) return colour;
+        return dataset::resizeColour(colour, camera.width, camera.height);
+    }
+
+    /// Reads the colour frames that are ready, waiting up to `timeout_ms` for the first one; at
+    /// most one with `at_most_one` (recordings: in manual playback every wait on a stream that
+    /// has no frame plays the next one, so only one wait per depth frame keeps them in step).
+    void drainColour(int timeout_ms, bool at_most_one = false) {
+        openni::VideoStream* streams[] = {&colour_stream};
+        int ready = -1;
+        for (int wait = timeout_ms;
+             openni::OpenNI::waitForAnyStream(streams, 1, &ready, wait) == openni::STATUS_OK;
+             wait = 0) {
+            openni::VideoFrameRef ref;
+            if (colour_stream.readFrame(&ref) != openni::STATUS_OK) {
+                log::warn("OpenNI2 device '{}': reading a colour frame failed: {}", uri,
+                          oniError());
+                return;
+            }
+            last_colour_time = Clock::now();
+            colour_seen = true;
+            auto colour = convertColour(ref);
+            if (!colour.isOk()) {
+                log::warn("OpenNI2 device '{}': colour frame skipped: {}", uri,
+                          colour.status().message());
+                continue;
+            }
+            colour_frames.push_back({ref.getTimestamp(), ref.getFrameIndex(), std::move(*colour)});
+            while (colour_frames.size() > 16) colour_frames.pop_front();
+            if (at_most_one) return;
+        }
+    }
+
+    /// The buffered colour frame closest to `depth_us` within `tolerance_us`, or end().
+    std::deque<ColourSample>::iterator closestColour(uint64_t depth_us, int64_t tolerance_us) {
+        auto best = colour_frames.end();
+        int64_t best_difference = tolerance_us + 1;
+        for (auto it = colour_frames.begin(); it != colour_frames.end(); ++it) {
+            const int64_t difference =
+                std::llabs(static_cast<int64_t>(it->timestamp_us) - static_cast<int64_t>(depth_us));
+            if (difference < best_difference) {
+                best_difference = difference;
+                best = it;
+            }
+        }
+        return best;
+    }
+
+    /// Pairs the depth frame taken at device time `depth_us` with its colour frame (header).
+    void attachColour(uint64_t depth_us, Frame* frame) {
+        const int64_t tolerance_us = config.colour_max_difference_us > 0
+                                         ? config.colour_max_difference_us
+                                         : 500000 / std::max(1, mode.getFps());
+        auto best = closestColour(depth_us, tolerance_us);
+        if (is_file) {
+            // A recording holds colour frame k after depth frame k: one wait plays it.
+            if (best == colour_frames.end()) {
+                drainColour(std::max(config.colour_wait_ms, 200), /*at_most_one=*/true);
+                best = closestColour(depth_us, tolerance_us);
+            }
+        } else {
+            drainColour(0);
+            best = closestColour(depth_us, tolerance_us);
+        }
+        // Waiting longer than half a frame period would let the next depth frame replace one
+        // not read yet; a colour stream that never sent a frame, or went silent, is not waited
+        // for at all.
+        const int wait_ms = std::min(config.colour_wait_ms, 500 / std::max(1, mode.getFps()));
+        const auto deadline = Clock::now() + std::chrono::milliseconds(wait_ms);
+        const auto newer_exists = [&] {
+            return !colour_frames.empty() &&
+                   static_cast<int64_t>(colour_frames.back().timestamp_us) >
+                       static_cast<int64_t>(depth_us) + tolerance_us;
+        };
+        while (!is_file && colour_seen && best == colour_frames.end() && !newer_exists() &&
+               Clock::now() < deadline &&
+               Clock::now() - last_colour_time <
+                   std::chrono::milliseconds(config.colour_stall_ms)) {
+            drainColour(5);
+            best = closestColour(depth_us, tolerance_us);
+        }
+        if (best != colour_frames.end()) {
+            frame->colour = std::move(best->image);
+            colour_frames.erase(colour_frames.begin(), best + 1);  // older ones pair with nothing
+            ++with_colour;
+        } else {
+            ++without_colour;
+        }
+        // Colour frames too old for any later depth frame.
+        while (!colour_frames.empty() &&
+               static_cast<int64_t>(colour_frames.front().timestamp_us) + tolerance_us <
+                   static_cast<int64_t>(depth_us)) {
+            colour_frames.pop_front();
+        }
+    }
+
     Result<Frame> next() {
         if (config.max_frames > 0 && returned >= config.max_frames) {
             return outOfRange(fmt::format("stopped after {} frames (max_frames)", returned));
@@ -400,7 +621,9 @@ struct OpenNI2Source::Impl : openni::OpenNI::DeviceConnectedListener,
             return ioError("OpenNI2 readFrame failed on '" + uri + "': " + oniError());
         }
         auto frame = convert(ref);
-        if (frame.isOk()) ++returned;
+        if (!frame.isOk()) return frame;
+        if (has_colour) attachColour(ref.getTimestamp(), &*frame);
+        ++returned;
         return frame;
     }
 };
@@ -444,16 +667,31 @@ std::optional<size_t> OpenNI2Source::size() const {
 }
 std::string OpenNI2Source::description() const {
     const PinholeCamera& c = impl_->camera;
-    return fmt::format("OpenNI2 {} '{}' ({}x{}@{} {}{}, fx={:.1f} fy={:.1f})",
+    std::string colour = ", no colour";
+    if (impl_->has_colour) {
+        const openni::VideoMode& m = impl_->colour_mode;
+        colour = fmt::format(
+            ", colour RGB888 {}x{}@{}{}{}{}", m.getResolutionX(), m.getResolutionY(), m.getFps(),
+            m.getResolutionX() != c.width || m.getResolutionY() != c.height ? " resized to depth"
+                                                                            : "",
+            impl_->registered || impl_->is_file ? "" : " (not registered to depth)",
+            impl_->colour_synced ? ", frame sync" : ", paired by timestamp");
+    } else if (!impl_->colour_problem.empty()) {
+        colour = ", no colour (" + impl_->colour_problem + ")";
+    }
+    return fmt::format("OpenNI2 {} '{}' ({}x{}@{} {}{}, fx={:.1f} fy={:.1f}{})",
                        impl_->is_file ? "recording" : "device", impl_->uri, c.width, c.height,
                        impl_->mode.getFps(), pixelFormatName(impl_->mode.getPixelFormat()),
-                       impl_->registered ? ", registered to colour" : "", c.fx, c.fy);
+                       impl_->registered ? ", registered to colour" : "", c.fx, c.fy, colour);
 }
 const std::string& OpenNI2Source::uri() const { return impl_->uri; }
 bool OpenNI2Source::isRecording() const { return impl_->is_file; }
 bool OpenNI2Source::connected() const { return impl_->open && !impl_->disconnected; }
 int OpenNI2Source::reconnects() const { return impl_->reconnects; }
 bool OpenNI2Source::registered() const { return impl_->registered; }
+bool OpenNI2Source::hasColour() const { return impl_->has_colour; }
+size_t OpenNI2Source::framesWithColour() const { return impl_->with_colour; }
+size_t OpenNI2Source::framesWithoutColour() const { return impl_->without_colour; }
 int OpenNI2Source::lastDeviceFrameIndex() const { return impl_->last_index; }
 
 Status recordOni(const OpenNI2Config& config, const std::string& path, size_t num_frames) {
@@ -472,8 +710,13 @@ Status recordOni(const OpenNI2Config& config, const std::string& path, size_t nu
         return ioError("OpenNI2 cannot create recording '" + path + "': " + oniError());
     }
     if (recorder.attach(impl.stream, false) != openni::STATUS_OK ||
+        (impl.has_colour && recorder.attach(impl.colour_stream, false) != openni::STATUS_OK) ||
         recorder.start() != openni::STATUS_OK) {
         return ioError("OpenNI2 cannot record to '" + path + "': " + oniError());
+    }
+    if (impl.has_colour && impl.colour_stream.start() != openni::STATUS_OK) {
+        return ioError("OpenNI2 cannot start the colour stream of '" + impl.uri +
+                       "': " + oniError());
     }
     if (impl.stream.start() != openni::STATUS_OK) {
         return ioError("OpenNI2 cannot start the depth stream of '" + impl.uri +

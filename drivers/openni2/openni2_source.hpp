@@ -13,6 +13,20 @@
 // Recordings play in OpenNI2's "manual" speed (one frame per read, none dropped, no repeat) and
 // end with kOutOfRange; their timestamps are the recorded device times.
 //
+// Colour (Frame::colour): when the device or recording has a colour sensor (and config.colour),
+// its RGB888 stream is opened beside depth, at the depth's size and rate when offered (else the
+// closest RGB888 mode, resized to the depth size), mirroring off, depth-to-colour registration on
+// when the device supports it (config.registration), depth/colour frame sync requested where the
+// device offers it. Each depth frame takes the colour frame whose device timestamp is closest to
+// its own within colour_max_difference_us (each colour frame used once); when none has arrived
+// yet, next() waits up to colour_wait_ms (at most half a frame period, so that no depth frame is
+// replaced unread) for it, unless the colour stream has sent nothing yet or nothing for
+// colour_stall_ms (then depth goes on alone). Recordings pair the same way, reading the colour
+// frame that follows each depth frame in the file. A depth frame without a matching colour frame,
+// or whose colour frame is damaged (logged), has no colour. A device without colour, or whose
+// colour stream cannot be opened (logged), streams depth exactly as before. Without registration
+// the colour is only roughly aligned with depth: description() says so.
+//
 // Thread-safety: one consumer calls next(); OpenNI2 callbacks only touch atomics and a mutex.
 
 #include <memory>
@@ -43,6 +57,16 @@ struct OpenNI2Config {
     size_t max_frames = 0;
     /// Intrinsics override (cameraPreset name or file); empty = from the field of view.
     std::string intrinsics;
+    /// Open the colour stream when the device or recording has one; false = depth only.
+    bool colour = true;
+    /// A colour frame pairs with a depth frame when their device timestamps differ by at most
+    /// this, microseconds; 0 = half the depth frame period (16.7 ms at 30 Hz).
+    int64_t colour_max_difference_us = 0;
+    /// After a depth frame, how long next() waits for its colour frame, ms (capped at half the
+    /// depth frame period).
+    int colour_wait_ms = 10;
+    /// A colour stream silent for this long is stalled: depth frames stop waiting for it, ms.
+    int colour_stall_ms = 1000;
 };
 
 /// One OpenNI2 device as the drivers report it.
@@ -81,6 +105,11 @@ class OpenNI2Source final : public FrameSource {
     int reconnects() const;
     /// Whether depth-to-colour registration is on.
     bool registered() const;
+    /// Whether a colour stream is open (frames may carry colour).
+    bool hasColour() const;
+    /// Frames returned with colour, and without it although a colour stream is open.
+    size_t framesWithColour() const;
+    size_t framesWithoutColour() const;
     /// OpenNI2 frame index of the last frame returned (the device's own counter).
     int lastDeviceFrameIndex() const;
 
@@ -95,7 +124,8 @@ class OpenNI2Source final : public FrameSource {
 
 /// Records at least `num_frames` depth frames of the device config.uri (same mode options as
 /// OpenNI2Source) into the `.oni` file `path` with OpenNI2's recorder (lossless), from the first
-/// frame the stream sends; played back, recorded frame j (1-based) is stream frame j - 1.
+/// frame the stream sends, with the colour stream too when the device has one and config.colour;
+/// played back, recorded frame j (1-based) is stream frame j - 1.
 Status recordOni(const OpenNI2Config& config, const std::string& path, size_t num_frames);
 
 }  // namespace plumb::openni2

@@ -65,8 +65,10 @@ Result<SimDeviceSpec> parseSimDeviceUri(const std::string& uri) {
             PLUMB_RETURN_IF_ERROR(parseNumber(key, value, &flag));
             spec.realtime = flag != 0;
         } else if (key == "fault") {
-            if (value != "short" && value != "empty" && value != "format") {
-                return invalidArgument("plumb-sim URI: fault must be short, empty or format");
+            if (value != "short" && value != "empty" && value != "format" &&
+                value != "colour_short") {
+                return invalidArgument(
+                    "plumb-sim URI: fault must be short, empty, format or colour_short");
             }
             spec.fault = value;
         } else if (key == "fault_at") {
@@ -74,10 +76,26 @@ Result<SimDeviceSpec> parseSimDeviceUri(const std::string& uri) {
         } else if (key == "plug_file") {
             if (value.empty()) return invalidArgument("plumb-sim URI: plug_file needs a path");
             spec.plug_file = value;
+        } else if (key == "colour") {
+            if (value != "0" && value != "1" && value != "pattern") {
+                return invalidArgument("plumb-sim URI: colour must be 0, 1 or pattern");
+            }
+            spec.colour = value;
+        } else if (key == "colour_offset_us") {
+            PLUMB_RETURN_IF_ERROR(parseNumber(key, value, &spec.colour_offset_us));
+            if (spec.colour_offset_us < 0) {
+                return invalidArgument("plumb-sim URI: colour_offset_us must be >= 0");
+            }
+        } else if (key == "colour_skip") {
+            PLUMB_RETURN_IF_ERROR(parseNumber(key, value, &spec.colour_skip));
+            if (spec.colour_skip < 0) {
+                return invalidArgument("plumb-sim URI: colour_skip must be >= 0");
+            }
         } else {
             return invalidArgument("plumb-sim URI: unknown key '" + key +
                                    "' (frames, seed, unplug_at, unplug_frames, registration, "
-                                   "realtime, fault, fault_at, plug_file)");
+                                   "realtime, fault, fault_at, plug_file, colour, "
+                                   "colour_offset_us, colour_skip)");
         }
     }
     return spec;
@@ -96,6 +114,17 @@ Result<sim::SimConfig> simConfigFor(const SimDeviceSpec& spec, int width, int he
     }
     config.camera = base.scaled(static_cast<double>(width) / base.width);
     return config;
+}
+
+ColourImage simColourPattern(int64_t k, int width, int height) {
+    ColourImage out(width, height);
+    for (int v = 0; v < height; ++v) {
+        for (int u = 0; u < width; ++u) {
+            out(u, v) = Rgb8{static_cast<uint8_t>((u + k) & 0xff), static_cast<uint8_t>(v & 0xff),
+                             static_cast<uint8_t>((7 * k) & 0xff)};
+        }
+    }
+    return out;
 }
 
 uint16_t depthToPixel(float depth_m, double units_per_m) {

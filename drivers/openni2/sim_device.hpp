@@ -6,7 +6,8 @@
 // through OpenNI2 with the simulator's own frames.
 //
 //   plumb-sim://<scene>[?frames=N&seed=S&unplug_at=K&unplug_frames=G&registration=1&realtime=0
-//                        &fault=F&fault_at=K&plug_file=PATH]
+//                        &fault=F&fault_at=K&plug_file=PATH&colour=C&colour_offset_us=D
+//                        &colour_skip=M]
 //
 // frames        trajectory length (default 300); the camera goes idle after the last frame
 // seed          simulator seed (trajectory and noise), default 1
@@ -19,6 +20,17 @@
 //               "empty" (0x0, no bytes) or "format" (labelled RGB888)
 // plug_file     the camera is not plugged in until this file exists: opening it fails like
 //               opening an absent camera, so a test plugs the camera in by creating the file
+// colour        the colour camera: "1" (default) a colour sensor (RGB888, the depth modes'
+//               sizes and rates) whose frame k is the simulator's Frame::colour of frame k, sent
+//               with depth frame k (same frameIndex and device timestamp) — while the simulator
+//               renders no colour, the stream stays silent; "pattern" a test pattern instead,
+//               pixel (u, v) of frame k = {(u + k) mod 256, v mod 256, (7 k) mod 256} (not
+//               left-right symmetric, different every frame); "0" no colour sensor
+// colour_offset_us  colour timestamps run this many microseconds after depth (default 0; real
+//               cameras without frame sync differ by a few milliseconds)
+// colour_skip   every M-th frame (k = M-1, 2M-1, ...) comes without its colour frame (default
+//               0: none), as when a camera's colour stream drops a frame
+// fault         also "colour_short": colour frame fault_at carries half its bytes
 
 #include <cstdint>
 #include <string>
@@ -38,10 +50,16 @@ struct SimDeviceSpec {
     int64_t unplug_frames = 15;
     bool registration = false;
     bool realtime = true;
-    std::string fault;  ///< "", "short", "empty" or "format"
+    std::string fault;  ///< "", "short", "empty", "format" or "colour_short"
     int64_t fault_at = -1;
-    std::string plug_file;  ///< "" = plugged in from the start
+    std::string plug_file;         ///< "" = plugged in from the start
+    std::string colour = "1";      ///< "1" (the simulator's colour), "pattern" or "0" (none)
+    int64_t colour_offset_us = 0;  ///< colour timestamp minus depth timestamp, microseconds
+    int64_t colour_skip = 0;       ///< every this many frames one has no colour (0 = never)
 };
+
+/// The colour test pattern of the virtual device (`colour=pattern`) for frame k at width x height.
+ColourImage simColourPattern(int64_t k, int width, int height);
 
 /// True when `uri` starts with plumb-sim://.
 bool isSimDeviceUri(const std::string& uri);

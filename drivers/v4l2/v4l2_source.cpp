@@ -7,8 +7,14 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
+
+#include "common/core/logging.hpp"
+#include "drivers/dataset/depth_png.hpp"
+#include "drivers/v4l2/colour_formats.hpp"
 
 namespace plumb::v4l2 {
 namespace {
@@ -111,13 +117,62 @@ std::vector<NodeInfo> listDepthNodes(const std::shared_ptr<V4l2Io>& io) {
     return out;
 }
 
-V4l2Source::V4l2Source(const V4l2Config& config, std::shared_ptr<V4l2Io> io)
-    : config_(config), io_(std::move(io)) {}
+Status parseV4l2Target(const std::string& target, V4l2Config* config) {
+    const auto q = target.find('?');
+    config->device = target.substr(0, q);
+    if (config->device.empty()) return invalidArgument("v4l2: source names no device node");
+    if (q == std::string::npos) return Status::ok();
+    const std::string query = target.substr(q + 1);
+    size_t pos = 0;
+    while (pos <= query.size()) {
+        const auto amp = query.find('&', pos);
+        const std::string item =
+            query.substr(pos, amp == std::string::npos ? std::string::npos : amp - pos);
+        pos = amp == std::string::npos ? query.size() + 1 : amp + 1;
+        if (item.empty()) continue;
+        const auto eq = item.find('=');
+        const std::string key = item.substr(0, eq);
+        const std::string value = eq == std::string::npos ? "" : item.substr(eq + 1);
+        if (value.empty()) {
+            return invalidArgument("v4l2 source '" + target + "': '" + item + "' is not key=value");
+        }
+        if (key == "colour") {
+            config->colour_device = value;
+        } else if (key == "colour_format") {
+            auto f = parseFourcc(value);
+            if (!f.isOk()) return f.status();
+            config->colour_format = value;
+        } else if (key == "colour_size") {
+            int w = 0, h = 0;
+            char x = 0, extra = 0;
+            if (std::sscanf(value.c_str(), "%d%c%d%c", &w, &x, &h, &extra) != 3 || x != 'x' ||
+                w <= 0 || h <= 0) {
+                return invalidArgument("v4l2 source: colour_size '" + value + "' is not WxH");
+            }
+            config->colour_width = w;
+            config->colour_height = h;
+        } else {
+            return invalidArgument("v4l2 source '" + target + "': unknown key '" + key +
+                                   "' (colour, colour_format, colour_size)");
+        }
+    }
+    return Status::ok();
+}
 
-V4l2Source::~V4l2Source() { stop(); }
+V4l2Source::V4l2Source(const V4l2Config& config, std::shared_ptr<V4l2Io> io,
+                       std::shared_ptr<V4l2Io> colour_io)
+    : config_(config), io_(std::move(io)), colour_io_(std::move(colour_io)) {
+    if (!colour_io_) colour_io_ = io_;
+}
+
+V4l2Source::~V4l2Source() {
+    stopColour();
+    stop();
+}
 
 Result<std::unique_ptr<V4l2Source>> V4l2Source::open(const V4l2Config& config,
-                                                     std::shared_ptr<V4l2Io> io) {
+                                                     std::shared_ptr<V4l2Io> io,
+                                                     std::shared_ptr<V4l2Io> colour_io) {
     if (config.width <= 0 || config.height <= 0 || config.fps <= 0 || config.num_buffers < 2 ||
         config.timeout_ms <= 0 || !(config.units_per_m > 0.0)) {
         return invalidArgument(fmt::format(
@@ -126,7 +181,11 @@ Result<std::unique_ptr<V4l2Source>> V4l2Source::open(const V4l2Config& config,
             config.width, config.height, config.fps, config.timeout_ms, config.units_per_m,
             config.num_buffers));
     }
-    std::unique_ptr<V4l2Source> source(new V4l2Source(config, std::move(io)));
+    if (config.colour_width < 0 || config.colour_height < 0 || config.colour_stall_ms < 0 ||
+        config.colour_max_difference_us < 0) {
+        return invalidArgument("V4L2 source: colour size, stall time and tolerance must be >= 0");
+    }
+    std::unique_ptr<V4l2Source> source(new V4l2Source(config, std::move(io), std::move(colour_io)));
     if (!config.intrinsics.empty()) {
         auto camera = cameraPreset(config.intrinsics);
         if (!camera.isOk()) return camera.status();
@@ -142,7 +201,259 @@ Result<std::unique_ptr<V4l2Source>> V4l2Source::open(const V4l2Config& config,
         source->camera_.height = config.height;
     }
     PLUMB_RETURN_IF_ERROR(source->start());
+    if (!config.colour_device.empty()) {
+        if (Status s = source->startColour(); !s.isOk()) {
+            source->stop();
+            return Status(s.code(), "colour node: " + s.message());
+        }
+    }
     return source;
+}
+
+Status V4l2Source::startColour() {
+    const std::string& path = config_.colour_device;
+    auto node = queryNode(path, colour_io_);
+    if (!node.isOk()) return node.status();
+    colour_card_ = node->card;
+    std::string offered;
+    for (uint32_t f : node->formats) {
+        offered += fmt::format("{}{}", offered.empty() ? "" : ", ", fourccName(f));
+    }
+    if (offered.empty()) offered = "nothing";
+    const auto offers = [&](uint32_t f) {
+        return std::find(node->formats.begin(), node->formats.end(), f) != node->formats.end();
+    };
+    const auto& decodable = colourFormats();
+    uint32_t wanted = 0;
+    if (!config_.colour_format.empty()) {
+        auto f = parseFourcc(config_.colour_format);
+        if (!f.isOk()) return f.status();
+        if (std::find(decodable.begin(), decodable.end(), *f) == decodable.end()) {
+            return unsupported("V4L2 colour format '" + config_.colour_format +
+                               "' is not one this build decodes");
+        }
+        if (!offers(*f)) {
+            return unsupported("'" + path + "' does not offer " + fourccName(*f) + " (it offers " +
+                               offered + ")");
+        }
+        wanted = *f;
+    } else {
+        for (uint32_t f : decodable) {
+            if (offers(f)) {
+                wanted = f;
+                break;
+            }
+        }
+        if (wanted == 0) {
+            return unsupported("'" + path + "' (" + colour_card_ + ") offers " + offered +
+                               ": no colour format plumb decodes");
+        }
+    }
+    const int raw = colour_io_->open(path, O_RDWR | O_NONBLOCK | O_CLOEXEC);
+    if (raw < 0) {
+        if (isGone(raw)) return unavailable("V4L2 colour node '" + path + "' is gone");
+        return ioError("cannot open V4L2 colour node '" + path + "': " + errnoText(raw));
+    }
+    colour_fd_ = UniqueFd(colour_io_, raw);
+    const auto fail = [&](Status s) {
+        stopColour();
+        return s;
+    };
+    v4l2_format fmt{};
+    fmt.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+    fmt.fmt.pix.width =
+        static_cast<uint32_t>(config_.colour_width > 0 ? config_.colour_width : config_.width);
+    fmt.fmt.pix.height =
+        static_cast<uint32_t>(config_.colour_height > 0 ? config_.colour_height : config_.height);
+    fmt.fmt.pix.pixelformat = wanted;
+    fmt.fmt.pix.field = V4L2_FIELD_NONE;
+    if (int r = colour_io_->ioctl(colour_fd_.get(), VIDIOC_S_FMT, &fmt); r < 0) {
+        return fail(ioError("VIDIOC_S_FMT " + fourccName(wanted) + " on '" + path +
+                            "' failed: " + errnoText(r)));
+    }
+    const auto& pix = fmt.fmt.pix;
+    if (pix.pixelformat != wanted || pix.width == 0 || pix.height == 0 || pix.width > 8192 ||
+        pix.height > 8192) {
+        return fail(unsupported(fmt::format("'{}' granted {} {}x{} instead of {}", path,
+                                            fourccName(pix.pixelformat), pix.width, pix.height,
+                                            fourccName(wanted))));
+    }
+    colour_fourcc_ = wanted;
+    colour_width_ = static_cast<int>(pix.width);
+    colour_height_ = static_cast<int>(pix.height);
+    const uint32_t min_line = minBytesPerLine(wanted, colour_width_);
+    colour_bytes_per_line_ = pix.bytesperline != 0 ? pix.bytesperline : min_line;
+    if (colour_bytes_per_line_ < min_line) {
+        return fail(
+            corrupt(fmt::format("'{}' reports {} bytes per line for {} {} pixels", path,
+                                colour_bytes_per_line_, colour_width_, fourccName(wanted))));
+    }
+    v4l2_streamparm parm{};
+    parm.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+    parm.parm.capture.timeperframe.numerator = 1;
+    parm.parm.capture.timeperframe.denominator = static_cast<uint32_t>(config_.fps);
+    (void)colour_io_->ioctl(colour_fd_.get(), VIDIOC_S_PARM, &parm);
+    v4l2_requestbuffers req{};
+    req.count = static_cast<uint32_t>(config_.num_buffers);
+    req.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+    req.memory = V4L2_MEMORY_MMAP;
+    if (int r = colour_io_->ioctl(colour_fd_.get(), VIDIOC_REQBUFS, &req); r < 0 || req.count < 2) {
+        return fail(
+            ioError(fmt::format("'{}' refused mmap buffers (VIDIOC_REQBUFS: {}, granted {})", path,
+                                r < 0 ? errnoText(r) : "ok", req.count)));
+    }
+    const size_t needed = static_cast<size_t>(colour_bytes_per_line_) * colour_height_;
+    for (uint32_t i = 0; i < req.count; ++i) {
+        v4l2_buffer buf{};
+        buf.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+        buf.memory = V4L2_MEMORY_MMAP;
+        buf.index = i;
+        if (int r = colour_io_->ioctl(colour_fd_.get(), VIDIOC_QUERYBUF, &buf); r < 0) {
+            return fail(ioError("VIDIOC_QUERYBUF on '" + path + "' failed: " + errnoText(r)));
+        }
+        void* p = colour_io_->mmap(buf.length, colour_fd_.get(), static_cast<off_t>(buf.m.offset));
+        if (p == nullptr) {
+            return fail(ioError(
+                fmt::format("mmap of buffer {} ({} bytes) of '{}' failed", i, buf.length, path)));
+        }
+        colour_buffers_.emplace_back(colour_io_, p, buf.length);
+        if (buf.length < needed) {
+            return fail(corrupt(fmt::format("'{}' buffer {} holds {} bytes; a frame needs {}", path,
+                                            i, buf.length, needed)));
+        }
+        if (int r = colour_io_->ioctl(colour_fd_.get(), VIDIOC_QBUF, &buf); r < 0) {
+            return fail(ioError("VIDIOC_QBUF on '" + path + "' failed: " + errnoText(r)));
+        }
+    }
+    int type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+    if (int r = colour_io_->ioctl(colour_fd_.get(), VIDIOC_STREAMON, &type); r < 0) {
+        return fail(ioError("VIDIOC_STREAMON on '" + path + "' failed: " + errnoText(r)));
+    }
+    colour_streaming_ = true;
+    colour_seen_ = false;
+    colour_frames_.clear();
+    return Status::ok();
+}
+
+void V4l2Source::stopColour() {
+    if (colour_fd_.valid() && colour_streaming_) {
+        int type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+        (void)colour_io_->ioctl(colour_fd_.get(), VIDIOC_STREAMOFF, &type);
+    }
+    colour_streaming_ = false;
+    colour_buffers_.clear();
+    if (colour_fd_.valid()) {
+        v4l2_requestbuffers req{};
+        req.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+        req.memory = V4L2_MEMORY_MMAP;
+        (void)colour_io_->ioctl(colour_fd_.get(), VIDIOC_REQBUFS, &req);
+    }
+    colour_fd_.reset();
+    colour_frames_.clear();
+}
+
+void V4l2Source::drainColour(int timeout_ms, uint64_t until_us) {
+    const auto gone = [&](const std::string& why) {
+        log::warn(
+            "V4L2 colour node '{}' {}; depth goes on without colour until the camera is "
+            "reopened",
+            config_.colour_device, why);
+        stopColour();
+    };
+    for (int wait = timeout_ms; colour_fd_.valid(); wait = 0) {
+        const int ready = colour_io_->poll(colour_fd_.get(), wait);
+        if (ready == 0) return;
+        if (ready < 0) return gone("vanished (" + errnoText(ready) + ")");
+        v4l2_buffer buf{};
+        buf.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+        buf.memory = V4L2_MEMORY_MMAP;
+        const int r = colour_io_->ioctl(colour_fd_.get(), VIDIOC_DQBUF, &buf);
+        if (r == -EAGAIN) return;
+        if (r < 0) return gone("failed to dequeue (" + errnoText(r) + ")");
+        if (buf.index >= colour_buffers_.size()) {
+            return gone(
+                fmt::format("returned buffer index {} of {}", buf.index, colour_buffers_.size()));
+        }
+        const uint64_t ts_us = static_cast<uint64_t>(buf.timestamp.tv_sec) * 1000000ULL +
+                               static_cast<uint64_t>(buf.timestamp.tv_usec);
+        const std::string what =
+            fmt::format("V4L2 colour frame {} from '{}'", buf.sequence, config_.colour_device);
+        last_colour_time_ = std::chrono::steady_clock::now();
+        colour_seen_ = true;
+        if ((buf.flags & V4L2_BUF_FLAG_ERROR) != 0) {
+            log::warn("{} is flagged as damaged by the driver; skipped", what);
+        } else {
+            const MappedBuffer& mapped = colour_buffers_[buf.index];
+            const size_t used = std::min<size_t>(buf.bytesused, mapped.length());
+            auto image = decodeColourFrame(colour_fourcc_, {mapped.data(), used}, colour_width_,
+                                           colour_height_, colour_bytes_per_line_, what);
+            if (!image.isOk()) {
+                log::warn("{}; skipped", image.status().message());
+            } else {
+                ColourImage sized =
+                    image->width() == config_.width && image->height() == config_.height
+                        ? std::move(image).value()
+                        : dataset::resizeColour(*image, config_.width, config_.height);
+                colour_frames_.push_back({ts_us, buf.sequence, std::move(sized)});
+                while (colour_frames_.size() > 16) colour_frames_.pop_front();
+            }
+        }
+        v4l2_buffer again{};
+        again.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+        again.memory = V4L2_MEMORY_MMAP;
+        again.index = buf.index;
+        if (int q = colour_io_->ioctl(colour_fd_.get(), VIDIOC_QBUF, &again); q < 0) {
+            return gone("refused a buffer back (" + errnoText(q) + ")");
+        }
+        if (ts_us > until_us) return;  // caught up with the depth frame
+    }
+}
+
+void V4l2Source::attachColour(uint64_t depth_us, Frame* frame) {
+    const int64_t tolerance_us = config_.colour_max_difference_us > 0
+                                     ? config_.colour_max_difference_us
+                                     : 500000 / std::max(1, config_.fps);
+    const uint64_t until_us = depth_us + static_cast<uint64_t>(tolerance_us);
+    const auto closest = [&] {
+        auto best = colour_frames_.end();
+        int64_t best_difference = tolerance_us + 1;
+        for (auto it = colour_frames_.begin(); it != colour_frames_.end(); ++it) {
+            const int64_t difference =
+                std::llabs(static_cast<int64_t>(it->timestamp_us) - static_cast<int64_t>(depth_us));
+            if (difference < best_difference) {
+                best_difference = difference;
+                best = it;
+            }
+        }
+        return best;
+    };
+    const auto caught_up = [&] {
+        return !colour_frames_.empty() && colour_frames_.back().timestamp_us > until_us;
+    };
+    if (!caught_up()) drainColour(0, until_us);
+    // Waiting longer than half a frame period would hold up the depth stream; a colour node that
+    // never sent a frame, or went silent, is not waited for at all.
+    using Clock = std::chrono::steady_clock;
+    const auto deadline =
+        Clock::now() + std::chrono::microseconds(500000 / std::max(1, config_.fps));
+    while (colour_fd_.valid() && colour_seen_ && closest() == colour_frames_.end() &&
+           !caught_up() && Clock::now() < deadline &&
+           Clock::now() - last_colour_time_ < std::chrono::milliseconds(config_.colour_stall_ms)) {
+        drainColour(2, until_us);
+    }
+    const auto best = closest();
+    if (best != colour_frames_.end()) {
+        frame->colour = std::move(best->image);
+        colour_frames_.erase(colour_frames_.begin(), best + 1);  // older ones pair with nothing
+        ++with_colour_;
+    } else {
+        ++without_colour_;
+    }
+    while (!colour_frames_.empty() &&
+           static_cast<int64_t>(colour_frames_.front().timestamp_us) + tolerance_us <
+               static_cast<int64_t>(depth_us)) {
+        colour_frames_.pop_front();
+    }
 }
 
 Status V4l2Source::start() {
@@ -396,8 +707,16 @@ Result<Frame> V4l2Source::next() {
         }
         ++reconnects_;
         clock_.reset();
+        if (!config_.colour_device.empty()) {
+            stopColour();
+            if (Status c = startColour(); !c.isOk()) {
+                log::warn("V4L2 colour node '{}' did not come back ({}); depth without colour",
+                          config_.colour_device, c.message());
+            }
+        }
     }
     const auto lose = [this](const std::string& why) -> Status {
+        stopColour();
         stop();
         lost_ = true;
         lost_reason_ = why;
@@ -432,10 +751,12 @@ Result<Frame> V4l2Source::next() {
             const uint32_t used = std::min<uint32_t>(
                 buf.bytesused, static_cast<uint32_t>(buffers_[buf.index].length()));
             frame = decode(buffers_[buf.index].data(), used, buf.sequence, ts_us);
+            if (frame.isOk() && !config_.colour_device.empty()) attachColour(ts_us, &*frame);
         }
         if (Status s = queue(buf.index); !s.isOk()) {
             // The frame is intact; the next call notices the unplug.
             if (s.code() == StatusCode::kUnavailable) {
+                stopColour();
                 stop();
                 lost_ = true;
                 lost_reason_ = "unplugged (VIDIOC_QBUF: no such device)";
@@ -449,9 +770,19 @@ Result<Frame> V4l2Source::next() {
 }
 
 std::string V4l2Source::description() const {
-    return fmt::format("V4L2 '{}' ({}, {} {}x{}@{}, {} units/m)", config_.device, card_,
+    std::string colour;
+    if (hasColour()) {
+        colour = fmt::format(
+            ", colour from '{}' ({} {}x{}{}, not registered to depth)", config_.colour_device,
+            fourccName(colour_fourcc_), colour_width_, colour_height_,
+            colour_width_ != config_.width || colour_height_ != config_.height ? " resized to depth"
+                                                                               : "");
+    } else if (!config_.colour_device.empty()) {
+        colour = fmt::format(", colour node '{}' not streaming", config_.colour_device);
+    }
+    return fmt::format("V4L2 '{}' ({}, {} {}x{}@{}, {} units/m{})", config_.device, card_,
                        fourccName(fourcc_), config_.width, config_.height, config_.fps,
-                       config_.units_per_m);
+                       config_.units_per_m, colour);
 }
 
 }  // namespace plumb::v4l2

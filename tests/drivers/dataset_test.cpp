@@ -21,6 +21,7 @@
 #include "drivers/dataset/dataset.hpp"
 #include "drivers/dataset/depth_png.hpp"
 #include "drivers/dataset/intrinsics_file.hpp"
+#include "drivers/sim/sim_source.hpp"
 #include "drivers/source.hpp"
 #include "tests/testing/shared_data.hpp"
 
@@ -769,6 +770,27 @@ TEST(DatasetColourErrors, MalformedColourListsNameFileAndLine) {
     DatasetConfig no_colour;
     no_colour.load_colour = false;
     EXPECT_TRUE(scanDataset(dir, no_colour).isOk());
+}
+
+TEST(DatasetColour, NoColourOptionAlsoAppliesToTheSimulator) {
+    // The simulator cannot leave colour out itself: openFrameSource drops it, and the wrapped
+    // source is still the simulator underneath (for its ground truth).
+    SourceOptions options;
+    options.intrinsics = "ci";
+    options.max_frames = 2;
+    options.sim_noise = "off";
+    options.colour = false;
+    auto source = openFrameSource("sim:living_room", options);
+    ASSERT_TRUE(source.isOk()) << source.status().toString();
+    EXPECT_NE((*source)->description().find("simulated scan"), std::string::npos);
+    EXPECT_NE(dynamic_cast<const sim::SimSource*>(&(*source)->underlying()), nullptr);
+    for (int k = 0; k < 2; ++k) {
+        auto frame = (*source)->next();
+        ASSERT_TRUE(frame.isOk()) << frame.status().toString();
+        EXPECT_TRUE(frame->colour.empty());
+        EXPECT_GT(countValid(frame->depth), frame->depth.size() / 3);
+    }
+    EXPECT_EQ((*source)->next().status().code(), StatusCode::kOutOfRange);
 }
 
 TEST(ColourPng, WriteReadRoundTripIsExactAndResizeInterpolates) {

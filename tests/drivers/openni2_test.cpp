@@ -9,6 +9,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <memory>
 #include <string>
@@ -47,6 +48,45 @@ DepthImage expectedFrame(const std::string& uri, int width, int height, size_t k
     return out;
 }
 
+/// The simulator's colour of frame k (empty while the simulator renders none).
+ColourImage expectedColour(const std::string& uri, int width, int height, size_t k) {
+    auto spec = parseSimDeviceUri(uri);
+    EXPECT_TRUE(spec.isOk());
+    auto config = simConfigFor(*spec, width, height);
+    EXPECT_TRUE(config.isOk());
+    auto source = sim::SimSource::create(*config);
+    EXPECT_TRUE(source.isOk()) << source.status().toString();
+    auto frame = (*source)->render(k);
+    EXPECT_TRUE(frame.isOk());
+    return frame->frame.colour;
+}
+
+/// Reads `n` frames; every frame that has colour must carry the test pattern of its own device
+/// frame index (unmirrored), and the frames listed by `without(k)` must have none. Returns how
+/// many frames had colour.
+size_t checkPatternFrames(OpenNI2Source& source, int n, int width, int height,
+                          const std::function<bool(int)>& without) {
+    size_t with = 0;
+    for (int i = 0; i < n; ++i) {
+        auto frame = source.next();
+        EXPECT_TRUE(frame.isOk()) << frame.status().toString();
+        if (!frame.isOk()) continue;
+        const int k = source.lastDeviceFrameIndex();
+        if (without(k)) {
+            EXPECT_TRUE(frame->colour.empty()) << "frame " << k;
+            continue;
+        }
+        if (frame->colour.empty()) continue;  // colour that came too late for its depth frame
+        ++with;
+        EXPECT_EQ(frame->colour.width(), width);
+        EXPECT_EQ(frame->colour.height(), height);
+        EXPECT_TRUE(frame->colour == simColourPattern(k, width, height))
+            << "frame " << k << " carries colour (" << int(frame->colour(0, 0).r) << ", "
+            << int(frame->colour(0, 0).b) << ") at (0, 0)";
+    }
+    return with;
+}
+
 /// Number of pixels that differ; also checks that the frame has real content.
 size_t countDifferences(const DepthImage& a, const DepthImage& b) {
     EXPECT_EQ(a.width(), b.width());
@@ -82,7 +122,7 @@ TEST(OpenNI2Virtual, StreamsTheSimulatorsFramesUnmirrored) {
     EXPECT_EQ((*source)->camera().width, 640);
     EXPECT_NEAR((*source)->camera().fx, 525.0, 1e-3);
     EXPECT_NEAR((*source)->camera().cx, 319.5, 1e-9);
-    EXPECT_FALSE((*source)->registered());  // the default virtual device has no colour camera
+    EXPECT_FALSE((*source)->registered());  // the default virtual device does not register
     int last_index = -1;
     double last_time = 0.0;
     for (int i = 0; i < 6; ++i) {
@@ -216,6 +256,133 @@ TEST(OpenNI2Virtual, RecordsToOniAndPlaysBackTheSameFrames) {
     EXPECT_EQ(played, n);
 }
 
+TEST(OpenNI2Virtual, ColourIsPairedWithItsOwnDepthFrameUnmirrored) {
+    const std::string uri = "plumb-sim://living_room?frames=300&registration=1&colour=pattern";
+    OpenNI2Config config;
+    config.uri = uri;
+    auto source = OpenNI2Source::open(config);
+    ASSERT_TRUE(source.isOk()) << source.status().toString();
+    EXPECT_TRUE((*source)->hasColour());
+    EXPECT_TRUE((*source)->registered());
+    EXPECT_NE((*source)->description().find("colour RGB888 640x480@30"), std::string::npos)
+        << (*source)->description();
+    // The virtual device has no frame sync: frames pair by timestamp.
+    EXPECT_NE((*source)->description().find("paired by timestamp"), std::string::npos);
+    const size_t with = checkPatternFrames(**source, 12, 640, 480, [](int) { return false; });
+    EXPECT_GE(with, 10u);  // the first frame or so may come before any colour frame was seen
+    EXPECT_EQ((*source)->framesWithColour(), with);
+    EXPECT_EQ((*source)->framesWithColour() + (*source)->framesWithoutColour(), 12u);
+}
+
+TEST(OpenNI2Virtual, ColourPairsByTimestampDespiteAnOffsetAndDroppedColourFrames) {
+    // Colour 5 ms after depth, and every third frame without colour: no depth frame may take a
+    // neighbour's colour frame instead.
+    const std::string uri =
+        "plumb-sim://living_room?frames=300&registration=1&colour=pattern&colour_offset_us=5000"
+        "&colour_skip=3&seed=4";
+    SourceOptions options;
+    options.depth_mode = "320x240@60";
+    auto source = openFrameSource("openni2:" + uri, options);
+    ASSERT_TRUE(source.isOk()) << source.status().toString();
+    auto* oni = dynamic_cast<OpenNI2Source*>(source->get());
+    ASSERT_NE(oni, nullptr);
+    const size_t with =
+        checkPatternFrames(*oni, 15, 320, 240, [](int k) { return (k + 1) % 3 == 0; });
+    EXPECT_GE(with, 8u);  // 10 of the 15 frames have a colour frame
+}
+
+TEST(OpenNI2Virtual, SimulatorColourFlowsThroughOpenNI2) {
+    // Written against Frame::colour of the simulator: frames carry exactly the colour it renders
+    // for the same frame (none while it renders none).
+    const std::string uri = "plumb-sim://living_room?frames=300&registration=1&seed=6";
+    OpenNI2Config config;
+    config.uri = uri;
+    auto source = OpenNI2Source::open(config);
+    ASSERT_TRUE(source.isOk()) << source.status().toString();
+    EXPECT_TRUE((*source)->hasColour());
+    size_t rendered = 0, with = 0;
+    for (int i = 0; i < 6; ++i) {
+        auto frame = (*source)->next();
+        ASSERT_TRUE(frame.isOk()) << frame.status().toString();
+        const int k = (*source)->lastDeviceFrameIndex();
+        const ColourImage expected = expectedColour(uri, 640, 480, static_cast<size_t>(k));
+        rendered += expected.empty() ? 0 : 1;
+        if (expected.empty()) {
+            EXPECT_TRUE(frame->colour.empty()) << "frame " << k;
+        } else if (!frame->colour.empty()) {
+            ++with;
+            EXPECT_TRUE(frame->colour == expected) << "frame " << k;
+        }
+    }
+    if (rendered > 0) {
+        EXPECT_GE(with + 1, rendered);
+    }
+    std::printf("[ colour   ] the simulator rendered colour for %zu of 6 frames\n", rendered);
+}
+
+TEST(OpenNI2Virtual, WithoutColourTheDeviceStreamsDepthAsBefore) {
+    for (const std::string uri : {"plumb-sim://living_room?frames=300&colour=0",
+                                  "plumb-sim://living_room?frames=300&colour=pattern&seed=8"}) {
+        OpenNI2Config config;
+        config.uri = uri;
+        config.colour = uri.find("colour=0") != std::string::npos;  // off in the second case
+        auto source = OpenNI2Source::open(config);
+        ASSERT_TRUE(source.isOk()) << source.status().toString();
+        EXPECT_FALSE((*source)->hasColour()) << uri;
+        EXPECT_NE((*source)->description().find("no colour"), std::string::npos);
+        for (int i = 0; i < 3; ++i) {
+            auto frame = (*source)->next();
+            ASSERT_TRUE(frame.isOk()) << frame.status().toString();
+            EXPECT_TRUE(frame->colour.empty());
+            const DepthImage expected = expectedFrame(
+                uri, 640, 480, static_cast<size_t>((*source)->lastDeviceFrameIndex()));
+            EXPECT_EQ(countDifferences(frame->depth, expected), 0u);
+        }
+    }
+}
+
+TEST(OpenNI2Virtual, ADamagedColourFrameLeavesItsDepthFrameWithoutColour) {
+    const std::string uri =
+        "plumb-sim://living_room?frames=300&registration=1&colour=pattern&fault=colour_short"
+        "&fault_at=4&seed=9";
+    OpenNI2Config config;
+    config.uri = uri;
+    auto source = OpenNI2Source::open(config);
+    ASSERT_TRUE(source.isOk()) << source.status().toString();
+    const size_t with = checkPatternFrames(**source, 10, 640, 480, [](int k) { return k == 4; });
+    EXPECT_GE(with, 7u);
+}
+
+TEST(OpenNI2Virtual, RecordsColourToOniAndPlaysItBackPaired) {
+    const auto dir = testing::freshTempDir("openni2_record_colour");
+    const std::string oni = (dir / "scan.oni").string();
+    const std::string uri = "plumb-sim://living_room?frames=300&seed=5&colour=pattern";
+    OpenNI2Config record;
+    record.uri = uri;
+    ASSERT_TRUE(recordOni(record, oni, 8).isOk());
+    auto source = openFrameSource("openni2:" + oni);
+    ASSERT_TRUE(source.isOk()) << source.status().toString();
+    auto* player = dynamic_cast<OpenNI2Source*>(source->get());
+    ASSERT_NE(player, nullptr);
+    EXPECT_TRUE(player->hasColour());
+    const size_t n = *(*source)->size();
+    size_t with = 0;
+    int last = -1;
+    for (size_t i = 0; i < n; ++i) {
+        auto frame = (*source)->next();
+        ASSERT_TRUE(frame.isOk()) << frame.status().toString();
+        const int k = player->lastDeviceFrameIndex() - 1;  // the player numbers frames from 1
+        EXPECT_EQ(k, last + 1);                            // no depth frame skipped
+        last = k;
+        EXPECT_EQ(countDifferences(frame->depth, expectedFrame(uri, 640, 480, k)), 0u);
+        if (frame->colour.empty()) continue;
+        ++with;
+        EXPECT_TRUE(frame->colour == simColourPattern(k, 640, 480)) << "recorded frame " << k;
+    }
+    EXPECT_GE(with + 1, n);  // the last depth frame may have been recorded without its colour
+    EXPECT_EQ((*source)->next().status().code(), StatusCode::kOutOfRange);
+}
+
 TEST(OpenNI2Virtual, DamagedFramesGiveClearErrorsAndStreamingGoesOn) {
     struct Case {
         const char* fault;
@@ -259,7 +426,7 @@ TEST(OpenNI2Virtual, BadRequestsGiveSpecificErrors) {
         << mode.status().toString();  // the error lists what the device offers
 
     config = {};
-    config.uri = "plumb-sim://living_room?colour=1";
+    config.uri = "plumb-sim://living_room?zoom=1";
     auto bad_uri = OpenNI2Source::open(config);
     ASSERT_FALSE(bad_uri.isOk());
     EXPECT_EQ(bad_uri.status().code(), StatusCode::kUnavailable);
@@ -282,6 +449,9 @@ TEST(OpenNI2Virtual, BadRequestsGiveSpecificErrors) {
 
     EXPECT_FALSE(parseSimDeviceUri("plumb-sim://x?frames=abc").isOk());
     EXPECT_FALSE(parseSimDeviceUri("plumb-sim://?frames=3").isOk());
+    EXPECT_FALSE(parseSimDeviceUri("plumb-sim://x?colour=rgb").isOk());
+    EXPECT_FALSE(parseSimDeviceUri("plumb-sim://x?colour_offset_us=-1").isOk());
+    EXPECT_EQ(parseSimDeviceUri("plumb-sim://x?colour=pattern&colour_skip=4")->colour_skip, 4);
 }
 
 }  // namespace

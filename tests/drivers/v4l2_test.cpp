@@ -8,11 +8,18 @@
 
 #include <cstring>
 #include <fstream>
+#include <functional>
+
+#if PLUMB_TEST_HAVE_OPENCV
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#endif
 
 #include "drivers/device_clock.hpp"
 #include "drivers/sim/sim_source.hpp"
 #include "drivers/source.hpp"
 #include "drivers/usb/usb_devices.hpp"
+#include "drivers/v4l2/colour_formats.hpp"
 #include "drivers/v4l2/replay_io.hpp"
 #include "drivers/v4l2/v4l2_source.hpp"
 #include "tests/testing/shared_data.hpp"
@@ -326,6 +333,330 @@ TEST(V4l2Replay, RecordingsRoundTripAndRecordingIoCapturesASession) {
     EXPECT_EQ(loadRecording(dir / "session.v4l2rec").status().code(), StatusCode::kCorrupt);
     std::ofstream(dir / "junk.v4l2rec") << "junk";
     EXPECT_EQ(loadRecording(dir / "junk.v4l2rec").status().code(), StatusCode::kCorrupt);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Colour from a second node.
+
+/// The colour test pattern of frame k: {(u + k) mod 256, v mod 256, (7 k) mod 256}.
+Rgb8 patternPixel(int u, int v, int64_t k) {
+    return Rgb8{static_cast<uint8_t>((u + k) & 0xff), static_cast<uint8_t>(v & 0xff),
+                static_cast<uint8_t>((7 * k) & 0xff)};
+}
+
+/// YUYV samples of frame k: Y from the column pair and k, U from the row, V from k.
+void yuyvSamples(int u, int v, int64_t k, int* y, int* cb, int* cr) {
+    *y = 16 + static_cast<int>((u + 3 * k) % 200);
+    *cb = 100 + v % 60;
+    *cr = 90 + static_cast<int>(k % 70);
+}
+
+/// A colour node's session: frame k at depth stamp + offset_us, in `format` at w x h; frames with
+/// (k + 1) % skip == 0 are missing (skip 0: none).
+V4l2Recording makeColourRecording(size_t n, uint32_t format, int w, int h, int64_t offset_us,
+                                  int skip = 0) {
+    V4l2Recording r;
+    r.path = "/dev/video6";
+    r.card = "Intel(R) RealSense(TM) Depth Camera 435 RGB";
+    r.formats = {V4L2_PIX_FMT_NV12, format};  // NV12 is not decoded: skipped
+    r.pixelformat = format;
+    r.width = static_cast<uint32_t>(w);
+    r.height = static_cast<uint32_t>(h);
+    r.bytesperline = static_cast<uint32_t>(format == V4L2_PIX_FMT_YUYV ? 2 * w : 3 * w);
+    r.sizeimage = r.bytesperline * r.height;
+    for (size_t k = 0; k < n; ++k) {
+        if (skip > 0 && (k + 1) % skip == 0) continue;
+        RecordedBuffer b;
+        b.bytes.assign(r.sizeimage, 0);
+        for (int v = 0; v < h; ++v) {
+            uint8_t* row = b.bytes.data() + static_cast<size_t>(v) * r.bytesperline;
+            for (int u = 0; u < w; ++u) {
+                if (format == V4L2_PIX_FMT_YUYV) {
+                    int y = 0, cb = 0, cr = 0;
+                    yuyvSamples(u, v, static_cast<int64_t>(k), &y, &cb, &cr);
+                    row[2 * u] = static_cast<uint8_t>(y);
+                    row[2 * u + 1] = static_cast<uint8_t>(u % 2 == 0 ? cb : cr);
+                } else {
+                    const Rgb8 c = patternPixel(u, v, static_cast<int64_t>(k));
+                    row[3 * u] = c.r;
+                    row[3 * u + 1] = c.g;
+                    row[3 * u + 2] = c.b;
+                }
+            }
+        }
+        b.bytesused = r.sizeimage;
+        b.sequence = static_cast<uint32_t>(k);
+        b.timestamp_us = 5'000'000 + k * 33'333 + static_cast<uint64_t>(offset_us);
+        r.buffers.push_back(std::move(b));
+    }
+    return r;
+}
+
+/// The colour frame k of makeColourRecording as the source must deliver it (at w x h).
+ColourImage expectedColour(uint32_t format, int w, int h, int64_t k) {
+    ColourImage c(w, h);
+    for (int v = 0; v < h; ++v) {
+        for (int u = 0; u < w; ++u) {
+            if (format == V4L2_PIX_FMT_YUYV) {
+                int y = 0, cb = 0, cr = 0;
+                yuyvSamples(u, v, k, &y, &cb, &cr);
+                int cb_pair = 0, cr_pair = 0, unused = 0;
+                yuyvSamples(u - u % 2, v, k, &unused, &cb_pair, &unused);
+                yuyvSamples(u - u % 2 + 1, v, k, &unused, &unused, &cr_pair);
+                c(u, v) = yuvToRgb(y, cb_pair, cr_pair);
+            } else {
+                c(u, v) = patternPixel(u, v, k);
+            }
+        }
+    }
+    return c;
+}
+
+V4l2Config colourConfigFor(const V4l2Recording& depth, const V4l2Recording& colour) {
+    V4l2Config c = configFor(depth);
+    c.colour_device = colour.path;
+    return c;
+}
+
+/// Reads frames until `n` came or an error; checks each frame's colour against its own sequence
+/// number (or its absence when `missing(k)`); returns how many frames had colour.
+size_t checkColourFrames(V4l2Source& source, size_t n, uint32_t format,
+                         const std::vector<DepthImage>& depth,
+                         const std::function<bool(int64_t)>& missing) {
+    size_t with = 0;
+    for (size_t i = 0; i < n; ++i) {
+        auto frame = source.next();
+        EXPECT_TRUE(frame.isOk()) << frame.status().toString();
+        if (!frame.isOk()) break;
+        const int64_t k = source.lastSequence();
+        expectFrameEquals(*frame, depth[static_cast<size_t>(k)]);
+        if (missing(k)) {
+            EXPECT_TRUE(frame->colour.empty()) << "frame " << k;
+            continue;
+        }
+        EXPECT_FALSE(frame->colour.empty()) << "frame " << k;
+        if (frame->colour.empty()) continue;
+        ++with;
+        EXPECT_TRUE(frame->colour == expectedColour(format, kW, kH, k)) << "frame " << k;
+    }
+    return with;
+}
+
+TEST(V4l2Colour, Rgb24NodeIsPairedWithEachDepthFrame) {
+    const auto frames = simFrames(6);
+    const V4l2Recording depth = makeRecording(frames, V4L2_PIX_FMT_Z16);
+    const V4l2Recording colour = makeColourRecording(6, V4L2_PIX_FMT_RGB24, kW, kH, 1000);
+    auto depth_io = std::make_shared<ReplayIo>(depth);
+    auto colour_io = std::make_shared<ReplayIo>(colour);
+    V4l2Config config = colourConfigFor(depth, colour);
+    config.colour_format = "RGB3";
+    {
+        auto source = V4l2Source::open(config, depth_io, colour_io);
+        ASSERT_TRUE(source.isOk()) << source.status().toString();
+        EXPECT_TRUE((*source)->hasColour());
+        EXPECT_EQ((*source)->colourFormat(), V4L2_PIX_FMT_RGB24);
+        EXPECT_NE((*source)->description().find("not registered to depth"), std::string::npos)
+            << (*source)->description();
+        EXPECT_EQ(checkColourFrames(**source, 6, V4L2_PIX_FMT_RGB24, frames,
+                                    [](int64_t) { return false; }),
+                  6u);
+        EXPECT_EQ((*source)->framesWithColour(), 6u);
+    }
+    EXPECT_EQ(colour_io->openDescriptors(), 0);  // the colour node is released too
+    EXPECT_EQ(colour_io->mappings(), 0);
+}
+
+TEST(V4l2Colour, YuyvWithAnOffsetAndDroppedColourFramesPairsByTimestamp) {
+    // Colour 6 ms after depth (within half a 33 ms period), every third colour frame missing: no
+    // depth frame may take a neighbour's colour.
+    const auto frames = simFrames(9);
+    const V4l2Recording depth = makeRecording(frames, V4L2_PIX_FMT_Z16);
+    const V4l2Recording colour = makeColourRecording(9, V4L2_PIX_FMT_YUYV, kW, kH, 6000, 3);
+    auto source =
+        V4l2Source::open(colourConfigFor(depth, colour), std::make_shared<ReplayIo>(depth),
+                         std::make_shared<ReplayIo>(colour));
+    ASSERT_TRUE(source.isOk()) << source.status().toString();
+    EXPECT_EQ((*source)->colourFormat(), V4L2_PIX_FMT_YUYV);  // the first format it decodes
+    EXPECT_EQ(checkColourFrames(**source, 9, V4L2_PIX_FMT_YUYV, frames,
+                                [](int64_t k) { return (k + 1) % 3 == 0; }),
+              6u);
+    EXPECT_EQ((*source)->framesWithoutColour(), 3u);
+}
+
+TEST(V4l2Colour, ColourOfAnotherSizeIsResizedToTheDepth) {
+    const auto frames = simFrames(2);
+    const V4l2Recording depth = makeRecording(frames, V4L2_PIX_FMT_Z16);
+    const V4l2Recording colour = makeColourRecording(2, V4L2_PIX_FMT_RGB24, 2 * kW, 2 * kH, 0);
+    V4l2Config config = colourConfigFor(depth, colour);
+    config.colour_width = 2 * kW;
+    config.colour_height = 2 * kH;
+    auto source = V4l2Source::open(config, std::make_shared<ReplayIo>(depth),
+                                   std::make_shared<ReplayIo>(colour));
+    ASSERT_TRUE(source.isOk()) << source.status().toString();
+    EXPECT_NE((*source)->description().find("resized to depth"), std::string::npos);
+    auto frame = (*source)->next();
+    ASSERT_TRUE(frame.isOk()) << frame.status().toString();
+    ASSERT_EQ(frame->colour.width(), kW);
+    ASSERT_EQ(frame->colour.height(), kH);
+    // Depth pixel (u, v) covers colour pixels (2u, 2v)..(2u + 1, 2v + 1): the mean of the pair.
+    EXPECT_NEAR(frame->colour(10, 20).g, 2 * 20 + 0.5, 1.0);
+    EXPECT_NEAR(frame->colour(10, 20).r, 2 * 10 + 0.5, 1.0);
+}
+
+TEST(V4l2Colour, DamagedColourLeavesTheDepthFrameAndBadNodesAreRefused) {
+    const auto frames = simFrames(3);
+    const V4l2Recording depth = makeRecording(frames, V4L2_PIX_FMT_Z16);
+    V4l2Recording colour = makeColourRecording(3, V4L2_PIX_FMT_RGB24, kW, kH, 0);
+    colour.buffers[1].bytesused = colour.sizeimage / 2;  // short
+    auto source =
+        V4l2Source::open(colourConfigFor(depth, colour), std::make_shared<ReplayIo>(depth),
+                         std::make_shared<ReplayIo>(colour));
+    ASSERT_TRUE(source.isOk()) << source.status().toString();
+    EXPECT_EQ(checkColourFrames(**source, 3, V4L2_PIX_FMT_RGB24, frames,
+                                [](int64_t k) { return k == 1; }),
+              2u);
+
+    // A node that does not exist, one without a colour format, a forced format not offered.
+    V4l2Config missing = colourConfigFor(depth, colour);
+    missing.colour_device = "/dev/video-plumb-none";
+    auto none = V4l2Source::open(missing, std::make_shared<ReplayIo>(depth),
+                                 std::make_shared<ReplayIo>(colour));
+    ASSERT_FALSE(none.isOk());
+    EXPECT_EQ(none.status().code(), StatusCode::kNotFound);
+    EXPECT_NE(none.status().message().find("colour node"), std::string::npos);
+    V4l2Recording grey = colour;
+    grey.formats = {V4L2_PIX_FMT_GREY};
+    grey.pixelformat = V4L2_PIX_FMT_GREY;
+    auto no_format =
+        V4l2Source::open(colourConfigFor(depth, grey), std::make_shared<ReplayIo>(depth),
+                         std::make_shared<ReplayIo>(grey));
+    ASSERT_FALSE(no_format.isOk());
+    EXPECT_EQ(no_format.status().code(), StatusCode::kUnsupported);
+    EXPECT_NE(no_format.status().message().find("offers GREY"), std::string::npos)
+        << no_format.status().toString();
+    V4l2Config forced = colourConfigFor(depth, colour);
+    forced.colour_format = "BGR3";
+    auto not_offered = V4l2Source::open(forced, std::make_shared<ReplayIo>(depth),
+                                        std::make_shared<ReplayIo>(colour));
+    ASSERT_FALSE(not_offered.isOk());
+    EXPECT_NE(not_offered.status().message().find("does not offer BGR3"), std::string::npos)
+        << not_offered.status().toString();
+}
+
+TEST(V4l2Colour, AfterAnUnplugTheColourNodeReopensWithTheDepthNode) {
+    const auto frames = simFrames(7);
+    const V4l2Recording depth = makeRecording(frames, V4L2_PIX_FMT_Z16);
+    const V4l2Recording colour = makeColourRecording(7, V4L2_PIX_FMT_RGB24, kW, kH, 0);
+    auto depth_io = std::make_shared<ReplayIo>(depth);
+    auto colour_io = std::make_shared<ReplayIo>(colour);
+    depth_io->setUnplugAfter(3);
+    depth_io->setReplugAfterOpens(2);
+    auto source = V4l2Source::open(colourConfigFor(depth, colour), depth_io, colour_io);
+    ASSERT_TRUE(source.isOk()) << source.status().toString();
+    size_t delivered = 0, with_colour_after = 0;
+    bool released = false;
+    for (int call = 0; call < 20 && delivered < 7; ++call) {
+        auto frame = (*source)->next();
+        if (!frame.isOk()) {
+            ASSERT_EQ(frame.status().code(), StatusCode::kUnavailable) << frame.status().toString();
+            released |= colour_io->openDescriptors() == 0 && colour_io->mappings() == 0;
+            continue;
+        }
+        ++delivered;
+        const int64_t k = (*source)->lastSequence();
+        if (!frame->colour.empty()) {
+            EXPECT_TRUE(frame->colour == expectedColour(V4L2_PIX_FMT_RGB24, kW, kH, k)) << k;
+            with_colour_after += (*source)->reconnects() > 0 ? 1 : 0;
+        }
+    }
+    EXPECT_EQ(delivered, 7u);
+    EXPECT_TRUE(released);  // the colour node was closed with the depth node
+    EXPECT_EQ((*source)->reconnects(), 1);
+    EXPECT_GE(with_colour_after, 2u);
+}
+
+#if PLUMB_TEST_HAVE_OPENCV
+TEST(V4l2Colour, MjpegFramesAreDecoded) {
+    const auto frames = simFrames(3);
+    const V4l2Recording depth = makeRecording(frames, V4L2_PIX_FMT_Z16);
+    V4l2Recording colour = makeColourRecording(3, V4L2_PIX_FMT_RGB24, kW, kH, 0);
+    colour.formats = {V4L2_PIX_FMT_MJPEG};
+    colour.pixelformat = V4L2_PIX_FMT_MJPEG;
+    colour.bytesperline = 0;
+    for (size_t k = 0; k < colour.buffers.size(); ++k) {
+        cv::Mat bgr(kH, kW, CV_8UC3);
+        for (int v = 0; v < kH; ++v) {
+            for (int u = 0; u < kW; ++u) {
+                const Rgb8 c = patternPixel(u, v, static_cast<int64_t>(k));
+                bgr.at<cv::Vec3b>(v, u) = cv::Vec3b(c.b, c.g, c.r);
+            }
+        }
+        std::vector<uint8_t> jpeg;
+        ASSERT_TRUE(cv::imencode(".jpg", bgr, jpeg, {cv::IMWRITE_JPEG_QUALITY, 98}));
+        colour.buffers[k].bytes = jpeg;
+        colour.buffers[k].bytesused = static_cast<uint32_t>(jpeg.size());
+    }
+    colour.sizeimage = kW * kH * 3;
+    auto source =
+        V4l2Source::open(colourConfigFor(depth, colour), std::make_shared<ReplayIo>(depth),
+                         std::make_shared<ReplayIo>(colour));
+    ASSERT_TRUE(source.isOk()) << source.status().toString();
+    EXPECT_EQ((*source)->colourFormat(), V4L2_PIX_FMT_MJPEG);
+    for (int64_t k = 0; k < 3; ++k) {
+        auto frame = (*source)->next();
+        ASSERT_TRUE(frame.isOk()) << frame.status().toString();
+        ASSERT_FALSE(frame->colour.empty());
+        // JPEG is lossy: compare the mean absolute error per channel.
+        double error = 0.0;
+        for (int v = 0; v < kH; ++v) {
+            for (int u = 0; u < kW; ++u) {
+                const Rgb8 a = frame->colour(u, v);
+                const Rgb8 b = patternPixel(u, v, k);
+                error += std::abs(a.r - b.r) + std::abs(a.g - b.g) + std::abs(a.b - b.b);
+            }
+        }
+        EXPECT_LT(error / (3.0 * kW * kH), 3.0) << "frame " << k;
+    }
+}
+#endif
+
+TEST(V4l2Colour, YuvConversionAndTargetsParse) {
+    EXPECT_EQ(yuvToRgb(16, 128, 128), (Rgb8{0, 0, 0}));
+    EXPECT_EQ(yuvToRgb(235, 128, 128), (Rgb8{255, 255, 255}));
+    const Rgb8 red = yuvToRgb(81, 90, 240);  // BT.601 limited-range red
+    EXPECT_GE(red.r, 253);
+    EXPECT_LE(red.g, 2);
+    EXPECT_LE(red.b, 2);
+    const Rgb8 grey = yuvToRgb(126, 128, 128);
+    EXPECT_EQ(grey.r, grey.g);
+    EXPECT_EQ(grey.g, grey.b);
+
+    V4l2Config c;
+    ASSERT_TRUE(parseV4l2Target(
+                    "/dev/video4?colour=/dev/video6&colour_format=YUYV&colour_size=1280x720", &c)
+                    .isOk());
+    EXPECT_EQ(c.device, "/dev/video4");
+    EXPECT_EQ(c.colour_device, "/dev/video6");
+    EXPECT_EQ(c.colour_format, "YUYV");
+    EXPECT_EQ(c.colour_width, 1280);
+    EXPECT_EQ(c.colour_height, 720);
+    EXPECT_EQ(parseV4l2Target("/dev/video4?bogus=1", &c).code(), StatusCode::kInvalidArgument);
+    EXPECT_EQ(parseV4l2Target("/dev/video4?colour_size=12", &c).code(),
+              StatusCode::kInvalidArgument);
+    EXPECT_EQ(parseV4l2Target("/dev/video4?colour", &c).code(), StatusCode::kInvalidArgument);
+    auto bad = openFrameSource("v4l2:/dev/video-plumb-none?colour=/dev/x&zoom=2");
+    ASSERT_FALSE(bad.isOk());
+    EXPECT_EQ(bad.status().code(), StatusCode::kInvalidArgument);
+    EXPECT_NE(bad.status().message().find("unknown key 'zoom'"), std::string::npos);
+
+    // Short and unknown colour frames are specific errors.
+    const std::vector<uint8_t> bytes(10, 0);
+    EXPECT_EQ(decodeColourFrame(V4L2_PIX_FMT_RGB24, bytes, 4, 4, 0, "f").status().code(),
+              StatusCode::kCorrupt);
+    EXPECT_EQ(decodeColourFrame(V4L2_PIX_FMT_NV12, bytes, 4, 4, 0, "f").status().code(),
+              StatusCode::kUnsupported);
+    EXPECT_EQ(decodeColourFrame(V4L2_PIX_FMT_YUYV, bytes, 3, 1, 0, "f").status().code(),
+              StatusCode::kCorrupt);
 }
 
 TEST(V4l2Fourcc, NamesAndParses) {

@@ -45,7 +45,7 @@ void decodeAndConvert(std::span<const uint8_t> bytes) {
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     if (size < 1) return 0;
     const std::span<const uint8_t> bytes(data + 1, size - 1);
-    switch (data[0] % 12) {
+    switch (data[0] % 14) {
         case 0:
             decodeAndConvert<plumb::device_status_t>(bytes);
             break;
@@ -75,6 +75,12 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
             break;
         case 9:
             (void)decodeFragment(bytes);
+            break;
+        case 12:
+            decodeAndConvert<plumb::depth_frame2_t>(bytes);
+            break;
+        case 13:
+            (void)decodeRawFrame(bytes);
             break;
         case 10: {
             static const std::vector<uint8_t> key(32, 0x42);

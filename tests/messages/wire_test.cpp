@@ -120,6 +120,12 @@ TEST(Wire, SchemasMatchGeneratedTypes) {
     depth.data = {0, 1, 2, 3};
     depth.size = 4;
     expectSchemaMatches(depth);
+    plumb::depth_frame2_t rgbd{};
+    rgbd.data = {0, 1, 2, 3};
+    rgbd.size = 4;
+    rgbd.colour_data = {7, 8, 9};
+    rgbd.colour_size = 3;
+    expectSchemaMatches(rgbd);
     plumb::config_snapshot_t config{};
     config.program = "plumb-device";
     config.version = "0.1.0";

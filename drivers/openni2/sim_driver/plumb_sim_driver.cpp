@@ -5,13 +5,18 @@
 // into an OpenNI2/Drivers directory next to (a link to) libOpenNI2.so.0; see
 // drivers/CMakeLists.txt.
 //
-// It behaves like a PrimeSense-class depth camera: depth only, modes 640x480@30 and 320x240@60 in
-// DEPTH_1_MM or DEPTH_100_UM, mirroring ON by default (as PS1080 devices ship), field of view
+// It behaves like a PrimeSense-class RGB-D camera: depth modes 640x480@30 and 320x240@60 in
+// DEPTH_1_MM or DEPTH_100_UM, a colour sensor with RGB888 modes of the same sizes and rates
+// (unless the URI says colour=0), mirroring ON by default (as PS1080 devices ship), field of view
 // reported through HORIZONTAL_FOV/VERTICAL_FOV, device timestamps in microseconds from the start
 // of streaming. Frame k of the stream is SimSource::render(k) of the URI's configuration
-// (drivers/openni2/sim_device.hpp), frameIndex = k. The default device is plumb-sim://<scene>
-// with the scene from $PLUMB_SIM_DEVICE (default living_room); any other plumb-sim:// URI opens
-// through tryDevice.
+// (drivers/openni2/sim_device.hpp), frameIndex = k. The depth stream's thread is the camera's
+// shutter: it renders frame k and, when the colour stream is started, hands it the frame's colour
+// (the simulator's Frame::colour, or the test pattern), which goes out with the same frameIndex
+// and the depth's timestamp (plus colour_offset_us). Colour without a started depth stream sends
+// nothing. No frame sync (enableFrameSync is not supported): clients pair by timestamp. The default
+// device is plumb-sim://<scene> with the scene from $PLUMB_SIM_DEVICE (default living_room); any
+// other plumb-sim:// URI opens through tryDevice.
 //
 // We write the C entry points ourselves instead of using ONI_EXPORT_DRIVER, which needs XnLib.
 
@@ -33,6 +38,7 @@
 #include <thread>
 #include <vector>
 
+#include "drivers/dataset/depth_png.hpp"
 #include "drivers/openni2/sim_device.hpp"
 #include "drivers/sim/sim_source.hpp"
 
@@ -50,6 +56,23 @@ constexpr OniVideoMode kModes[] = {
     {ONI_PIXEL_FORMAT_DEPTH_100_UM, 320, 240, 60},
 };
 constexpr int kNumModes = static_cast<int>(sizeof(kModes) / sizeof(kModes[0]));
+constexpr OniVideoMode kColourModes[] = {
+    {ONI_PIXEL_FORMAT_RGB888, 640, 480, 30},
+    {ONI_PIXEL_FORMAT_RGB888, 320, 240, 60},
+};
+constexpr int kNumColourModes = static_cast<int>(sizeof(kColourModes) / sizeof(kColourModes[0]));
+
+int bytesPerPixel(const OniVideoMode& mode) {
+    return mode.pixelFormat == ONI_PIXEL_FORMAT_RGB888 ? 3 : 2;
+}
+
+class SimStream;
+
+/// Where the depth thread finds the started colour stream of the same device handle.
+struct ColourTap {
+    std::mutex mutex;
+    SimStream* stream = nullptr;  ///< the started colour stream, or null
+};
 
 class SimDriver;
 
@@ -66,15 +89,24 @@ struct Camera {
 
 class SimStream final : public StreamBase {
   public:
-    SimStream(SimDriver* driver, std::shared_ptr<Camera> camera, std::atomic<bool>* device_alive)
-        : driver_(driver), camera_(std::move(camera)), device_alive_(device_alive) {}
+    SimStream(SimDriver* driver, std::shared_ptr<Camera> camera, std::atomic<bool>* device_alive,
+              OniSensorType sensor, std::shared_ptr<ColourTap> tap)
+        : driver_(driver),
+          camera_(std::move(camera)),
+          device_alive_(device_alive),
+          sensor_(sensor),
+          tap_(std::move(tap)),
+          mode_(sensor == ONI_SENSOR_COLOR ? kColourModes[0] : kModes[0]) {}
     ~SimStream() override { stop(); }
 
     OniStatus setProperty(int id, const void* data, int size) override {
         if (id == ONI_STREAM_PROPERTY_VIDEO_MODE) {
             if (size != sizeof(OniVideoMode)) return ONI_STATUS_BAD_PARAMETER;
             const auto* mode = static_cast<const OniVideoMode*>(data);
-            for (const auto& m : kModes) {
+            const OniVideoMode* modes = sensor_ == ONI_SENSOR_COLOR ? kColourModes : kModes;
+            const int count = sensor_ == ONI_SENSOR_COLOR ? kNumColourModes : kNumModes;
+            for (int i = 0; i < count; ++i) {
+                const OniVideoMode& m = modes[i];
                 if (m.pixelFormat == mode->pixelFormat && m.resolutionX == mode->resolutionX &&
                     m.resolutionY == mode->resolutionY && m.fps == mode->fps) {
                     if (running_) return ONI_STATUS_OUT_OF_FLOW;
@@ -115,7 +147,7 @@ class SimStream final : public StreamBase {
             case ONI_STREAM_PROPERTY_MIN_VALUE:
                 return put(static_cast<int>(0), data, size);
             case ONI_STREAM_PROPERTY_STRIDE:
-                return put(static_cast<int>(mode_.resolutionX * 2), data, size);
+                return put(static_cast<int>(mode_.resolutionX * bytesPerPixel(mode_)), data, size);
             case ONI_STREAM_PROPERTY_CROPPING: {
                 // Never cropped; OpenNI2's recorder stores this and its player needs it.
                 OniCropping cropping{};
@@ -134,10 +166,19 @@ class SimStream final : public StreamBase {
                id == ONI_STREAM_PROPERTY_STRIDE || id == ONI_STREAM_PROPERTY_CROPPING;
     }
 
-    int getRequiredFrameSize() override { return mode_.resolutionX * mode_.resolutionY * 2; }
+    int getRequiredFrameSize() override {
+        return mode_.resolutionX * mode_.resolutionY * bytesPerPixel(mode_);
+    }
 
     OniStatus start() override;
     void stop() override {
+        if (sensor_ == ONI_SENSOR_COLOR) {
+            // Waits for a delivery in progress on the depth thread.
+            std::lock_guard lock(tap_->mutex);
+            if (tap_->stream == this) tap_->stream = nullptr;
+            running_ = false;
+            return;
+        }
         {
             std::lock_guard lock(mutex_);
             stop_requested_ = true;
@@ -146,6 +187,10 @@ class SimStream final : public StreamBase {
         if (thread_.joinable()) thread_.join();
         running_ = false;
     }
+
+    /// Colour stream: sends `colour` as frame k with device time `timestamp_us`. Called by the
+    /// depth thread with tap_->mutex held.
+    void deliverColour(const ColourImage& colour, int64_t k, uint64_t timestamp_us);
 
   private:
     template <typename T>
@@ -160,7 +205,9 @@ class SimStream final : public StreamBase {
     SimDriver* driver_;
     std::shared_ptr<Camera> camera_;
     std::atomic<bool>* device_alive_;
-    OniVideoMode mode_ = kModes[0];
+    OniSensorType sensor_;
+    std::shared_ptr<ColourTap> tap_;
+    OniVideoMode mode_;
     bool mirror_ = true;  // PS1080 devices mirror by default; clients turn it off
     std::atomic<bool> running_{false};
     std::mutex mutex_;
@@ -172,22 +219,28 @@ class SimStream final : public StreamBase {
 class SimDevice final : public DeviceBase {
   public:
     SimDevice(SimDriver* driver, std::shared_ptr<Camera> camera)
-        : driver_(driver), camera_(std::move(camera)) {
-        sensor_.sensorType = ONI_SENSOR_DEPTH;
-        sensor_.numSupportedVideoModes = kNumModes;
-        sensor_.pSupportedVideoModes = modes_;
+        : driver_(driver), camera_(std::move(camera)), tap_(std::make_shared<ColourTap>()) {
+        sensors_[0].sensorType = ONI_SENSOR_DEPTH;
+        sensors_[0].numSupportedVideoModes = kNumModes;
+        sensors_[0].pSupportedVideoModes = modes_;
         for (int i = 0; i < kNumModes; ++i) modes_[i] = kModes[i];
+        sensors_[1].sensorType = ONI_SENSOR_COLOR;
+        sensors_[1].numSupportedVideoModes = kNumColourModes;
+        sensors_[1].pSupportedVideoModes = colour_modes_;
+        for (int i = 0; i < kNumColourModes; ++i) colour_modes_[i] = kColourModes[i];
     }
 
     OniStatus getSensorInfoList(OniSensorInfo** infos, int* count) override {
-        *infos = &sensor_;
-        *count = 1;
+        *infos = sensors_;
+        *count = hasColour() ? 2 : 1;
         return ONI_STATUS_OK;
     }
     StreamBase* createStream(OniSensorType type) override {
-        if (type != ONI_SENSOR_DEPTH || !alive_) return nullptr;
-        return new SimStream(driver_, camera_, &alive_);
+        if (!alive_) return nullptr;
+        if (type != ONI_SENSOR_DEPTH && !(type == ONI_SENSOR_COLOR && hasColour())) return nullptr;
+        return new SimStream(driver_, camera_, &alive_, type, tap_);
     }
+    bool hasColour() const { return camera_->spec.colour != "0"; }
     void destroyStream(StreamBase* stream) override { delete stream; }
 
     OniStatus setProperty(int id, const void* data, int size) override {
@@ -230,8 +283,10 @@ class SimDevice final : public DeviceBase {
   private:
     SimDriver* driver_;
     std::shared_ptr<Camera> camera_;
-    OniSensorInfo sensor_{};
+    std::shared_ptr<ColourTap> tap_;
+    OniSensorInfo sensors_[2]{};
     OniVideoMode modes_[kNumModes];
+    OniVideoMode colour_modes_[kNumColourModes];
     OniImageRegistrationMode registration_ = ONI_IMAGE_REGISTRATION_OFF;
 };
 
@@ -347,6 +402,12 @@ class SimDriver final : public DriverBase {
 OniStatus SimStream::start() {
     if (running_) return ONI_STATUS_OK;
     if (!device_alive_->load()) return ONI_STATUS_ERROR;
+    if (sensor_ == ONI_SENSOR_COLOR) {
+        std::lock_guard lock(tap_->mutex);
+        tap_->stream = this;
+        running_ = true;
+        return ONI_STATUS_OK;
+    }
     auto config = simConfigFor(camera_->spec, mode_.resolutionX, mode_.resolutionY);
     if (!config.isOk()) return ONI_STATUS_NOT_SUPPORTED;
     auto source = sim::SimSource::create(*config);
@@ -402,11 +463,16 @@ void SimStream::run(std::unique_ptr<sim::SimSource> source) {
         }
         frame->dataSize = w * h * 2;
         frame->sensorType = ONI_SENSOR_DEPTH;
-        // The device clock: microseconds since this streaming session started.
-        frame->timestamp =
-            static_cast<uint64_t>(std::chrono::duration_cast<std::chrono::microseconds>(
-                                      std::chrono::steady_clock::now() - start)
-                                      .count());
+        // The device clock: microseconds since this streaming session started. Paced frames are
+        // stamped with their slot (start + (sent + 1) periods), as a camera stamps exposures at
+        // its frame rate even when they reach the host late; unpaced ones when they are ready.
+        const auto now_us = std::chrono::duration_cast<std::chrono::microseconds>(
+                                std::chrono::steady_clock::now() - start)
+                                .count();
+        const auto slot_us =
+            std::chrono::duration_cast<std::chrono::microseconds>(period * (sent + 1)).count();
+        const auto timestamp = static_cast<uint64_t>(camera_->spec.realtime ? slot_us : now_us);
+        frame->timestamp = timestamp;
         frame->frameIndex = static_cast<int>(k);
         frame->width = w;
         frame->height = h;
@@ -440,7 +506,56 @@ void SimStream::run(std::unique_ptr<sim::SimSource> source) {
         }
         raiseNewFrame(frame);
         getServices().releaseFrame(frame);
+        // The colour camera exposes with the depth camera: frame k's colour follows at once.
+        const SimDeviceSpec& spec = camera_->spec;
+        const bool skipped = spec.colour_skip > 0 && (k + 1) % spec.colour_skip == 0;
+        if (spec.colour != "0" && !skipped) {
+            std::lock_guard lock(tap_->mutex);
+            if (tap_->stream != nullptr) {
+                const ColourImage colour =
+                    spec.colour == "pattern" ? simColourPattern(k, w, h) : rendered->frame.colour;
+                if (!colour.empty()) {
+                    tap_->stream->deliverColour(
+                        colour, k, timestamp + static_cast<uint64_t>(spec.colour_offset_us));
+                }
+            }
+        }
     }
+}
+
+void SimStream::deliverColour(const ColourImage& colour, int64_t k, uint64_t timestamp_us) {
+    const int w = mode_.resolutionX;
+    const int h = mode_.resolutionY;
+    const ColourImage sized =
+        colour.width() == w && colour.height() == h ? colour : dataset::resizeColour(colour, w, h);
+    OniFrame* frame = getServices().acquireFrame();
+    if (frame == nullptr) return;
+    auto* pixels = static_cast<uint8_t*>(frame->data);
+    for (int v = 0; v < h; ++v) {
+        for (int u = 0; u < w; ++u) {
+            const Rgb8& c = sized(mirror_ ? w - 1 - u : u, v);
+            uint8_t* p = pixels + (static_cast<size_t>(v) * w + u) * 3;
+            p[0] = c.r;
+            p[1] = c.g;
+            p[2] = c.b;
+        }
+    }
+    frame->dataSize = w * h * 3;
+    frame->sensorType = ONI_SENSOR_COLOR;
+    frame->timestamp = timestamp_us;
+    frame->frameIndex = static_cast<int>(k);
+    frame->width = w;
+    frame->height = h;
+    frame->videoMode = mode_;
+    frame->croppingEnabled = FALSE;
+    frame->cropOriginX = 0;
+    frame->cropOriginY = 0;
+    frame->stride = w * 3;
+    if (k == camera_->spec.fault_at && camera_->spec.fault == "colour_short") {
+        frame->dataSize = w * h;
+    }
+    raiseNewFrame(frame);
+    getServices().releaseFrame(frame);
 }
 
 SimDriver* g_driver = nullptr;

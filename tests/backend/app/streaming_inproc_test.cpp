@@ -423,5 +423,108 @@ TEST(StreamingInProcess, UnpluggedCameraIsInTheHeartbeatAndTheScanResumes) {
     EXPECT_EQ(states.back(), messages::TrackingState::kStopped);
 }
 
+/// Gives every frame of another source a colour image, as an RGB-D camera would: pixel (u, v) of
+/// frame k is {u + k, v, 200}.
+class ColourCamera final : public FrameSourceDecorator {
+  public:
+    using FrameSourceDecorator::FrameSourceDecorator;
+    Result<Frame> next() override {
+        auto frame = inner().next();
+        if (!frame.isOk()) return frame;
+        frame->colour = ColourImage(frame->depth.width(), frame->depth.height());
+        for (int v = 0; v < frame->colour.height(); ++v) {
+            for (int u = 0; u < frame->colour.width(); ++u) {
+                frame->colour(u, v) =
+                    Rgb8{static_cast<uint8_t>(u + frame->index), static_cast<uint8_t>(v), 200};
+            }
+        }
+        return frame;
+    }
+};
+
+TEST(StreamingInProcess, RawFramesCarryColourToTheIngest) {
+    SourceOptions so;
+    so.intrinsics = "ci";
+    so.max_frames = 16;
+    auto sim = openFrameSource("sim:living_room", so);
+    ASSERT_TRUE(sim.isOk()) << sim.status().toString();
+    // The frames as the camera delivers them, for comparison.
+    std::vector<Frame> expected;
+    {
+        auto again = openFrameSource("sim:living_room", so);
+        ASSERT_TRUE(again.isOk());
+        ColourCamera camera(std::move(again).value());
+        for (auto f = camera.next(); f.isOk(); f = camera.next()) expected.push_back(*f);
+    }
+    ASSERT_EQ(expected.size(), 16u);
+    ColourCamera source(std::move(sim).value());
+
+    device::DeviceRunOptions options;
+    options.config.fusion.frames_per_fragment = 8;
+    options.config.fusion.voxel_size_m = 0.02;
+    options.config.stream.ack_wait_s = 0.1;
+    options.config.stream.raw_frame_every = 5;  // frames 0, 5, 10, 15
+    options.session_id = 78;
+    RecordingTransport transport;
+    device::DeviceLink link;
+    link.transport = &transport;
+    link.pump = [](int timeout_ms) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(timeout_ms));
+        return Status::ok();
+    };
+    const std::atomic<int> stop{0};
+    auto report = device::runDevice(source, options, link, stop);
+    ASSERT_TRUE(report.isOk()) << report.status().toString();
+    EXPECT_EQ(report->raw_frames_published, 4);
+    EXPECT_EQ(report->raw_frames_dropped, 0);  // a recorded source waits for the network thread
+
+    // Each raw frame is the captured frame: depth to the millimetre, colour exactly.
+    std::vector<int64_t> indices;
+    for (const auto& [channel, bytes] : transport.sent) {
+        if (channel != messages::kChannelRgbd) continue;
+        auto raw = messages::decodeRawFrame(bytes);
+        ASSERT_TRUE(raw.isOk()) << raw.status().toString();
+        ASSERT_LT(raw->frame_index, 16);
+        const Frame& original = expected[static_cast<size_t>(raw->frame_index)];
+        indices.push_back(raw->frame_index);
+        EXPECT_EQ(raw->colour, original.colour) << raw->frame_index;
+        EXPECT_EQ(raw->depth, toRaw(original.depth, 1000.0)) << raw->frame_index;
+        EXPECT_EQ(raw->utime, messages::toUtime(original.timestamp_s));
+    }
+    EXPECT_EQ(indices, (std::vector<int64_t>{0, 5, 10, 15}));
+
+    // The backend's ingest (plumb-backend --live/--log, plumb replay) decodes and counts them,
+    // and old depth-only raw frames too; a damaged one is counted as malformed.
+    const fs::path dir = tempDir("raw_frames");
+    LossyHub hub;
+    IngestConfig ic;
+    auto ingestor = Ingestor::open(dir / "fragments", {}, ic, hub);
+    ASSERT_TRUE(ingestor.isOk()) << ingestor.status().toString();
+    for (const auto& [channel, bytes] : transport.sent) (*ingestor)->onMessage(channel, bytes, 1.0);
+    messages::RawDepthFrame legacy;
+    legacy.frame_index = 99;
+    legacy.depth = toRaw(expected[3].depth, 1000.0);
+    (*ingestor)->onMessage(
+        messages::kChannelDepth,
+        messages::encodeMessage(
+            messages::toMessage(legacy, messages::DepthEncoding::kDeltaVarint, 1).value()),
+        2.0);
+    ASSERT_TRUE((*ingestor)->lastRawFrame().has_value());
+    EXPECT_EQ((*ingestor)->lastRawFrame()->frame_index, 99);
+    EXPECT_TRUE((*ingestor)->lastRawFrame()->colour.empty());
+    auto damaged = transport.sent.front().second;
+    for (const auto& [channel, bytes] : transport.sent) {
+        if (channel == messages::kChannelRgbd) damaged = bytes;
+    }
+    damaged.resize(damaged.size() - 10);
+    (*ingestor)->onMessage(messages::kChannelRgbd, damaged, 3.0);
+    const auto m = (*ingestor)->metrics({});
+    EXPECT_EQ(m["raw_frames"]["received"], 5);
+    EXPECT_EQ(m["raw_frames"]["with_colour"], 4);
+    EXPECT_EQ((*ingestor)->counters().raw_frames_malformed, 1u);
+    EXPECT_GE(m["messages_rejected"]["malformed"].get<uint64_t>(), 1u);
+    fs::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace plumb::backend
