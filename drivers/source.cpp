@@ -17,18 +17,6 @@
 namespace plumb {
 namespace {
 
-/// Passes frames on without their colour (SourceOptions::colour = false for sources that cannot
-/// leave it out themselves: the simulator).
-class DepthOnlySource final : public FrameSourceDecorator {
-  public:
-    using FrameSourceDecorator::FrameSourceDecorator;
-    Result<Frame> next() override {
-        auto frame = inner().next();
-        if (frame.isOk()) frame->colour = ColourImage();
-        return frame;
-    }
-};
-
 /// "640x480@30" -> width, height, fps.
 Status parseDepthMode(const std::string& mode, int* width, int* height, int* fps) {
     char x = 0;
@@ -82,10 +70,6 @@ Result<std::unique_ptr<FrameSource>> openRawSource(const std::string& uri,
             auto table = sim::findNoiseModelFile(config.noise_model_path);
             if (!table.isOk()) return table.status();
             *sensor_calibration = table->string();
-        }
-        if (!options.colour) {
-            return std::unique_ptr<FrameSource>(
-                std::make_unique<DepthOnlySource>(std::move(source).value()));
         }
         return std::unique_ptr<FrameSource>(std::move(source).value());
     }
