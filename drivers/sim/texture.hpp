@@ -22,7 +22,6 @@
 // octaves faded), so distant and grazing views neither alias nor speckle.
 
 #include <Eigen/Core>
-#include <array>
 #include <cstdint>
 #include <vector>
 
@@ -39,8 +38,9 @@ struct Picture {
     double z_max_m = 0.0;
     double frame_m = 0.03;  ///< width of the frame around the pattern
     Kind kind = Kind::kChecker;
-    double scale_m = 0.06;   ///< checker square, stripe period or blob cell
-    double angle_rad = 0.0;  ///< stripes: direction of the stripe normal from the s axis
+    double scale_m = 0.06;  ///< checker square, stripe period or blob cell
+    /// Stripes: unit normal of the stripes in (s, z).
+    Eigen::Vector2d stripe_normal = Eigen::Vector2d::UnitX();
     Colour light = Colour::Ones();
     Colour dark = Colour::Zero();
     Colour frame = Colour::Zero();
@@ -65,21 +65,26 @@ class SurfaceTextures {
     static constexpr int kNoiseSize = 64;
 
   private:
-    static constexpr int kMaxOctaves = 4;
-    struct Octaves {  // lattice offsets of one surface's noise octaves (decorrelates surfaces)
-        std::array<float, 2 * kMaxOctaves> offset;
+    // Up to four value-noise octaves evaluated together, one SIMD lane each: lane o reads the
+    // lattice at (m00 x + m01 y + ox, m10 x + m11 y + oy) for surface coordinates (x, y) in
+    // metres, i.e. its own rotation, 1 / cell scaling and offset (which decorrelates surfaces).
+    struct FractalNoise {
+        Eigen::Array4f m00, m01, m10, m11, ox, oy;
+        Eigen::Array4f inv_cell;   // 1 / cell (the smaller side), 1/m: the footprint fade
+        Eigen::Array4f amplitude;  // 0 in unused lanes
     };
     struct WallTexture {
         Eigen::Vector2d a, dir;  // start vertex and unit direction
-        Octaves octaves;
+        FractalNoise plaster;
         std::vector<Picture> pictures;
+        std::vector<FractalNoise> blobs;  // per picture (used by Kind::kBlobs)
     };
     struct BoxTexture {
         Eigen::Vector3d center;
         double c, s;  // cos, sin of yaw
         Colour colour;
         FurniturePattern pattern;
-        Octaves octaves;
+        FractalNoise noise;
     };
     struct CylinderTexture {
         Eigen::Vector2d center;
@@ -87,25 +92,27 @@ class SurfaceTextures {
         double checker_cell;  // arc length of a checker square: a whole number fits around
         Colour colour;
         FurniturePattern pattern;
-        Octaves octaves;
+        FractalNoise noise;
     };
 
-    Octaves makeOctaves(uint64_t salt) const;
-    float valueNoise(float x, float y) const;
-    // Sum of `octaves` value-noise octaves of (x, y) metres: cells cell_m, cell_m / 2, ...,
-    // amplitudes amplitude, amplitude * persistence, ...; octaves whose cell is below 4x the
-    // footprint fade out (gone at 2x). Zero mean.
-    float fractalNoise(double x, double y, const Octaves& oct, double cell_m, int octaves,
-                       float amplitude, float persistence, double footprint_m) const;
+    // Octaves of cells cell_m, cell_m / 2, ... (at most 4) with amplitudes amplitude,
+    // amplitude * persistence, ...; each lattice turned by its own angle when `rotate`, cells
+    // stretched by `stretch_x` along x. Offsets drawn from (texture seed, salt).
+    FractalNoise makeNoise(uint64_t salt, double cell_m, int octaves, float amplitude,
+                           float persistence, bool rotate = true, double stretch_x = 1.0) const;
+    // Zero-mean sum of the octaves at (x, y) metres; octaves whose cell is below 4 footprints
+    // fade out (gone at 2).
+    float noise(const FractalNoise& n, double x, double y, double fp) const;
 
     Colour wallAlbedo(const WallTexture& w, const Eigen::Vector3d& p_W, double fp) const;
     // The wall colour `wall` at (s, z) with the picture over it (frame and pattern).
-    Colour pictureAlbedo(const Picture& pic, const Octaves& oct, double s, double z, double fp,
-                         const Colour& wall) const;
+    Colour pictureAlbedo(const Picture& pic, const FractalNoise& blobs, double s, double z,
+                         double fp, const Colour& wall) const;
     Colour floorAlbedo(const Eigen::Vector3d& p_W, double fp) const;
     Colour ceilingAlbedo(const Eigen::Vector3d& p_W, double fp) const;
-    Colour furnitureAlbedo(const Colour& colour, FurniturePattern pattern, const Octaves& oct,
-                           double u, double v, double checker_u_cell, double fp) const;
+    Colour furnitureAlbedo(const Colour& colour, FurniturePattern pattern,
+                           const FractalNoise& noise, double u, double v, double checker_u_cell,
+                           double fp) const;
     Colour boxAlbedo(const BoxTexture& b, const Eigen::Vector3d& p_W,
                      const Eigen::Vector3d& normal_W, double fp) const;
     Colour cylinderAlbedo(const CylinderTexture& c, const Eigen::Vector3d& p_W,
@@ -116,7 +123,7 @@ class SurfaceTextures {
     uint64_t seed_;
     Colour wall_colour_, floor_colour_, ceiling_colour_;
     FloorPattern floor_pattern_;
-    Octaves floor_octaves_, ceiling_octaves_;
+    FractalNoise plank_grain_, tile_mottle_, ceiling_noise_;
     std::vector<WallTexture> walls_;
     std::vector<BoxTexture> boxes_;
     std::vector<CylinderTexture> cylinders_;
