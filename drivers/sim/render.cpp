@@ -436,7 +436,7 @@ void Renderer::render(const Eigen::Isometry3d& T_W_C, RenderedView* view) const 
                                                        boxes.data(),     boxes.size(),
                                                        cylinders.data(), cylinders.size()};
                 renderTile(R, terms, candidates, tile, view, colour ? hits.data() : nullptr);
-                if (colour) shadeTile(R, terms.o, tile, hits.data(), view);
+                if (colour) shadeTile(tile, hits.data(), view);
             }
         }
     });
@@ -456,7 +456,8 @@ void Renderer::renderTile(const Eigen::Matrix3d& R, const RayCaster::OriginTerms
             const Eigen::Vector3d d = R * rays_C_[i];
             const RayHit hit = caster_.cast(terms, d, candidates);
             if (hits != nullptr) {
-                hits[(v - tile.v0) * tile_w + (u - tile.u0)] = {hit.t, hit.normal_W};
+                hits[(v - tile.v0) * tile_w + (u - tile.u0)] = {hit.t, terms.o + hit.t * d,
+                                                                hit.normal_W};
             }
             if (hit.label == kNoPrimitive) {
                 view->depth(u, v) = 0.0F;
@@ -485,8 +486,7 @@ void Renderer::renderTile(const Eigen::Matrix3d& R, const RayCaster::OriginTerms
     }
 }
 
-void Renderer::shadeTile(const Eigen::Matrix3d& R, const Eigen::Vector3d& o_W,
-                         const PixelRect& tile, const TileHit* hits, RenderedView* view) const {
+void Renderer::shadeTile(const PixelRect& tile, const TileHit* hits, RenderedView* view) const {
     const int w = camera_.width;
     const int tile_w = tile.u1 - tile.u0 + 1;
     // 255 (ambient + (1 - ambient) cos): the light at the camera plus ambient.
@@ -502,14 +502,12 @@ void Renderer::shadeTile(const Eigen::Matrix3d& R, const Eigen::Vector3d& o_W,
             }
             const size_t i = static_cast<size_t>(v) * w + u;
             const TileHit& hit = hits[(v - tile.v0) * tile_w + (u - tile.u0)];
-            const Eigen::Vector3d d = R * rays_C_[i];
-            const Eigen::Vector3d p_W = o_W + hit.t * d;
             const float cosv = view->cos_view(u, v);
             // Footprint of the pixel on the surface: range / (f cos), range = t |d_C|, with cos
             // clamped so that grazing views stay finite.
             const double footprint_m =
                 hit.t * inv_focal / (inv_norm_[i] * std::max(static_cast<double>(cosv), 0.1));
-            const Colour rho = textures_.albedo(label, p_W, hit.normal_W, footprint_m);
+            const Colour rho = textures_.albedo(label, hit.p_W, hit.normal_W, footprint_m);
             const float light = shade_ambient + shade_direct * cosv;
             auto level = [&](float r) {
                 return static_cast<uint8_t>(std::min(255.0F, r * light) + 0.5F);

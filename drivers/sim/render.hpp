@@ -144,6 +144,7 @@ class Renderer {
     // What the colour pass needs of one pixel's ray hit (t = 0 where nothing is hit).
     struct TileHit {
         double t;
+        Eigen::Vector3d p_W;  // the hit point
         Eigen::Vector3d normal_W;
     };
     // Ray casts the tile's pixels into depth, cos_view, label and gray, and records each pixel's
@@ -152,8 +153,7 @@ class Renderer {
                     const RayCaster::Candidates& candidates, const PixelRect& tile,
                     RenderedView* view, TileHit* hits) const;
     // The colour of the tile's pixels from their hits and the labels and cosines renderTile wrote.
-    void shadeTile(const Eigen::Matrix3d& R_W_C, const Eigen::Vector3d& o_W, const PixelRect& tile,
-                   const TileHit* hits, RenderedView* view) const;
+    void shadeTile(const PixelRect& tile, const TileHit* hits, RenderedView* view) const;
 
     RayCaster caster_;
     SurfaceTextures textures_;

@@ -24,6 +24,8 @@ constexpr uint64_t kBlobSalt = 3ULL << 40;
 constexpr double kPlasterCellM = 0.24;
 constexpr float kPlasterAmplitude = 0.22F;
 constexpr float kPlasterPersistence = 0.85F;
+// The plaster is precomputed on a grid of 1 cm (a third of its finest cell) and mip-mapped.
+constexpr double kPlasterTexelM = 0.01;
 // Ceiling: faint, 2 octaves from 40 cm.
 constexpr double kCeilingCellM = 0.40;
 constexpr float kCeilingAmplitude = 0.05F;
@@ -44,8 +46,6 @@ constexpr double kPictureEndClearanceM = 0.2;
 constexpr double kPictureGapM = 0.15;
 constexpr double kOpeningClearanceM = 0.05;
 constexpr int kPlacementAttempts = 40;
-// Smallest footprint used by the filters (they divide by it), metres.
-constexpr double kMinFootprintM = 1e-6;
 
 // splitmix64's finaliser (drivers/sim/noise.hpp mixSeed), inline for per-pixel hashes.
 inline uint64_t hash64(uint64_t x) {
@@ -208,9 +208,12 @@ SurfaceTextures::SurfaceTextures(const Scene& scene)
         w.a = scene.polygon[k];
         const Eigen::Vector2d e = scene.polygon[(k + 1) % num_walls_] - w.a;
         w.dir = e.normalized();
-        w.plaster =
-            makeNoise(wallLabel(k), kPlasterCellM, 4, kPlasterAmplitude, kPlasterPersistence);
+        w.plaster = makeMipMap(
+            makeNoise(wallLabel(k), kPlasterCellM, 4, kPlasterAmplitude, kPlasterPersistence),
+            e.norm(), scene.height_m, kPlasterTexelM);
         if (mode_ == TextureMode::kTextured) w.pictures = placePictures(scene, k, e.norm(), seed_);
+        std::sort(w.pictures.begin(), w.pictures.end(),
+                  [](const Picture& a, const Picture& b) { return a.s_min_m < b.s_min_m; });
         for (size_t p = 0; p < w.pictures.size(); ++p) {
             w.blobs.push_back(makeNoise(kBlobSalt + static_cast<uint64_t>(k) * 64 + p,
                                         w.pictures[p].scale_m, 2, 1.0F, 0.5F));
@@ -239,6 +242,7 @@ SurfaceTextures::FractalNoise SurfaceTextures::makeNoise(uint64_t salt, double c
                                                          float amplitude, float persistence,
                                                          bool rotate, double stretch_x) const {
     FractalNoise n;
+    n.octaves = std::clamp(octaves, 0, 4);
     n.amplitude.setZero();
     n.inv_cell.setZero();
     n.m00.setZero();
@@ -281,8 +285,8 @@ inline float SurfaceTextures::noise(const FractalNoise& n, double x, double y, d
     ty = ty * ty * (3.0F - 2.0F * ty);
     const Eigen::Array4i ix = fx.cast<int>(), iy = fy.cast<int>();
     constexpr int kMask = kNoiseSize - 1;
-    Eigen::Array4f a, b, c, d;
-    for (int o = 0; o < 4; ++o) {
+    Eigen::Array4f a = Eigen::Array4f::Zero(), b = a, c = a, d = a;
+    for (int o = 0; o < n.octaves; ++o) {
         const int x0 = ix[o] & kMask, x1 = (ix[o] + 1) & kMask;
         const int y0 = (iy[o] & kMask) * kNoiseSize, y1 = ((iy[o] + 1) & kMask) * kNoiseSize;
         a[o] = noise_[y0 + x0];
@@ -296,6 +300,85 @@ inline float SurfaceTextures::noise(const FractalNoise& n, double x, double y, d
     const Eigen::Array4f weight =
         (2.0F - (4.0F * static_cast<float>(fp)) * n.inv_cell).max(0.0F).min(1.0F);
     return (weight * n.amplitude * value).sum();
+}
+
+SurfaceTextures::MipMap SurfaceTextures::makeMipMap(const FractalNoise& n, double width_m,
+                                                    double height_m, double texel_m) const {
+    MipMap map;
+    map.texel_m = texel_m;
+    map.inv_texel_m = 1.0 / texel_m;
+    int w = std::max(2, static_cast<int>(std::ceil(width_m / texel_m)));
+    int h = std::max(2, static_cast<int>(std::ceil(height_m / texel_m)));
+    std::vector<float> base(static_cast<size_t>(w) * h);
+    for (int j = 0; j < h; ++j) {
+        for (int i = 0; i < w; ++i) {
+            base[static_cast<size_t>(j) * w + i] =
+                noise(n, (i + 0.5) * texel_m, (j + 0.5) * texel_m, 0.0);
+        }
+    }
+    map.width.push_back(w);
+    map.height.push_back(h);
+    map.level.push_back(std::move(base));
+    // Each level averages 2x2 texels of the one below (a lone last row or column averages less);
+    // every level keeps at least 2x2 texels (the bilinear read needs a neighbour).
+    while (w >= 4 && h >= 4) {
+        const std::vector<float>& fine = map.level.back();
+        const int fw = w, fh = h;
+        w = (w + 1) / 2;
+        h = (h + 1) / 2;
+        std::vector<float> coarse(static_cast<size_t>(w) * h);
+        for (int j = 0; j < h; ++j) {
+            for (int i = 0; i < w; ++i) {
+                float sum = 0.0F;
+                int count = 0;
+                for (int dj = 0; dj < 2; ++dj) {
+                    for (int di = 0; di < 2; ++di) {
+                        const int fi = 2 * i + di, fj = 2 * j + dj;
+                        if (fi >= fw || fj >= fh) continue;
+                        sum += fine[static_cast<size_t>(fj) * fw + fi];
+                        ++count;
+                    }
+                }
+                coarse[static_cast<size_t>(j) * w + i] = sum / static_cast<float>(count);
+            }
+        }
+        map.width.push_back(w);
+        map.height.push_back(h);
+        map.level.push_back(std::move(coarse));
+    }
+    return map;
+}
+
+inline float SurfaceTextures::sampleLevel(const MipMap& map, int level, double x, double y) {
+    const int w = map.width[level], h = map.height[level];
+    const double scale = map.inv_texel_m / static_cast<double>(1 << level);
+    // Texel centres at (i + 1/2) texels; outside the centres the edge texels extend (clamped
+    // just below the last centre so that texel i0 + 1 exists).
+    const double tx = std::clamp(x * scale - 0.5, 0.0, w - 1.0001);
+    const double ty = std::clamp(y * scale - 0.5, 0.0, h - 1.0001);
+    const int i0 = static_cast<int>(tx), j0 = static_cast<int>(ty);
+    const float ax = static_cast<float>(tx - i0), ay = static_cast<float>(ty - j0);
+    const float* row0 = map.level[level].data() + static_cast<size_t>(j0) * w + i0;
+    const float* row1 = row0 + w;
+    const float top = row0[0] + ax * (row0[1] - row0[0]);
+    const float bottom = row1[0] + ax * (row1[1] - row1[0]);
+    return top + ay * (bottom - top);
+}
+
+float SurfaceTextures::sampleMipMap(const MipMap& map, double x, double y, double fp) {
+    // Level l serves footprints of 2^l to 2^(l+1) texels, blended linearly towards level l + 1.
+    double ratio = fp * map.inv_texel_m;
+    if (ratio <= 1.0) return sampleLevel(map, 0, x, y);
+    const int last = static_cast<int>(map.level.size()) - 1;
+    int level = 0;
+    while (ratio >= 2.0 && level < last) {
+        ratio *= 0.5;
+        ++level;
+    }
+    if (level == last) return sampleLevel(map, last, x, y);
+    const float blend = static_cast<float>(std::min(ratio - 1.0, 1.0));
+    const float a = sampleLevel(map, level, x, y);
+    return a + blend * (sampleLevel(map, level + 1, x, y) - a);
 }
 
 Colour SurfaceTextures::pictureAlbedo(const Picture& pic, const FractalNoise& blobs, double s,
@@ -340,14 +423,12 @@ Colour SurfaceTextures::wallAlbedo(const WallTexture& w, const Eigen::Vector3d& 
                                    double fp) const {
     const double s = (p_W.head<2>() - w.a).dot(w.dir);
     const double z = p_W.z();
-    const float m = noise(w.plaster, s, z, fp);
+    const float m = sampleMipMap(w.plaster, s, z, fp);
     Colour out = clampColour(wall_colour_ * std::clamp(1.0F + m, 0.3F, 1.5F));
     for (size_t i = 0; i < w.pictures.size(); ++i) {
         const Picture& pic = w.pictures[i];
-        if (s < pic.s_min_m - fp || s > pic.s_max_m + fp || z < pic.z_min_m - fp ||
-            z > pic.z_max_m + fp) {
-            continue;
-        }
+        if (s < pic.s_min_m - fp) break;  // sorted by s_min_m
+        if (s > pic.s_max_m + fp || z < pic.z_min_m - fp || z > pic.z_max_m + fp) continue;
         out = pictureAlbedo(pic, w.blobs[i], s, z, fp, out);
     }
     return out;
@@ -361,10 +442,12 @@ Colour SurfaceTextures::floorAlbedo(const Eigen::Vector3d& p_W, double fp) const
         const int64_t row = static_cast<int64_t>(row_f);
         const double xs = x + kPlankLengthM * cellHash01(seed_ ^ kPlankSalt, row, -1);
         const int64_t col = static_cast<int64_t>(std::floor(xs * (1.0 / kPlankLengthM)));
-        const double h = cellHash01(seed_ ^ kPlankSalt, row, col);
-        const float tint = 0.8F + 0.35F * static_cast<float>(h);
-        const float red_shift =
-            0.08F * (static_cast<float>(cellHash01(seed_ ^ kPlankSalt, col, row)) - 0.5F);
+        // One hash per plank: its tint from the high bits, a shift towards red from the low.
+        const uint64_t h = hash64(seed_ ^ kPlankSalt ^
+                                  hash64(static_cast<uint64_t>(row) * 0x9E3779B97F4A7C15ULL ^
+                                         static_cast<uint64_t>(col)));
+        const float tint = 0.8F + 0.35F * static_cast<float>(toUnit(h));
+        const float red_shift = 0.08F * (static_cast<float>(h & 0xFFFFU) / 65536.0F - 0.5F);
         const float grain = noise(plank_grain_, xs, y, fp);
         const double inv_fp = 1.0 / fp;
         const double gap_y =
@@ -443,24 +526,6 @@ Colour SurfaceTextures::cylinderAlbedo(const CylinderTexture& c, const Eigen::Ve
     }
     const double arc = c.radius * (std::atan2(q.y(), q.x()) + kPi);
     return furnitureAlbedo(c.colour, c.pattern, c.noise, arc, p_W.z(), c.checker_cell, fp);
-}
-
-Colour SurfaceTextures::albedo(int label, const Eigen::Vector3d& p_W,
-                               const Eigen::Vector3d& normal_W, double footprint_m) const {
-    const int num_boxes = static_cast<int>(boxes_.size());
-    const bool plain = mode_ == TextureMode::kPlain;
-    const double fp = std::max(footprint_m, kMinFootprintM);
-    if (label == floorLabel()) return plain ? floor_colour_ : floorAlbedo(p_W, fp);
-    if (label == ceilingLabel()) return plain ? ceiling_colour_ : ceilingAlbedo(p_W, fp);
-    if (label < 2 + num_walls_) {
-        return plain ? wall_colour_ : wallAlbedo(walls_[label - 2], p_W, fp);
-    }
-    if (label < 2 + num_walls_ + num_boxes) {
-        const BoxTexture& b = boxes_[label - 2 - num_walls_];
-        return plain ? b.colour : boxAlbedo(b, p_W, normal_W, fp);
-    }
-    const CylinderTexture& c = cylinders_[label - 2 - num_walls_ - num_boxes];
-    return plain ? c.colour : cylinderAlbedo(c, p_W, normal_W, fp);
 }
 
 }  // namespace plumb::sim

@@ -22,6 +22,7 @@
 // octaves faded), so distant and grazing views neither alias nor speckle.
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <cstdint>
 #include <vector>
 
@@ -56,7 +57,21 @@ class SurfaceTextures {
     /// footprint on the surface, metres: detail finer than it is averaged out. A pure function of
     /// (scene, label, p_W, normal_W, footprint_m).
     Colour albedo(int label, const Eigen::Vector3d& p_W, const Eigen::Vector3d& normal_W,
-                  double footprint_m) const;
+                  double footprint_m) const {
+        // Inline: the dispatch runs once per pixel of every colour frame.
+        const double fp = std::max(footprint_m, kMinFootprintM);
+        const bool plain = mode_ == TextureMode::kPlain;
+        if (label == floorLabel()) return plain ? floor_colour_ : floorAlbedo(p_W, fp);
+        if (label == ceilingLabel()) return plain ? ceiling_colour_ : ceilingAlbedo(p_W, fp);
+        const int wall = label - 2;
+        if (wall < num_walls_) return plain ? wall_colour_ : wallAlbedo(walls_[wall], p_W, fp);
+        const size_t box = static_cast<size_t>(wall - num_walls_);
+        if (box < boxes_.size()) {
+            return plain ? boxes_[box].colour : boxAlbedo(boxes_[box], p_W, normal_W, fp);
+        }
+        const CylinderTexture& c = cylinders_[box - boxes_.size()];
+        return plain ? c.colour : cylinderAlbedo(c, p_W, normal_W, fp);
+    }
 
     /// The pictures on wall k (empty for a plain scene).
     const std::vector<Picture>& pictures(int wall) const { return walls_[wall].pictures; }
@@ -65,6 +80,8 @@ class SurfaceTextures {
     static constexpr int kNoiseSize = 64;
 
   private:
+    // Smallest footprint used by the filters (they divide by it), metres.
+    static constexpr double kMinFootprintM = 1e-6;
     // Up to four value-noise octaves evaluated together, one SIMD lane each: lane o reads the
     // lattice at (m00 x + m01 y + ox, m10 x + m11 y + oy) for surface coordinates (x, y) in
     // metres, i.e. its own rotation, 1 / cell scaling and offset (which decorrelates surfaces).
@@ -72,10 +89,20 @@ class SurfaceTextures {
         Eigen::Array4f m00, m01, m10, m11, ox, oy;
         Eigen::Array4f inv_cell;   // 1 / cell (the smaller side), 1/m: the footprint fade
         Eigen::Array4f amplitude;  // 0 in unused lanes
+        int octaves;               // lanes in use
+    };
+    // A scalar field sampled on a grid of texel_m over [0, width * texel_m] x [0, height *
+    // texel_m] (texel centres at (i + 1/2) texel_m), with box-filtered mip levels (level l has
+    // texels 2^l times as large), read bilinearly and between levels by the footprint.
+    struct MipMap {
+        double texel_m = 0.01;
+        double inv_texel_m = 100.0;
+        std::vector<int> width, height;  // per level
+        std::vector<std::vector<float>> level;
     };
     struct WallTexture {
         Eigen::Vector2d a, dir;  // start vertex and unit direction
-        FractalNoise plaster;
+        MipMap plaster;          // the plaster's noise over (s, z)
         std::vector<Picture> pictures;
         std::vector<FractalNoise> blobs;  // per picture (used by Kind::kBlobs)
     };
@@ -103,6 +130,12 @@ class SurfaceTextures {
     // Zero-mean sum of the octaves at (x, y) metres; octaves whose cell is below 4 footprints
     // fade out (gone at 2).
     float noise(const FractalNoise& n, double x, double y, double fp) const;
+    // The noise `n` (evaluated without fading) on a grid of `texel_m` over [0, width_m] x
+    // [0, height_m], with its mip levels.
+    MipMap makeMipMap(const FractalNoise& n, double width_m, double height_m, double texel_m) const;
+    // Bilinear read of the level whose texels match footprint fp, blended with the next.
+    static float sampleMipMap(const MipMap& map, double x, double y, double fp);
+    static float sampleLevel(const MipMap& map, int level, double x, double y);
 
     Colour wallAlbedo(const WallTexture& w, const Eigen::Vector3d& p_W, double fp) const;
     // The wall colour `wall` at (s, z) with the picture over it (frame and pattern).
