@@ -487,7 +487,6 @@ void Renderer::renderTile(const Eigen::Matrix3d& R, const RayCaster::OriginTerms
 }
 
 void Renderer::shadeTile(const PixelRect& tile, const TileHit* hits, RenderedView* view) const {
-    const int w = camera_.width;
     const int tile_w = tile.u1 - tile.u0 + 1;
     // 255 (ambient + (1 - ambient) cos): the light at the camera plus ambient.
     const float shade_ambient = 255.0F * config_.ambient;
@@ -500,13 +499,13 @@ void Renderer::shadeTile(const PixelRect& tile, const TileHit* hits, RenderedVie
                 view->colour(u, v) = Rgb8{};
                 continue;
             }
-            const size_t i = static_cast<size_t>(v) * w + u;
             const TileHit& hit = hits[(v - tile.v0) * tile_w + (u - tile.u0)];
             const float cosv = view->cos_view(u, v);
-            // Footprint of the pixel on the surface: range / (f cos), range = t |d_C|, with cos
-            // clamped so that grazing views stay finite.
-            const double footprint_m =
-                hit.t * inv_focal / (inv_norm_[i] * std::max(static_cast<double>(cosv), 0.1));
+            // Footprint of the pixel on the surface, its longer side: z / (f cos(view angle))
+            // (a pixel spans cos(a) / f radians across at angle a off the axis, at range z /
+            // cos(a), stretched by 1 / cos on the surface); cos clamped so grazing views stay
+            // finite.
+            const double footprint_m = hit.t * inv_focal / std::max(static_cast<double>(cosv), 0.1);
             const Colour rho = textures_.albedo(label, hit.p_W, hit.normal_W, footprint_m);
             const float light = shade_ambient + shade_direct * cosv;
             auto level = [&](float r) {
