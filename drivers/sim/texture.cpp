@@ -77,7 +77,9 @@ float smoothStep(float edge0, float edge1, float x) {
 
 Colour lerp(const Colour& a, const Colour& b, float t) { return a + t * (b - a); }
 
-Colour clampColour(const Colour& c) { return c.cwiseMax(0.0F).cwiseMin(1.0F); }
+float clamp01(float x) { return std::min(std::max(x, 0.0F), 1.0F); }
+
+Colour clampColour(const Colour& c) { return {clamp01(c.x()), clamp01(c.y()), clamp01(c.z())}; }
 
 // Colour with every channel drawn from [lo, hi).
 Colour randomColour(uint64_t seed, uint64_t a, uint64_t b, double lo, double hi) {
@@ -305,8 +307,13 @@ inline float SurfaceTextures::noise(const FractalNoise& n, double x, double y, d
 SurfaceTextures::MipMap SurfaceTextures::makeMipMap(const FractalNoise& n, double width_m,
                                                     double height_m, double texel_m) const {
     MipMap map;
-    map.texel_m = texel_m;
     map.inv_texel_m = 1.0 / texel_m;
+    auto add_level = [&map](std::vector<float> texels, int w, int h, double texel) {
+        const float w_max = static_cast<float>(w) - 1.0001F,
+                    h_max = static_cast<float>(h) - 1.0001F;
+        map.levels.push_back(
+            {std::move(texels), w, h, static_cast<float>(1.0 / texel), w_max, h_max});
+    };
     int w = std::max(2, static_cast<int>(std::ceil(width_m / texel_m)));
     int h = std::max(2, static_cast<int>(std::ceil(height_m / texel_m)));
     std::vector<float> base(static_cast<size_t>(w) * h);
@@ -316,13 +323,11 @@ SurfaceTextures::MipMap SurfaceTextures::makeMipMap(const FractalNoise& n, doubl
                 noise(n, (i + 0.5) * texel_m, (j + 0.5) * texel_m, 0.0);
         }
     }
-    map.width.push_back(w);
-    map.height.push_back(h);
-    map.level.push_back(std::move(base));
+    add_level(std::move(base), w, h, texel_m);
     // Each level averages 2x2 texels of the one below (a lone last row or column averages less);
     // every level keeps at least 2x2 texels (the bilinear read needs a neighbour).
     while (w >= 4 && h >= 4) {
-        const std::vector<float>& fine = map.level.back();
+        const std::vector<float>& fine = map.levels.back().texels;
         const int fw = w, fh = h;
         w = (w + 1) / 2;
         h = (h + 1) / 2;
@@ -342,24 +347,23 @@ SurfaceTextures::MipMap SurfaceTextures::makeMipMap(const FractalNoise& n, doubl
                 coarse[static_cast<size_t>(j) * w + i] = sum / static_cast<float>(count);
             }
         }
-        map.width.push_back(w);
-        map.height.push_back(h);
-        map.level.push_back(std::move(coarse));
+        texel_m *= 2.0;
+        add_level(std::move(coarse), w, h, texel_m);
     }
     return map;
 }
 
-inline float SurfaceTextures::sampleLevel(const MipMap& map, int level, double x, double y) {
-    const int w = map.width[level], h = map.height[level];
-    const double scale = map.inv_texel_m / static_cast<double>(1 << level);
+inline float SurfaceTextures::sampleLevel(const MipLevel& l, double x, double y) {
     // Texel centres at (i + 1/2) texels; outside the centres the edge texels extend (clamped
     // just below the last centre so that texel i0 + 1 exists).
-    const double tx = std::clamp(x * scale - 0.5, 0.0, w - 1.0001);
-    const double ty = std::clamp(y * scale - 0.5, 0.0, h - 1.0001);
+    const float tx =
+        std::min(std::max(static_cast<float>(x) * l.texels_per_m - 0.5F, 0.0F), l.max_x);
+    const float ty =
+        std::min(std::max(static_cast<float>(y) * l.texels_per_m - 0.5F, 0.0F), l.max_y);
     const int i0 = static_cast<int>(tx), j0 = static_cast<int>(ty);
-    const float ax = static_cast<float>(tx - i0), ay = static_cast<float>(ty - j0);
-    const float* row0 = map.level[level].data() + static_cast<size_t>(j0) * w + i0;
-    const float* row1 = row0 + w;
+    const float ax = tx - static_cast<float>(i0), ay = ty - static_cast<float>(j0);
+    const float* row0 = l.texels.data() + static_cast<size_t>(j0) * l.width + i0;
+    const float* row1 = row0 + l.width;
     const float top = row0[0] + ax * (row0[1] - row0[0]);
     const float bottom = row1[0] + ax * (row1[1] - row1[0]);
     return top + ay * (bottom - top);
@@ -368,17 +372,17 @@ inline float SurfaceTextures::sampleLevel(const MipMap& map, int level, double x
 float SurfaceTextures::sampleMipMap(const MipMap& map, double x, double y, double fp) {
     // Level l serves footprints of 2^l to 2^(l+1) texels, blended linearly towards level l + 1.
     double ratio = fp * map.inv_texel_m;
-    if (ratio <= 1.0) return sampleLevel(map, 0, x, y);
-    const int last = static_cast<int>(map.level.size()) - 1;
-    int level = 0;
+    if (ratio <= 1.0) return sampleLevel(map.levels[0], x, y);
+    const size_t last = map.levels.size() - 1;
+    size_t level = 0;
     while (ratio >= 2.0 && level < last) {
         ratio *= 0.5;
         ++level;
     }
-    if (level == last) return sampleLevel(map, last, x, y);
+    if (level == last) return sampleLevel(map.levels[last], x, y);
     const float blend = static_cast<float>(std::min(ratio - 1.0, 1.0));
-    const float a = sampleLevel(map, level, x, y);
-    return a + blend * (sampleLevel(map, level + 1, x, y) - a);
+    const float a = sampleLevel(map.levels[level], x, y);
+    return a + blend * (sampleLevel(map.levels[level + 1], x, y) - a);
 }
 
 Colour SurfaceTextures::pictureAlbedo(const Picture& pic, const FractalNoise& blobs, double s,
@@ -424,7 +428,7 @@ Colour SurfaceTextures::wallAlbedo(const WallTexture& w, const Eigen::Vector3d& 
     const double s = (p_W.head<2>() - w.a).dot(w.dir);
     const double z = p_W.z();
     const float m = sampleMipMap(w.plaster, s, z, fp);
-    Colour out = clampColour(wall_colour_ * std::clamp(1.0F + m, 0.3F, 1.5F));
+    Colour out = clampColour(wall_colour_ * std::min(std::max(1.0F + m, 0.3F), 1.5F));
     for (size_t i = 0; i < w.pictures.size(); ++i) {
         const Picture& pic = w.pictures[i];
         if (s < pic.s_min_m - fp) break;  // sorted by s_min_m

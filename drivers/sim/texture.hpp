@@ -94,11 +94,15 @@ class SurfaceTextures {
     // A scalar field sampled on a grid of texel_m over [0, width * texel_m] x [0, height *
     // texel_m] (texel centres at (i + 1/2) texel_m), with box-filtered mip levels (level l has
     // texels 2^l times as large), read bilinearly and between levels by the footprint.
+    struct MipLevel {
+        std::vector<float> texels;  // row-major, width x height (both >= 2)
+        int width, height;
+        float texels_per_m;  // 1 / texel size
+        float max_x, max_y;  // largest texel coordinate whose right/lower neighbour exists
+    };
     struct MipMap {
-        double texel_m = 0.01;
-        double inv_texel_m = 100.0;
-        std::vector<int> width, height;  // per level
-        std::vector<std::vector<float>> level;
+        double inv_texel_m = 100.0;  // of level 0
+        std::vector<MipLevel> levels;
     };
     struct WallTexture {
         Eigen::Vector2d a, dir;  // start vertex and unit direction
@@ -135,7 +139,7 @@ class SurfaceTextures {
     MipMap makeMipMap(const FractalNoise& n, double width_m, double height_m, double texel_m) const;
     // Bilinear read of the level whose texels match footprint fp, blended with the next.
     static float sampleMipMap(const MipMap& map, double x, double y, double fp);
-    static float sampleLevel(const MipMap& map, int level, double x, double y);
+    static float sampleLevel(const MipLevel& level, double x, double y);
 
     Colour wallAlbedo(const WallTexture& w, const Eigen::Vector3d& p_W, double fp) const;
     // The wall colour `wall` at (s, z) with the picture over it (frame and pattern).
