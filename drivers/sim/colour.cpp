@@ -6,6 +6,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 #include "drivers/sim/noise.hpp"
@@ -26,16 +27,6 @@ inline uint64_t mix64(uint64_t x) {
     x = (x ^ (x >> 27)) * 0x94D049BB133111EBULL;
     return x ^ (x >> 31);
 }
-
-// A standard normal from 21 random bits: 12 select the inverse-CDF bin, 9 interpolate in it
-// (the standardNormalFromBits table).
-inline float normalFrom21Bits(const float* table, uint64_t bits) {
-    const uint32_t bin = static_cast<uint32_t>(bits >> 9) & 0xFFFU;
-    const float frac = static_cast<float>(bits & 0x1FFU) * (1.0F / 512.0F);
-    return table[bin] + frac * (table[bin + 1] - table[bin]);
-}
-
-inline uint8_t toLevel(float x) { return static_cast<uint8_t>(std::clamp(x, 0.0F, 255.0F) + 0.5F); }
 
 // Standard normal of drift lattice frame j.
 double latticeNormal(uint64_t seed, int64_t j) {
@@ -88,22 +79,39 @@ double exposureGain(const ColourConfig& config, uint64_t seed, uint64_t frame_in
     return gain;
 }
 
-void applyColourNoise(const ColourImage& clean, const ColourConfig& config, uint64_t seed,
-                      uint64_t frame_index, ColourImage* out) {
-    PLUMB_CHECK(out != &clean) << "applyColourNoise: out aliases the clean image";
+ColourNoiseModel::ColourNoiseModel(const ColourConfig& config) : config_(config) {
+    const Status valid = validateColourConfig(config);
+    PLUMB_CHECK(valid.isOk()) << valid.message();
+    // Quantile j of N(0, 1) at probability (j + 1/2) / kQuantiles, from the shared table.
+    noise_levels_.resize(kQuantiles);
+    for (int j = 0; j < kQuantiles; ++j) {
+        const uint32_t bits = (static_cast<uint32_t>(j) << 20) | 0x80000U;
+        noise_levels_[j] = static_cast<int16_t>(
+            std::lround(config.noise_std_levels * standardNormalFromBits(bits)));
+    }
+}
+
+void ColourNoiseModel::apply(const ColourImage& clean, uint64_t seed, uint64_t frame_index,
+                             ColourImage* out) const {
+    PLUMB_CHECK(out != &clean) << "ColourNoiseModel::apply: out aliases the clean image";
     const int w = clean.width();
     const int h = clean.height();
     if (out->width() != w || out->height() != h || out->size() != clean.size()) {
         *out = ColourImage(w, h);
     }
-    const float gain = static_cast<float>(exposureGain(config, seed, frame_index));
-    const float sigma = static_cast<float>(config.noise_std_levels);
-    if (sigma == 0.0F && gain == 1.0F) {
+    const double exposure = gain(seed, frame_index);
+    if (config_.noise_std_levels == 0.0 && exposure == 1.0) {
         std::copy(clean.pixels().begin(), clean.pixels().end(), out->pixels().begin());
         return;
     }
+    // round(gain * c) for every 8-bit level c (clamped later, with the noise added).
+    std::array<int16_t, 256> exposed;
+    for (int c = 0; c < 256; ++c) {
+        exposed[c] = static_cast<int16_t>(std::min(4096L, std::lround(exposure * c)));
+    }
     const uint64_t frame_key = mixSeed(mixSeed(seed ^ kPixelNoiseSalt) ^ frame_index);
-    const float* table = standardNormalTable();
+    const int16_t* noise = noise_levels_.data();
+    auto level = [](int x) { return static_cast<uint8_t>(std::clamp(x, 0, 255)); };
     tbb::parallel_for(tbb::blocked_range<int>(0, h, kRowsPerTask),
                       [&](const tbb::blocked_range<int>& rows) {
                           for (int v = rows.begin(); v < rows.end(); ++v) {
@@ -111,14 +119,11 @@ void applyColourNoise(const ColourImage& clean, const ColourConfig& config, uint
                               Rgb8* o = &(*out)(0, v);
                               uint64_t i = static_cast<uint64_t>(v) * w;
                               for (int u = 0; u < w; ++u, ++i) {
-                                  // 63 bits of pixel i's hash: 21 per channel.
+                                  // 12 bits of pixel i's hash per channel.
                                   const uint64_t bits = mix64(frame_key + i * kGolden);
-                                  const float nr = normalFrom21Bits(table, bits);
-                                  const float ng = normalFrom21Bits(table, bits >> 21);
-                                  const float nb = normalFrom21Bits(table, bits >> 42);
-                                  o[u].r = toLevel(gain * in[u].r + sigma * nr);
-                                  o[u].g = toLevel(gain * in[u].g + sigma * ng);
-                                  o[u].b = toLevel(gain * in[u].b + sigma * nb);
+                                  o[u].r = level(exposed[in[u].r] + noise[bits & 0xFFFU]);
+                                  o[u].g = level(exposed[in[u].g] + noise[(bits >> 12) & 0xFFFU]);
+                                  o[u].b = level(exposed[in[u].b] + noise[(bits >> 24) & 0xFFFU]);
                               }
                           }
                       });

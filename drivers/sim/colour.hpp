@@ -45,11 +45,31 @@ struct ColourConfig {
 /// every k, not only at the lattice frames) that varies smoothly over exposure_period_frames.
 double exposureGain(const ColourConfig& config, uint64_t seed, uint64_t frame_index);
 
-/// The camera's image of frame `frame_index`: out = clamp(round(gain * clean + n), 0, 255) per
-/// channel, n ~ N(0, noise_std_levels^2), gain = exposureGain(). `out` is resized as needed (a
-/// buffer of the right size is reused) and must not alias `clean`. Uses TBB over rows.
-void applyColourNoise(const ColourImage& clean, const ColourConfig& config, uint64_t seed,
-                      uint64_t frame_index, ColourImage* out);
+/// The colour camera's noise and exposure. Immutable; apply() is thread-safe.
+class ColourNoiseModel {
+  public:
+    /// `config` must pass validateColourConfig (PLUMB_CHECK).
+    explicit ColourNoiseModel(const ColourConfig& config);
+
+    /// The camera's image of frame `frame_index`, per channel
+    ///   out = clamp(round(gain * clean) + round(noise_std_levels * z), 0, 255),
+    /// gain = exposureGain(), z a standard normal drawn from 12 bits of a hash of (seed, frame,
+    /// pixel) by its quantiles (4096 equally likely values, tails at 3.5 sigma). `out` is resized
+    /// as needed (a buffer of the right size is reused) and must not alias `clean`. TBB over
+    /// rows; the result does not depend on the thread count.
+    void apply(const ColourImage& clean, uint64_t seed, uint64_t frame_index,
+               ColourImage* out) const;
+
+    double gain(uint64_t seed, uint64_t frame_index) const {
+        return exposureGain(config_, seed, frame_index);
+    }
+    const ColourConfig& config() const { return config_; }
+
+  private:
+    static constexpr int kQuantiles = 4096;
+    ColourConfig config_;
+    std::vector<int16_t> noise_levels_;  // round(noise_std_levels * z_j), j < kQuantiles
+};
 
 /// Checks a colour configuration: finite, non-negative noise and drift, a positive period,
 /// positive finite jump factors. Errors name the field.

@@ -384,7 +384,8 @@ void Renderer::render(const Eigen::Isometry3d& T_W_C, RenderedView* view) const 
     fitImage(w, h, &view->cos_view);
     fitImage(w, h, &view->label);
     fitImage(w, h, &view->gray);
-    if (config_.colour) {
+    const bool colour = config_.colour;
+    if (colour) {
         fitImage(w, h, &view->colour);
     } else {
         view->colour = ColourImage();
@@ -412,6 +413,7 @@ void Renderer::render(const Eigen::Isometry3d& T_W_C, RenderedView* view) const 
     const int tiles_y = (h + kTilePx - 1) / kTilePx;
     tbb::parallel_for(tbb::blocked_range<int>(0, tiles_y), [&](const tbb::blocked_range<int>& ty) {
         std::vector<int> walls, boxes, cylinders;
+        std::array<TileHit, kTilePx * kTilePx> hits;
         // Ascending indices of the primitives whose rectangle overlaps the tile.
         auto gather = [](const std::vector<PixelRect>& all, const PixelRect& tile,
                          std::vector<int>* out) {
@@ -433,7 +435,8 @@ void Renderer::render(const Eigen::Isometry3d& T_W_C, RenderedView* view) const 
                 const RayCaster::Candidates candidates{walls.data(),     walls.size(),
                                                        boxes.data(),     boxes.size(),
                                                        cylinders.data(), cylinders.size()};
-                renderTile(R, terms, candidates, tile, view);
+                renderTile(R, terms, candidates, tile, view, colour ? hits.data() : nullptr);
+                if (colour) shadeTile(tile, hits.data(), view);
             }
         }
     });
@@ -441,28 +444,26 @@ void Renderer::render(const Eigen::Isometry3d& T_W_C, RenderedView* view) const 
 
 void Renderer::renderTile(const Eigen::Matrix3d& R, const RayCaster::OriginTerms& terms,
                           const RayCaster::Candidates& candidates, const PixelRect& tile,
-                          RenderedView* view) const {
+                          RenderedView* view, TileHit* hits) const {
     const int w = camera_.width;
     const Scene& scene = caster_.scene();
     const int num_walls = scene.numWalls();
     const int num_boxes = static_cast<int>(scene.boxes.size());
-    const bool colour = config_.colour;
-    // Colour shading: 255 (ambient + (1 - ambient) cos); footprint of a pixel on the surface:
-    // range / (f cos), cos clamped so grazing views stay finite.
-    const float shade_ambient = 255.0F * config_.ambient;
-    const float shade_direct = 255.0F * (1.0F - config_.ambient);
-    const double inv_focal = 2.0 / (camera_.fx + camera_.fy);
+    const int tile_w = tile.u1 - tile.u0 + 1;
     for (int v = tile.v0; v <= tile.v1; ++v) {
         for (int u = tile.u0; u <= tile.u1; ++u) {
             const size_t i = static_cast<size_t>(v) * w + u;
             const Eigen::Vector3d d = R * rays_C_[i];
             const RayHit hit = caster_.cast(terms, d, candidates);
+            if (hits != nullptr) {
+                hits[(v - tile.v0) * tile_w + (u - tile.u0)] = {hit.t, terms.o + hit.t * d,
+                                                                hit.normal_W};
+            }
             if (hit.label == kNoPrimitive) {
                 view->depth(u, v) = 0.0F;
                 view->cos_view(u, v) = 0.0F;
                 view->label(u, v) = static_cast<int16_t>(kNoPrimitive);
                 view->gray(u, v) = 0;
-                if (colour) view->colour(u, v) = Rgb8{};
                 continue;
             }
             const double cosv = std::abs(hit.normal_W.dot(d)) * inv_norm_[i];
@@ -481,16 +482,36 @@ void Renderer::renderTile(const Eigen::Matrix3d& R, const RayCaster::OriginTerms
             }
             const float shade = 20.0F + 235.0F * albedo * static_cast<float>(cosv);
             view->gray(u, v) = static_cast<uint8_t>(std::min(255.0F, shade));
-            if (colour) {
-                const Eigen::Vector3d p_W = terms.o + hit.t * d;
-                const double footprint_m = hit.t / inv_norm_[i] * inv_focal / std::max(cosv, 0.1);
-                const Colour rho = textures_.albedo(hit.label, p_W, hit.normal_W, footprint_m);
-                const float light = shade_ambient + shade_direct * static_cast<float>(cosv);
-                auto level = [&](float r) {
-                    return static_cast<uint8_t>(std::min(255.0F, r * light) + 0.5F);
-                };
-                view->colour(u, v) = Rgb8{level(rho.x()), level(rho.y()), level(rho.z())};
+        }
+    }
+}
+
+void Renderer::shadeTile(const PixelRect& tile, const TileHit* hits, RenderedView* view) const {
+    const int tile_w = tile.u1 - tile.u0 + 1;
+    // 255 (ambient + (1 - ambient) cos): the light at the camera plus ambient.
+    const float shade_ambient = 255.0F * config_.ambient;
+    const float shade_direct = 255.0F * (1.0F - config_.ambient);
+    const double inv_focal = 2.0 / (camera_.fx + camera_.fy);
+    for (int v = tile.v0; v <= tile.v1; ++v) {
+        for (int u = tile.u0; u <= tile.u1; ++u) {
+            const int label = view->label(u, v);
+            if (label == kNoPrimitive) {
+                view->colour(u, v) = Rgb8{};
+                continue;
             }
+            const TileHit& hit = hits[(v - tile.v0) * tile_w + (u - tile.u0)];
+            const float cosv = view->cos_view(u, v);
+            // Footprint of the pixel on the surface, its longer side: z / (f cos(view angle))
+            // (a pixel spans cos(a) / f radians across at angle a off the axis, at range z /
+            // cos(a), stretched by 1 / cos on the surface); cos clamped so grazing views stay
+            // finite.
+            const double footprint_m = hit.t * inv_focal / std::max(static_cast<double>(cosv), 0.1);
+            const Colour rho = textures_.albedo(label, hit.p_W, hit.normal_W, footprint_m);
+            const float light = shade_ambient + shade_direct * cosv;
+            auto level = [&](float r) {
+                return static_cast<uint8_t>(std::min(255.0F, r * light) + 0.5F);
+            };
+            view->colour(u, v) = Rgb8{level(rho.x()), level(rho.y()), level(rho.z())};
         }
     }
 }

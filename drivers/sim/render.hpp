@@ -141,9 +141,19 @@ class Renderer {
         int num_corners;
     };
     PixelRect projectedRect(const Hull& hull, const Eigen::Isometry3d& T_C_W, double dist_m) const;
+    // What the colour pass needs of one pixel's ray hit (t = 0 where nothing is hit).
+    struct TileHit {
+        double t;
+        Eigen::Vector3d p_W;  // the hit point
+        Eigen::Vector3d normal_W;
+    };
+    // Ray casts the tile's pixels into depth, cos_view, label and gray, and records each pixel's
+    // hit in `hits` (row-major over the tile) when it is not null.
     void renderTile(const Eigen::Matrix3d& R_W_C, const RayCaster::OriginTerms& terms,
                     const RayCaster::Candidates& candidates, const PixelRect& tile,
-                    RenderedView* view) const;
+                    RenderedView* view, TileHit* hits) const;
+    // The colour of the tile's pixels from their hits and the labels and cosines renderTile wrote.
+    void shadeTile(const PixelRect& tile, const TileHit* hits, RenderedView* view) const;
 
     RayCaster caster_;
     SurfaceTextures textures_;

@@ -115,6 +115,7 @@ Result<std::unique_ptr<SimSource>> SimSource::create(const SimConfig& config) {
     source->renderer_ = std::make_unique<Renderer>(*scene, config.camera, render_config);
     source->noise_ = std::make_unique<DepthNoiseModel>(config.noise, std::move(table),
                                                        config.camera.cx, config.camera.cy);
+    source->colour_noise_ = std::make_unique<ColourNoiseModel>(config.colour);
     return source;
 }
 
@@ -136,8 +137,8 @@ Status SimSource::render(size_t k, SimFrame* out) const {
     noise_->apply(out->view.depth, out->view.cos_view, config_.seed, k, &out->frame.depth);
     out->frame.gray = out->view.gray;  // copy-assignment reuses the buffer
     if (config_.colour.enabled) {
-        out->exposure_gain = exposureGain(config_.colour, config_.seed, k);
-        applyColourNoise(out->view.colour, config_.colour, config_.seed, k, &out->frame.colour);
+        out->exposure_gain = colour_noise_->gain(config_.seed, k);
+        colour_noise_->apply(out->view.colour, config_.seed, k, &out->frame.colour);
     } else {
         out->exposure_gain = 1.0;
         out->frame.colour = ColourImage();

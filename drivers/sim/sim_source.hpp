@@ -78,6 +78,7 @@ class SimSource final : public FrameSource {
     SimConfig config_;
     std::unique_ptr<Renderer> renderer_;
     std::unique_ptr<DepthNoiseModel> noise_;
+    std::unique_ptr<ColourNoiseModel> colour_noise_;
     io::Trajectory trajectory_;
     std::string noise_source_;
     size_t next_ = 0;

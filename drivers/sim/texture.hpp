@@ -22,7 +22,7 @@
 // octaves faded), so distant and grazing views neither alias nor speckle.
 
 #include <Eigen/Core>
-#include <array>
+#include <algorithm>
 #include <cstdint>
 #include <vector>
 
@@ -39,8 +39,9 @@ struct Picture {
     double z_max_m = 0.0;
     double frame_m = 0.03;  ///< width of the frame around the pattern
     Kind kind = Kind::kChecker;
-    double scale_m = 0.06;   ///< checker square, stripe period or blob cell
-    double angle_rad = 0.0;  ///< stripes: direction of the stripe normal from the s axis
+    double scale_m = 0.06;  ///< checker square, stripe period or blob cell
+    /// Stripes: unit normal of the stripes in (s, z).
+    Eigen::Vector2d stripe_normal = Eigen::Vector2d::UnitX();
     Colour light = Colour::Ones();
     Colour dark = Colour::Zero();
     Colour frame = Colour::Zero();
@@ -56,7 +57,21 @@ class SurfaceTextures {
     /// footprint on the surface, metres: detail finer than it is averaged out. A pure function of
     /// (scene, label, p_W, normal_W, footprint_m).
     Colour albedo(int label, const Eigen::Vector3d& p_W, const Eigen::Vector3d& normal_W,
-                  double footprint_m) const;
+                  double footprint_m) const {
+        // Inline: the dispatch runs once per pixel of every colour frame.
+        const double fp = std::max(footprint_m, kMinFootprintM);
+        const bool plain = mode_ == TextureMode::kPlain;
+        if (label == floorLabel()) return plain ? floor_colour_ : floorAlbedo(p_W, fp);
+        if (label == ceilingLabel()) return plain ? ceiling_colour_ : ceilingAlbedo(p_W, fp);
+        const int wall = label - 2;
+        if (wall < num_walls_) return plain ? wall_colour_ : wallAlbedo(walls_[wall], p_W, fp);
+        const size_t box = static_cast<size_t>(wall - num_walls_);
+        if (box < boxes_.size()) {
+            return plain ? boxes_[box].colour : boxAlbedo(boxes_[box], p_W, normal_W, fp);
+        }
+        const CylinderTexture& c = cylinders_[box - boxes_.size()];
+        return plain ? c.colour : cylinderAlbedo(c, p_W, normal_W, fp);
+    }
 
     /// The pictures on wall k (empty for a plain scene).
     const std::vector<Picture>& pictures(int wall) const { return walls_[wall].pictures; }
@@ -65,21 +80,42 @@ class SurfaceTextures {
     static constexpr int kNoiseSize = 64;
 
   private:
-    static constexpr int kMaxOctaves = 4;
-    struct Octaves {  // lattice offsets of one surface's noise octaves (decorrelates surfaces)
-        std::array<float, 2 * kMaxOctaves> offset;
+    // Smallest footprint used by the filters (they divide by it), metres.
+    static constexpr double kMinFootprintM = 1e-6;
+    // Up to four value-noise octaves evaluated together, one SIMD lane each: lane o reads the
+    // lattice at (m00 x + m01 y + ox, m10 x + m11 y + oy) for surface coordinates (x, y) in
+    // metres, i.e. its own rotation, 1 / cell scaling and offset (which decorrelates surfaces).
+    struct FractalNoise {
+        Eigen::Array4f m00, m01, m10, m11, ox, oy;
+        Eigen::Array4f inv_cell;   // 1 / cell (the smaller side), 1/m: the footprint fade
+        Eigen::Array4f amplitude;  // 0 in unused lanes
+        int octaves;               // lanes in use
+    };
+    // A scalar field sampled on a grid of texel_m over [0, width * texel_m] x [0, height *
+    // texel_m] (texel centres at (i + 1/2) texel_m), with box-filtered mip levels (level l has
+    // texels 2^l times as large), read bilinearly and between levels by the footprint.
+    struct MipLevel {
+        std::vector<float> texels;  // row-major, width x height (both >= 2)
+        int width, height;
+        float texels_per_m;  // 1 / texel size
+        float max_x, max_y;  // largest texel coordinate whose right/lower neighbour exists
+    };
+    struct MipMap {
+        double inv_texel_m = 100.0;  // of level 0
+        std::vector<MipLevel> levels;
     };
     struct WallTexture {
         Eigen::Vector2d a, dir;  // start vertex and unit direction
-        Octaves octaves;
+        MipMap plaster;          // the plaster's noise over (s, z)
         std::vector<Picture> pictures;
+        std::vector<FractalNoise> blobs;  // per picture (used by Kind::kBlobs)
     };
     struct BoxTexture {
         Eigen::Vector3d center;
         double c, s;  // cos, sin of yaw
         Colour colour;
         FurniturePattern pattern;
-        Octaves octaves;
+        FractalNoise noise;
     };
     struct CylinderTexture {
         Eigen::Vector2d center;
@@ -87,25 +123,33 @@ class SurfaceTextures {
         double checker_cell;  // arc length of a checker square: a whole number fits around
         Colour colour;
         FurniturePattern pattern;
-        Octaves octaves;
+        FractalNoise noise;
     };
 
-    Octaves makeOctaves(uint64_t salt) const;
-    float valueNoise(float x, float y) const;
-    // Sum of `octaves` value-noise octaves of (x, y) metres: cells cell_m, cell_m / 2, ...,
-    // amplitudes amplitude, amplitude * persistence, ...; octaves whose cell is below 4x the
-    // footprint fade out (gone at 2x). Zero mean.
-    float fractalNoise(double x, double y, const Octaves& oct, double cell_m, int octaves,
-                       float amplitude, float persistence, double footprint_m) const;
+    // Octaves of cells cell_m, cell_m / 2, ... (at most 4) with amplitudes amplitude,
+    // amplitude * persistence, ...; each lattice turned by its own angle when `rotate`, cells
+    // stretched by `stretch_x` along x. Offsets drawn from (texture seed, salt).
+    FractalNoise makeNoise(uint64_t salt, double cell_m, int octaves, float amplitude,
+                           float persistence, bool rotate = true, double stretch_x = 1.0) const;
+    // Zero-mean sum of the octaves at (x, y) metres; octaves whose cell is below 4 footprints
+    // fade out (gone at 2).
+    float noise(const FractalNoise& n, double x, double y, double fp) const;
+    // The noise `n` (evaluated without fading) on a grid of `texel_m` over [0, width_m] x
+    // [0, height_m], with its mip levels.
+    MipMap makeMipMap(const FractalNoise& n, double width_m, double height_m, double texel_m) const;
+    // Bilinear read of the level whose texels match footprint fp, blended with the next.
+    static float sampleMipMap(const MipMap& map, double x, double y, double fp);
+    static float sampleLevel(const MipLevel& level, double x, double y);
 
     Colour wallAlbedo(const WallTexture& w, const Eigen::Vector3d& p_W, double fp) const;
     // The wall colour `wall` at (s, z) with the picture over it (frame and pattern).
-    Colour pictureAlbedo(const Picture& pic, const Octaves& oct, double s, double z, double fp,
-                         const Colour& wall) const;
+    Colour pictureAlbedo(const Picture& pic, const FractalNoise& blobs, double s, double z,
+                         double fp, const Colour& wall) const;
     Colour floorAlbedo(const Eigen::Vector3d& p_W, double fp) const;
     Colour ceilingAlbedo(const Eigen::Vector3d& p_W, double fp) const;
-    Colour furnitureAlbedo(const Colour& colour, FurniturePattern pattern, const Octaves& oct,
-                           double u, double v, double checker_u_cell, double fp) const;
+    Colour furnitureAlbedo(const Colour& colour, FurniturePattern pattern,
+                           const FractalNoise& noise, double u, double v, double checker_u_cell,
+                           double fp) const;
     Colour boxAlbedo(const BoxTexture& b, const Eigen::Vector3d& p_W,
                      const Eigen::Vector3d& normal_W, double fp) const;
     Colour cylinderAlbedo(const CylinderTexture& c, const Eigen::Vector3d& p_W,
@@ -116,7 +160,7 @@ class SurfaceTextures {
     uint64_t seed_;
     Colour wall_colour_, floor_colour_, ceiling_colour_;
     FloorPattern floor_pattern_;
-    Octaves floor_octaves_, ceiling_octaves_;
+    FractalNoise plank_grain_, tile_mottle_, ceiling_noise_;
     std::vector<WallTexture> walls_;
     std::vector<BoxTexture> boxes_;
     std::vector<CylinderTexture> cylinders_;

@@ -53,11 +53,11 @@ TEST(PlumbSimCli, SameSeedGivesByteIdenticalFolders) {
         differ_c += slurp(entry.path()) != slurp(c / rel);
         ++files;
     }
-    // 10 x (depth, depth_clean, gray) + depth.txt, groundtruth.txt, trajectory.log,
-    // intrinsics.json, gt_points.ply, layout.json, sim.json.
-    EXPECT_EQ(files, 10U * 3 + 7);
+    // 10 x (depth, depth_clean, gray, rgb) + depth.txt, rgb.txt, groundtruth.txt,
+    // trajectory.log, intrinsics.json, gt_points.ply, layout.json, sim.json.
+    EXPECT_EQ(files, 10U * 4 + 8);
     // Another seed: other noise and hand shake, so nearly every file changes.
-    EXPECT_GT(differ_c, 10U * 3);
+    EXPECT_GT(differ_c, 10U * 4);
 }
 
 TEST(PlumbSimCli, NoLoopTomlSceneReloadsWithGroundTruth) {
@@ -110,6 +110,48 @@ TEST(PlumbSimCli, NoLoopTomlSceneReloadsWithGroundTruth) {
     EXPECT_NE(slurp(out / "layout.json").find("\"ceiling_height_m\": 2.7"), std::string::npos);
 }
 
+TEST(PlumbSimCli, ColourOptions) {
+    const fs::path logs = testing::freshTempDir("plumb_sim_cli_colour_logs");
+    const fs::path textured = testing::freshTempDir("plumb_sim_cli_textured");
+    const fs::path plain = testing::freshTempDir("plumb_sim_cli_plain");
+    const fs::path none = testing::freshTempDir("plumb_sim_cli_no_rgb");
+    ProcessRun run = plumbSim(logs, smallArgs("living_room", textured, "3"));
+    ASSERT_EQ(run.exit_code, 0) << run.err;
+    EXPECT_NE(run.out.find("colour textured"), std::string::npos) << run.out;
+    std::vector<std::string> args = smallArgs("living_room", plain, "3");
+    for (const char* a : {"--texture", "plain", "--rgb-noise", "0", "--exposure-jump", "4:0.5",
+                          "--exposure-std", "0.1", "--exposure-period", "30"}) {
+        args.push_back(a);
+    }
+    run = plumbSim(logs, args);
+    ASSERT_EQ(run.exit_code, 0) << run.err;
+    EXPECT_NE(run.out.find("colour plain"), std::string::npos) << run.out;
+    // The depth does not depend on the colour settings; the colour and sim.json do.
+    EXPECT_EQ(slurp(textured / "depth/00005.png"), slurp(plain / "depth/00005.png"));
+    EXPECT_NE(slurp(textured / "rgb/00005.png"), slurp(plain / "rgb/00005.png"));
+    const std::string meta = slurp(plain / "sim.json");
+    for (const char* key :
+         {"\"texture\": \"plain\"", "\"noise_std_levels\": 0.0", "\"exposure_log_std\": 0.1",
+          "\"exposure_period_frames\": 30.0", "\"frame\": 4", "\"factor\": 0.5"}) {
+        EXPECT_NE(meta.find(key), std::string::npos) << key << " not in\n" << meta;
+    }
+    args = smallArgs("living_room", none, "3");
+    args.push_back("--no-rgb");
+    run = plumbSim(logs, args);
+    ASSERT_EQ(run.exit_code, 0) << run.err;
+    EXPECT_NE(run.out.find("colour off"), std::string::npos) << run.out;
+    EXPECT_FALSE(fs::exists(none / "rgb"));
+    EXPECT_FALSE(fs::exists(none / "rgb.txt"));
+    EXPECT_EQ(slurp(textured / "depth/00005.png"), slurp(none / "depth/00005.png"));
+    // Every colour option is in --help.
+    run = plumbSim(logs, {"--help"});
+    EXPECT_EQ(run.exit_code, 0);
+    for (const char* option : {"--texture", "--rgb-noise", "--exposure-std", "--exposure-period",
+                               "--exposure-jump", "--no-rgb", "rgb.txt"}) {
+        EXPECT_NE(run.out.find(option), std::string::npos) << option;
+    }
+}
+
 TEST(PlumbSimCli, BadInputGetsSpecificErrors) {
     const fs::path logs = testing::freshTempDir("plumb_sim_cli_bad");
     ProcessRun run = plumbSim(logs, {"no_such_room", "--out", (logs / "x").string()});
@@ -124,6 +166,26 @@ TEST(PlumbSimCli, BadInputGetsSpecificErrors) {
     run = plumbSim(logs, {"living_room"});
     EXPECT_EQ(run.exit_code, 2);
     EXPECT_NE(run.err.find("--out"), std::string::npos) << run.err;
+    run = plumbSim(logs, {"living_room", "--texture", "shiny", "--out", (logs / "x").string()});
+    EXPECT_EQ(run.exit_code, 2);
+    EXPECT_NE(run.err.find("shiny"), std::string::npos) << run.err;
+    for (const char* jump : {"5", "5:0", "x:2", "5:-1"}) {
+        run = plumbSim(logs,
+                       {"living_room", "--exposure-jump", jump, "--out", (logs / "x").string()});
+        EXPECT_EQ(run.exit_code, 2) << jump;
+        EXPECT_NE(run.err.find("--exposure-jump"), std::string::npos) << run.err;
+    }
+    run = plumbSim(logs, {"living_room", "--rgb-noise", "-1", "--out", (logs / "x").string()});
+    EXPECT_EQ(run.exit_code, 2);
+    EXPECT_NE(run.err.find("--rgb-noise"), std::string::npos) << run.err;
+    // A scene file with an unknown texture names the file, the line and the key.
+    const fs::path scene = logs / "shiny.toml";
+    std::ofstream(scene) << "height_m = 2.5\npolygon = [[0, 0], [4, 0], [4, 3], [0, 3]]\n"
+                            "texture = \"shiny\"\n";
+    run = plumbSim(logs, {scene.string(), "--out", (logs / "x").string()});
+    EXPECT_EQ(run.exit_code, 1);
+    EXPECT_NE(run.err.find("shiny.toml:3"), std::string::npos) << run.err;
+    EXPECT_NE(run.err.find("'texture'"), std::string::npos) << run.err;
     // A trajectory that leaves the room names the pose.
     const fs::path traj = logs / "outside.txt";
     std::ofstream(traj) << "0 1 1 1.4 0 0 0 1\n0.033 50 1 1.4 0 0 0 1\n";

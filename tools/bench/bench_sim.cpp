@@ -3,8 +3,11 @@
 // full noise pipeline on (issue 3 asks for >= 60 frames/s on 2 cores to drive a live scan).
 //
 // For every built-in scene it renders `--frames` poses of the loop trajectory and reports
-//   - render: exact ray casting of the clean depth, view-angle cosines, labels, grey image;
+//   - render: exact ray casting of the clean depth, view-angle cosines, labels, grey image and
+//             the textured colour image;
+//   - depth only: the same render without the colour image (what colour costs: the difference);
 //   - noise:  the Redwood pipeline with the measured distortion table plus missing data;
+//   - colour noise: the colour camera's exposure and per-channel noise;
 //   - total:  SimSource::next(), i.e. what the `sim:<scene>` frame source costs per frame (the
 //             clean render's buffers are reused; the delivered frame is fresh and dropped);
 //   - fresh:  SimSource::render(k), a new SimFrame (clean view + frame) allocated every call.
@@ -28,6 +31,7 @@
 #include <string>
 #include <vector>
 
+#include "drivers/sim/colour.hpp"
 #include "drivers/sim/noise.hpp"
 #include "drivers/sim/render.hpp"
 #include "drivers/sim/sim_source.hpp"
@@ -57,7 +61,9 @@ double cpuSeconds() {
 struct SceneResult {
     std::string scene;
     double render_fps = 0.0;
+    double render_depth_only_fps = 0.0;  ///< render without the colour image
     double noise_fps = 0.0;
+    double colour_noise_fps = 0.0;
     double total_fps = 0.0;
     double total_cpu_ms = 0.0;  ///< CPU time per frame, all threads
     double fresh_fps = 0.0;     ///< SimSource::render(k) into a new SimFrame each call
@@ -106,8 +112,9 @@ int main(int argc, char** argv) {
 
     std::printf("plumb-bench-sim: 640x480, %zu frames per scene, %d threads, noise %s\n", frames,
                 threads, have_table ? "redwood (distortion table) + missing data" : "parametric");
-    std::printf("%-16s %12s %12s %12s %14s %12s %8s\n", "scene", "render fps", "noise fps",
-                "total fps", "total cpu ms", "fresh fps", "valid");
+    std::printf("%-16s %12s %12s %12s %12s %12s %14s %12s %8s\n", "scene", "render fps",
+                "depth-only", "noise fps", "rgb noise", "total fps", "total cpu ms", "fresh fps",
+                "valid");
 
     std::vector<SceneResult> results;
     std::vector<DepthImage> clean_for_peer;  // living_room clean renders, for the peer
@@ -132,20 +139,32 @@ int main(int argc, char** argv) {
         std::optional<sim::DistortionTable> table;
         if (have_table) table = *sim::DistortionTable::load(*model_path);
         const sim::Renderer renderer(src.scene(), config.camera);
+        sim::RenderConfig depth_only_config;
+        depth_only_config.colour = false;
+        const sim::Renderer depth_only(src.scene(), config.camera, depth_only_config);
         const sim::DepthNoiseModel noise(config.noise, std::move(table), config.camera.cx,
                                          config.camera.cy);
-        sim::RenderedView view;
+        const sim::ColourNoiseModel colour_noise(config.colour);
+        sim::RenderedView view, view_depth_only;
         DepthImage noisy;
+        ColourImage noisy_colour;
         renderer.render(src.trajectory()[0].T_W_C, &view);  // warm-up
-        double t_render = 0.0, t_noise = 0.0;
+        depth_only.render(src.trajectory()[0].T_W_C, &view_depth_only);
+        double t_render = 0.0, t_depth_only = 0.0, t_noise = 0.0, t_colour_noise = 0.0;
         size_t valid = 0;
         for (size_t k = 0; k < frames; ++k) {
             auto t0 = Clock::now();
             renderer.render(src.trajectory()[k].T_W_C, &view);
             t_render += secondsSince(t0);
             t0 = Clock::now();
+            depth_only.render(src.trajectory()[k].T_W_C, &view_depth_only);
+            t_depth_only += secondsSince(t0);
+            t0 = Clock::now();
             noise.apply(view.depth, view.cos_view, config.seed, k, &noisy);
             t_noise += secondsSince(t0);
+            t0 = Clock::now();
+            colour_noise.apply(view.colour, config.seed, k, &noisy_colour);
+            t_colour_noise += secondsSince(t0);
             valid += countValid(noisy);
             if (name == "living_room" && k % 3 == 0) clean_for_peer.push_back(view.depth);
         }
@@ -174,13 +193,16 @@ int main(int argc, char** argv) {
         SceneResult r;
         r.scene = name;
         r.render_fps = frames / t_render;
+        r.render_depth_only_fps = frames / t_depth_only;
         r.noise_fps = frames / t_noise;
+        r.colour_noise_fps = frames / t_colour_noise;
         r.total_fps = frames / t_total;
         r.total_cpu_ms = 1000.0 * cpu_total / frames;
         r.fresh_fps = frames / t_fresh;
         r.valid_fraction = static_cast<double>(valid) / (frames * 640.0 * 480.0);
-        std::printf("%-16s %12.1f %12.1f %12.1f %14.1f %12.1f %7.1f%%\n", name.c_str(),
-                    r.render_fps, r.noise_fps, r.total_fps, r.total_cpu_ms, r.fresh_fps,
+        std::printf("%-16s %12.1f %12.1f %12.1f %12.1f %12.1f %14.1f %12.1f %7.1f%%\n",
+                    name.c_str(), r.render_fps, r.render_depth_only_fps, r.noise_fps,
+                    r.colour_noise_fps, r.total_fps, r.total_cpu_ms, r.fresh_fps,
                     100.0 * r.valid_fraction);
         results.push_back(r);
     }
@@ -242,10 +264,11 @@ int main(int argc, char** argv) {
     for (const SceneResult& r : results) {
         if (!scenes_json.empty()) scenes_json += ",";
         scenes_json += fmt::format(
-            "\"{}\":{{\"render_fps\":{:.1f},\"noise_fps\":{:.1f},\"total_fps\":{:.1f},"
+            "\"{}\":{{\"render_fps\":{:.1f},\"render_depth_only_fps\":{:.1f},"
+            "\"noise_fps\":{:.1f},\"colour_noise_fps\":{:.1f},\"total_fps\":{:.1f},"
             "\"cpu_ms\":{:.2f},\"fresh_fps\":{:.1f},\"valid_fraction\":{:.3f}}}",
-            r.scene, r.render_fps, r.noise_fps, r.total_fps, r.total_cpu_ms, r.fresh_fps,
-            r.valid_fraction);
+            r.scene, r.render_fps, r.render_depth_only_fps, r.noise_fps, r.colour_noise_fps,
+            r.total_fps, r.total_cpu_ms, r.fresh_fps, r.valid_fraction);
     }
     fmt::print(
         "{{\"bench\":\"sim\",\"width\":640,\"height\":480,\"threads\":{},\"frames\":{},"
