@@ -89,11 +89,16 @@ namespace {
 struct ColouredAcc {
     Matrix6d H = Matrix6d::Zero();
     Vector6d g = Vector6d::Zero();
-    double err = 0.0;  ///< Σ r_G^2, point-to-plane
+    double err = 0.0;         ///< Σ r_G^2, point-to-plane
+    double colour_err = 0.0;  ///< Σ r_C^2
     int64_t count = 0;
 };
 
 constexpr size_t kChunk = 256;
+
+/// Two consecutive steps that cancel to within this fraction of the latest one are a limit
+/// cycle (see icpColoured).
+constexpr double kCycleRatio = 0.1;
 
 }  // namespace
 
@@ -123,7 +128,8 @@ PairResult icpColoured(const IndexedCloud& source, const std::vector<float>& sou
     const double w_colour = 1.0 - lambda_geometric;  // 1 - δ
     const float max_d2 = static_cast<float>(max_distance_m * max_distance_m);
     Eigen::Isometry3d T = init;
-    double prev_fitness = -1.0, prev_rmse = -1.0;
+    double prev_fitness = -1.0, prev_rmse = -1.0, prev_colour_rmse = -1.0;
+    Vector6d prev_xi = Vector6d::Zero();
     const ColouredAcc zero;
     for (int it = 0; it < max_iterations; ++it) {
         const Eigen::Matrix3f R = T.rotation().cast<float>();
@@ -155,12 +161,14 @@ PairResult icpColoured(const IndexedCloud& source, const std::vector<float>& sou
                 a.g.noalias() += (w_geometric * r_g) * J_g;
                 a.g.noalias() += (w_colour * r_c) * J_c.transpose();
                 a.err += r_g * r_g;
+                a.colour_err += r_c * r_c;
                 ++a.count;
             },
             [](ColouredAcc& total, const ColouredAcc& part) {
                 total.H += part.H;
                 total.g += part.g;
                 total.err += part.err;
+                total.colour_err += part.colour_err;
                 total.count += part.count;
             });
         out.iterations = it + 1;
@@ -174,13 +182,18 @@ PairResult icpColoured(const IndexedCloud& source, const std::vector<float>& sou
         const double rmse = std::sqrt(acc.err / static_cast<double>(acc.count));
         out.overlap = fitness;
         out.inlier_rmse_m = rmse;
+        const double colour_rmse = std::sqrt(acc.colour_err / static_cast<double>(acc.count));
         out.num_correspondences = static_cast<int>(acc.count);
+        // The colour RMSE takes part: a slide along a textured wall changes neither the fitness
+        // nor the point-to-plane RMSE, only the colour term.
         if (it > 0 && std::abs(fitness - prev_fitness) < relative_change &&
-            std::abs(rmse - prev_rmse) < relative_change) {
+            std::abs(rmse - prev_rmse) < relative_change &&
+            std::abs(colour_rmse - prev_colour_rmse) < relative_change) {
             break;
         }
         prev_fitness = fitness;
         prev_rmse = rmse;
+        prev_colour_rmse = colour_rmse;
         // Spread in the units of the point-to-plane one (mean (n·t)^2): the combined translation
         // block over δ and the correspondence count. Without colour it is Σ n n^T / count.
         const Eigen::Matrix3d spread =
@@ -191,6 +204,16 @@ PairResult icpColoured(const IndexedCloud& source, const std::vector<float>& sou
             out.T_source_target = T;
             return out;
         }
+        // Limit cycle: the colour residual of a point jumps when its nearest neighbour changes
+        // (each p has its own tangent-plane model, Eq. (5)), so Gauss-Newton can flip between
+        // two poses whose correspondences favour each other. When this step undoes the last one
+        // (|ξ_k + ξ_k-1| < kCycleRatio |ξ_k|, radians and metres alike), stop half-way between
+        // the two instead of flipping until the iteration cap.
+        if (it > 0 && (xi + prev_xi).norm() < kCycleRatio * xi.norm()) {
+            T = lie::orthonormalized(lie::expSE3(0.5 * xi) * T);
+            break;
+        }
+        prev_xi = xi;
         T = lie::orthonormalized(lie::expSE3(xi) * T);
     }
     out.T_source_target = T;

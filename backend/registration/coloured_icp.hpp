@@ -61,14 +61,16 @@ double colourResidual(const Eigen::Vector3d& p, const Eigen::Vector3d& n_p, doub
 /// left updates T <- Exp(ξ) T. Each correspondence adds δ J_G^T J_G + (1 - δ) J_C^T J_C to the
 /// normal equations (J_G = [(x × n_p)^T, n_p^T], the point-to-plane row of icpPointToPlane).
 /// `source_intensity` / `source_gradient` belong to the source cloud's points,
-/// `target_intensity` to the target's. Stops like icpPointToPlane (fitness and point-to-plane
-/// RMSE change by less than `relative_change`); fitness goes to `overlap`, the point-to-plane
-/// RMSE to `inlier_rmse_m`. Solution remapping as in icpPointToPlane, on the combined system:
-/// a translation t is not solved for when t^T H_tt t / (δ · correspondences) is below
-/// `min_normal_spread`, H_tt the translation block of the normal equations; without colour
-/// (d_p = 0) that is exactly mean (n·t)^2, and texture along a direction the geometry leaves
-/// free makes it solvable. Fails with fewer than 6 correspondences, on a non-finite step, or
-/// when sizes do not match (`lambda_geometric` must lie in (0, 1]).
+/// `target_intensity` to the target's. Stops when fitness, point-to-plane RMSE and colour RMSE
+/// all change by less than `relative_change` (Open3D watches the first two only, which a slide
+/// along a textured wall leaves unchanged); fitness goes to `overlap`, the point-to-plane RMSE to
+/// `inlier_rmse_m`. A step that undoes the previous one (a limit cycle between two sets of
+/// correspondences) ends the level half-way between the two poses. Solution remapping as in
+/// icpPointToPlane, on the combined system: a translation t is not solved for when t^T H_tt t / (δ
+/// · correspondences) is below `min_normal_spread`, H_tt the translation block of the normal
+/// equations; without colour (d_p = 0) that is exactly mean (n·t)^2, and texture along a direction
+/// the geometry leaves free makes it solvable. Fails with fewer than 6 correspondences, on a
+/// non-finite step, or when sizes do not match (`lambda_geometric` must lie in (0, 1]).
 PairResult icpColoured(const IndexedCloud& source, const std::vector<float>& source_intensity,
                        const std::vector<Eigen::Vector3f>& source_gradient,
                        const PointCloud& target, const std::vector<float>& target_intensity,
