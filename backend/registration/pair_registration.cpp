@@ -10,6 +10,7 @@
 #include <random>
 
 #include "backend/registration/cloud_ops.hpp"
+#include "backend/registration/coloured_icp.hpp"
 #include "common/geometry/solution_remapping.hpp"
 
 namespace plumb::registration {
@@ -28,6 +29,21 @@ void describe(config::Schema& s, IcpConfig& c) {
             "translations t with mean (n.t)^2 over the correspondences below this are not solved "
             "for and keep the start (solution remapping; 0 = plain Gauss-Newton)")
         .min(0.0);
+    s.field("colour", c.colour,
+            "coloured ICP (Park et al. 2017) instead of point-to-plane where both fragments "
+            "carry colour; depth-only fragments keep point-to-plane");
+    s.field("lambda_geometric", c.lambda_geometric,
+            "coloured ICP: weight delta of the geometric term in (1 - delta) E_colour + delta "
+            "E_geometric (Open3D: 0.968)")
+        .greaterThan(0.0)
+        .max(1.0);
+    s.field("colour_gradient_radius_factor", c.colour_gradient_radius_factor,
+            "coloured ICP: radius of the intensity gradient fit = factor x the level's voxel size "
+            "(Open3D: 2.8)")
+        .positive();
+    s.field("colour_gradient_max_nn", c.colour_gradient_max_nn,
+            "coloured ICP: at most this many neighbours in the intensity gradient fit")
+        .min(3);
     s.field("num_threads", c.num_threads, "worker threads, 0 = all; results do not depend on it")
         .min(0);
 }
@@ -77,12 +93,22 @@ FragmentIndex buildFragmentIndex(const Fragment& fragment, const PreparedFragmen
     PointCloud full;
     full.points = fragment.points_F.points;
     if (fragment.points_F.hasNormals()) full.normals = fragment.points_F.normals;
+    const bool with_colour = config.colour && fragment.points_F.hasColors();
+    if (with_colour) full.colors = fragment.points_F.colors;
     for (const double v : config.voxel_sizes_m) {
         PointCloud level = detail::voxelDownsample(full, v);
         if (!level.hasNormals()) {
             // Without fused normals use the prepared normals' recipe: PCA over 2 voxels.
             level.normals = estimateNormals(level.points, 2.0 * v, 30, Eigen::Vector3f::Zero(),
                                             config.num_threads);
+        }
+        if (with_colour) {
+            LevelColour colour;
+            colour.intensity = intensitiesOf(level.colors);
+            colour.gradient = intensityGradients(level, colour.intensity,
+                                                 config.colour_gradient_radius_factor * v,
+                                                 config.colour_gradient_max_nn, config.num_threads);
+            index.level_colours.push_back(std::move(colour));
         }
         index.levels.emplace_back(std::move(level));
     }
@@ -109,27 +135,24 @@ struct IcpAcc {
 
 constexpr size_t kChunk = 256;
 
-/// Gauss-Newton step of the normal equations H xi = -g with solution remapping: translations
-/// along eigenvectors of sum n n^T / count (H's translation block per correspondence) whose
-/// eigenvalue is below min_normal_spread are left out of the solve, so the step does not move
-/// along them. With none left out this is the plain solve.
-Vector6d remappedStep(const IcpAcc& acc, double min_normal_spread) {
+}  // namespace
+
+Vector6d remappedStep(const Matrix6d& H, const Vector6d& g, const Eigen::Matrix3d& spread,
+                      double min_normal_spread) {
     if (min_normal_spread > 0.0) {
-        const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> spread(
-            acc.H.bottomRightCorner<3, 3>() / static_cast<double>(acc.count));
-        if (!(spread.eigenvalues()(0) >= min_normal_spread)) {
+        const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> spread_eigen(spread);
+        if (!(spread_eigen.eigenvalues()(0) >= min_normal_spread)) {
             using Square = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 6, 6>;
             using Vector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 6, 1>;
-            const remapping::Basis basis = remapping::solvedDirections(spread, min_normal_spread);
-            const Square H = basis.transpose() * acc.H * basis;
-            const Vector g = basis.transpose() * acc.g;
-            return basis * Vector(H.ldlt().solve(-g));
+            const remapping::Basis basis =
+                remapping::solvedDirections(spread_eigen, min_normal_spread);
+            const Square H_reduced = basis.transpose() * H * basis;
+            const Vector g_reduced = basis.transpose() * g;
+            return basis * Vector(H_reduced.ldlt().solve(-g_reduced));
         }
     }
-    return acc.H.ldlt().solve(-acc.g);
+    return H.ldlt().solve(-g);
 }
-
-}  // namespace
 
 PairResult icpPointToPlane(const IndexedCloud& source, const PointCloud& target,
                            const Eigen::Isometry3d& init, double max_distance_m, int max_iterations,
@@ -191,7 +214,10 @@ PairResult icpPointToPlane(const IndexedCloud& source, const PointCloud& target,
         }
         prev_fitness = fitness;
         prev_rmse = rmse;
-        const Vector6d xi = remappedStep(acc, min_normal_spread);
+        // Spread = Σ n n^T / count, H's translation block per correspondence.
+        const Vector6d xi = remappedStep(
+            acc.H, acc.g, acc.H.bottomRightCorner<3, 3>() / static_cast<double>(acc.count),
+            min_normal_spread);
         if (!xi.allFinite()) {
             out.reason = "ICP: singular normal equations";
             out.T_source_target = T;
@@ -213,10 +239,19 @@ PairResult multiScaleIcp(const FragmentIndex& source, const FragmentIndex& targe
     for (size_t l = 0; l < levels && l < config.voxel_sizes_m.size(); ++l) {
         const int iters =
             l < config.iterations.size() ? static_cast<int>(config.iterations[l]) : 30;
+        const double max_distance_m = config.distance_factor * config.voxel_sizes_m[l];
+        const bool coloured =
+            config.colour && l < source.level_colours.size() && l < target.level_colours.size();
         PairResult step =
-            icpPointToPlane(source.levels[l], target.levels[l].cloud(), r.T_source_target,
-                            config.distance_factor * config.voxel_sizes_m[l], iters,
-                            config.relative_change, config.min_normal_spread, config.num_threads);
+            coloured
+                ? icpColoured(source.levels[l], source.level_colours[l].intensity,
+                              source.level_colours[l].gradient, target.levels[l].cloud(),
+                              target.level_colours[l].intensity, r.T_source_target, max_distance_m,
+                              iters, config.relative_change, config.lambda_geometric,
+                              config.min_normal_spread, config.num_threads)
+                : icpPointToPlane(source.levels[l], target.levels[l].cloud(), r.T_source_target,
+                                  max_distance_m, iters, config.relative_change,
+                                  config.min_normal_spread, config.num_threads);
         total_iterations += step.iterations;
         if (!step.success) {
             step.reason += " (level " + std::to_string(l) + ")";

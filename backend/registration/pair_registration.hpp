@@ -1,10 +1,11 @@
 // SPDX-License-Identifier: Apache-2.0
 #pragma once
 
-// Pairwise fragment registration (reference §3.2-3.4): multi-scale point-to-plane ICP, FPFH
-// feature matching with seeded RANSAC, and the overlap / information-matrix evaluation of an
-// alignment. Transforms follow the pose-graph convention (backend/posegraph/pose_graph.hpp):
-// T_source_target maps target-fragment points into the source frame (p_s = T_s_t p_t).
+// Pairwise fragment registration (reference §3.2-3.4): multi-scale point-to-plane ICP (coloured
+// ICP, coloured_icp.hpp, when both fragments carry colour; reference §7b.3), FPFH feature matching
+// with seeded RANSAC, and the overlap / information-matrix evaluation of an alignment. Transforms
+// follow the pose-graph convention (backend/posegraph/pose_graph.hpp): T_source_target maps
+// target-fragment points into the source frame (p_s = T_s_t p_t).
 //
 // All functions are deterministic: RANSAC draws from std::mt19937_64 seeded by the caller, and
 // parallel sums are reduced over fixed chunks in a fixed order, so results do not depend on the
@@ -43,6 +44,18 @@ struct IcpConfig {
     /// 4.6 (its bound is 5 cm) and seed 3 of living_room gets worse (BENCHMARKS.md, "End to
     /// end"). 0 = plain Gauss-Newton (Open3D).
     double min_normal_spread = 0.0;
+    /// Coloured ICP (Park, Zhou, Koltun ICCV 2017; coloured_icp.hpp) instead of point-to-plane
+    /// at every level where both fragments carry colour; fragments without colour (depth-only
+    /// scans) keep point-to-plane either way.
+    bool colour = true;
+    /// δ of the joint objective (1 - δ) E_C + δ E_G (Park Eq. (1); Open3D lambda_geometric:
+    /// 0.968), in (0, 1]. E_G is in squared metres, E_C in squared intensity ([0, 1]).
+    double lambda_geometric = 0.968;
+    /// Neighbourhood of the per-point intensity gradient fit (Park Eq. (6)): radius = this
+    /// factor x the level's voxel size (Open3D: 2 x the correspondence distance = 2.8 voxels).
+    double colour_gradient_radius_factor = 2.8;
+    /// At most this many neighbours in the gradient fit (Open3D: 30).
+    int colour_gradient_max_nn = 30;
     /// Worker threads (0 = all); results do not depend on it.
     int num_threads = 0;
 };
@@ -85,18 +98,28 @@ class IndexedCloud {
     std::unique_ptr<Impl> impl_;
 };
 
+/// What coloured ICP needs of one ICP level's points (coloured_icp.hpp), one entry per point.
+struct LevelColour {
+    std::vector<float> intensity;           ///< C(p), BT.601 luma in [0, 1]
+    std::vector<Eigen::Vector3f> gradient;  ///< d_p ⟂ n_p (Park Eq. (6)), intensity per metre
+};
+
 /// Everything pair registration needs of one fragment, built once: the prepared (feature) level
 /// with its tree, the ICP pyramid and the features as a 33 x n matrix.
 struct FragmentIndex {
     uint32_t id = 0;
     IndexedCloud coarse;               ///< a copy of the prepared cloud, indexed
     std::vector<IndexedCloud> levels;  ///< one per IcpConfig level
+    /// One per level when the fragment carries colour and IcpConfig::colour is on, else empty.
+    std::vector<LevelColour> level_colours;
     Eigen::MatrixXf features;          ///< 33 x n, column i = fpfh of point i
     Eigen::VectorXf feature_sq_norms;  ///< |f_i|^2
 };
 
 /// Builds the index of a fragment: ICP levels are voxel-downsampled from the full fragment cloud
-/// (fused normals averaged; PCA normals when the fragment has none).
+/// (fused normals averaged; PCA normals when the fragment has none; colours averaged). With
+/// colour (fragment colours and IcpConfig::colour) each level also gets its intensities and
+/// intensity gradients.
 FragmentIndex buildFragmentIndex(const Fragment& fragment, const PreparedFragment& prepared,
                                  const IcpConfig& config);
 
@@ -122,8 +145,17 @@ PairResult icpPointToPlane(const IndexedCloud& source, const PointCloud& target,
                            const Eigen::Isometry3d& init, double max_distance_m, int max_iterations,
                            double relative_change, double min_normal_spread, int num_threads);
 
-/// Multi-scale point-to-plane ICP over the pyramids of both fragments (reference §3.2). Fails
-/// when a level fails.
+/// Gauss-Newton step of the normal equations H ξ = -g with solution remapping (Zhang, Kaess,
+/// Singh, ICRA 2016): translations along eigenvectors of `spread` (the translation block of H
+/// per correspondence, in units of mean (n·t)^2) whose eigenvalue is below min_normal_spread
+/// are left out of the solve, so the step does not move along them; the three rotations are
+/// always solved. With none left out (or min_normal_spread = 0) this is the plain LDLT solve.
+Vector6d remappedStep(const Matrix6d& H, const Vector6d& g, const Eigen::Matrix3d& spread,
+                      double min_normal_spread);
+
+/// Multi-scale ICP over the pyramids of both fragments (reference §3.2): at each level coloured
+/// ICP (icpColoured) when both fragments have colour at that level (FragmentIndex::level_colours,
+/// IcpConfig::colour), otherwise point-to-plane. Fails when a level fails.
 PairResult multiScaleIcp(const FragmentIndex& source, const FragmentIndex& target,
                          const Eigen::Isometry3d& init, const IcpConfig& config);
 

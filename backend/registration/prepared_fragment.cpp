@@ -178,6 +178,8 @@ Result<PreparedFragment> prepareFragment(const Fragment& fragment, const Prepare
     if (fragment.points_F.hasNormals() && !config.recompute_normals) {
         source.normals = fragment.points_F.normals;
     }
+    // Colours, when the device fused them, are averaged per voxel like the points.
+    if (fragment.points_F.hasColors()) source.colors = fragment.points_F.colors;
     PreparedFragment out;
     out.id = fragment.id;
     out.points = detail::voxelDownsample(source, config.voxel_size_m);

@@ -44,7 +44,9 @@ void describe(config::Schema& s, PrepareConfig& c);
 /// FPFH descriptor per point.
 struct PreparedFragment {
     uint32_t id = 0;
-    PointCloud points;         ///< downsampled, with unit normals, fragment frame, metres
+    /// Downsampled, with unit normals (and the voxel-averaged colours when the fragment has
+    /// colours), fragment frame, metres.
+    PointCloud points;
     std::vector<Fpfh33> fpfh;  ///< one per point of `points`
 };
 
@@ -64,7 +66,9 @@ std::vector<Eigen::Vector3f> estimateNormals(const std::vector<Eigen::Vector3f>&
 std::vector<Fpfh33> computeFpfh(const PointCloud& cloud, double radius_m, int max_nn,
                                 int num_threads);
 
-/// Deterministic voxel-grid average of points (and normals, renormalised, when present).
+/// Deterministic voxel-grid average of points, of normals (renormalised) and of colours (per
+/// channel, rounded to the nearest 8-bit value), each when present. A voxel whose normals
+/// cancel is dropped with its point and colour.
 PointCloud voxelDownsample(const PointCloud& cloud, double voxel_m);
 
 }  // namespace plumb::registration

@@ -27,7 +27,9 @@ void describe(config::Schema& s, LiveConfig& c) {
 
 void describe(config::Schema& s, RegistrationConfig& c) {
     s.section("prepare", c.prepare, "downsampling, normals and FPFH");
-    s.section("icp", c.icp, "multi-scale point-to-plane ICP");
+    s.section("icp", c.icp,
+              "multi-scale ICP: coloured where both fragments carry colour, point-to-plane "
+              "otherwise");
     s.section("ransac", c.ransac, "FPFH matching and RANSAC for loop closures");
     s.section("guided", c.guided, "odometry-guided loop search within a tracking segment");
     s.section("pose_graph", c.pose_graph, "line-process pose graph");

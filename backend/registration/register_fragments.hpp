@@ -3,7 +3,8 @@
 
 // Initial registration of fragments (the paper's §3.1 after Choi, Zhou, Koltun CVPR 2015;
 // reference §3.2-3.7):
-//   1. consecutive pairs (i, i+1): multi-scale point-to-plane ICP initialised from odometry;
+//   1. consecutive pairs (i, i+1): multi-scale ICP initialised from odometry (coloured ICP when
+//      both fragments carry colour, point-to-plane otherwise; IcpConfig::colour);
 //   2. non-consecutive pairs: FPFH matching + seeded RANSAC + ICP refinement, accepted when at
 //      least `min_overlap` of the smaller fragment lies within τ of the other;
 //   3. a pose graph with line processes (backend/posegraph/pose_graph.hpp) that prunes wrong
@@ -53,7 +54,8 @@ void describe(config::Schema& s, LiveConfig& c);
 struct RegistrationConfig {
     /// Downsampling, normals, FPFH.
     PrepareConfig prepare;
-    /// Multi-scale point-to-plane ICP (odometry edges, refinement).
+    /// Multi-scale ICP (odometry edges, loop and refinement-pass alignment): coloured where both
+    /// fragments carry colour (icp.colour), point-to-plane otherwise.
     IcpConfig icp;
     /// Feature matching and RANSAC (loop closures).
     RansacConfig ransac;

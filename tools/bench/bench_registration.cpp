@@ -13,7 +13,14 @@
 //     iterations, distance 1.4 x voxel) and the information matrix (tau 7 cm). Per-fragment work
 //     (features, ICP pyramids, our k-d trees) is excluded on both sides and reported apart; Open3D
 //     builds its k-d trees inside each call, so that is part of its pair time. Both results are
-//     checked against the ground truth.
+//     checked against the ground truth. The bare path and Open3D run point-to-plane ICP; the
+//     registration stage runs with its defaults (coloured ICP where both fragments have colour).
+//  2b. Coloured ICP (Park, Zhou, Koltun 2017) on every odometry edge (i, i + 1) whose fragments
+//     both carry colour, from the device odometry, on the same pyramids: our multiScaleIcp with
+//     colour (lambda_geometric 0.968) and without, against Open3D's RegistrationColoredICP and
+//     RegistrationICP point-to-plane level by level (same distances, iterations and criteria).
+//     Our intensity gradients are part of the per-fragment index (timed apart); Open3D fits its
+//     gradients inside each RegistrationColoredICP call. Errors are against the ground truth.
 //  3. Pose graph: a synthetic random walk of --nodes fragment poses with noisy odometry, about
 //     1000 loop closures between fragments within 1.5 m of each other (10 % of them wrong) and
 //     Choi's information matrices built from fragment-like clouds. posegraph::optimisePoseGraph
@@ -28,6 +35,7 @@
 #include <tbb/global_control.h>
 
 #include <algorithm>
+#include <array>
 #include <charconv>
 #include <chrono>
 #include <cmath>
@@ -368,6 +376,10 @@ std::shared_ptr<open3d::geometry::PointCloud> toOpen3d(const PointCloud& cloud) 
         out->normals_.reserve(cloud.size());
         for (const Eigen::Vector3f& n : cloud.normals) out->normals_.push_back(n.cast<double>());
     }
+    if (cloud.hasColors()) {
+        out->colors_.reserve(cloud.size());
+        for (const Color3u8& c : cloud.colors) out->colors_.push_back(c.cast<double>() / 255.0);
+    }
     return out;
 }
 
@@ -556,10 +568,17 @@ int main(int argc, char** argv) {
     registration::RansacConfig rc;
     rc.num_threads = o.threads;
     const double tau = 0.07;
+    // Point-to-plane everywhere: the bare path and its Open3D peer.
+    registration::IcpConfig icp_plane = icp;
+    icp_plane.colour = false;
     std::vector<registration::FragmentIndex> index;
-    double index_ms = 0.0;
+    double index_ms = 0.0, index_plane_ms = 0.0;
     for (size_t k = 0; k < nf; ++k) {
-        const Clock::time_point t0 = Clock::now();
+        Clock::time_point t0 = Clock::now();
+        const registration::FragmentIndex plane_only =
+            registration::buildFragmentIndex(scan.fragments[k], prepared[k], icp_plane);
+        index_plane_ms += msSince(t0);
+        t0 = Clock::now();
         index.push_back(registration::buildFragmentIndex(scan.fragments[k], prepared[k], icp));
         index_ms += msSince(t0);
     }
@@ -574,8 +593,11 @@ int main(int argc, char** argv) {
     if (o.pairs > 0 && pairs.size() > static_cast<size_t>(o.pairs)) {
         pairs.resize(static_cast<size_t>(o.pairs));
     }
-    std::printf("pairs: %zu non-consecutive; our per-fragment index (pyramid, trees) %.1f ms\n",
-                pairs.size(), index_ms / static_cast<double>(nf));
+    std::printf(
+        "pairs: %zu non-consecutive; our per-fragment index (pyramid, trees, intensity "
+        "gradients) %.1f ms, of which gradients %.1f ms\n",
+        pairs.size(), index_ms / static_cast<double>(nf),
+        (index_ms - index_plane_ms) / static_cast<double>(nf));
 
 #ifdef PLUMB_HAVE_OPEN3D
     if (!pairs.empty()) {
@@ -654,7 +676,7 @@ int main(int argc, char** argv) {
             if (r.registered) {
                 const Clock::time_point t1 = Clock::now();
                 const registration::PairResult refined =
-                    registration::multiScaleIcp(index[i], index[j], r.T, icp);
+                    registration::multiScaleIcp(index[i], index[j], r.T, icp_plane);
                 stages[1] = msSince(t1);
                 r.registered = refined.success;
                 r.reason = refined.reason;
@@ -849,6 +871,152 @@ int main(int argc, char** argv) {
     std::printf("Open3D pair: n/a (not available at build time)\n");
 #endif
 
+    // ---- 2b. Coloured ICP on the odometry edges ----
+    struct IcpRun {
+        double ms = std::numeric_limits<double>::max();  ///< best run
+        bool ok = false;
+        Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+        double err_cm = 0.0, err_deg = 0.0;  ///< against the ground truth
+        int iterations = 0;                  ///< ICP iterations over all levels (ours only)
+    };
+    // ours coloured, ours point-to-plane, Open3D coloured, Open3D point-to-plane
+    constexpr int kIcpMethods = 4;
+    const char* const kIcpNames[kIcpMethods] = {"ours coloured", "ours point-to-plane",
+                                                "Open3D coloured", "Open3D point-to-plane"};
+    std::vector<size_t> odometry_pairs;
+    for (size_t i = 0; i + 1 < nf; ++i) {
+        if (!index[i].level_colours.empty() && !index[i + 1].level_colours.empty() &&
+            registration::odometryBetween(scan.fragments[i], scan.fragments[i + 1])) {
+            odometry_pairs.push_back(i);
+        }
+    }
+    std::vector<std::array<IcpRun, kIcpMethods>> icp_runs(odometry_pairs.size());
+    for (size_t k = 0; k < odometry_pairs.size(); ++k) {
+        const size_t i = odometry_pairs[k], j = i + 1;
+        const Eigen::Isometry3d init =
+            *registration::odometryBetween(scan.fragments[i], scan.fragments[j]);
+        const Eigen::Isometry3d T_gt = scan.gt_T_W_F[i].inverse() * scan.gt_T_W_F[j];
+        std::array<IcpRun, kIcpMethods>& runs = icp_runs[k];
+        for (int m = 0; m < 2; ++m) {
+            IcpRun& r = runs[static_cast<size_t>(m)];
+            for (int rep = 0; rep < o.repeat && (rep == 0 || r.ms < kNoRepeatMs); ++rep) {
+                const Clock::time_point t0 = Clock::now();
+                const registration::PairResult res =
+                    registration::multiScaleIcp(index[i], index[j], init, m == 0 ? icp : icp_plane);
+                r.ms = std::min(r.ms, msSince(t0));
+                r.ok = res.success;
+                r.T = res.T_source_target;
+                r.iterations = res.iterations;
+            }
+        }
+#ifdef PLUMB_HAVE_OPEN3D
+        // Open3D's source is our target (it estimates our T_source_target), on our pyramids.
+        std::vector<std::shared_ptr<open3d::geometry::PointCloud>> src_levels, tgt_levels;
+        for (const registration::IndexedCloud& l : index[i].levels) {
+            src_levels.push_back(toOpen3d(l.cloud()));
+        }
+        for (const registration::IndexedCloud& l : index[j].levels) {
+            tgt_levels.push_back(toOpen3d(l.cloud()));
+        }
+        for (int m = 2; m < kIcpMethods; ++m) {
+            IcpRun& r = runs[static_cast<size_t>(m)];
+            for (int rep = 0; rep < o.repeat && (rep == 0 || r.ms < kNoRepeatMs); ++rep) {
+                const Clock::time_point t0 = Clock::now();
+                Eigen::Matrix4d T = init.matrix();
+                bool ok = true;
+                for (size_t l = 0; ok && l < icp.voxel_sizes_m.size() && l < src_levels.size();
+                     ++l) {
+                    const double distance = icp.distance_factor * icp.voxel_sizes_m[l];
+                    const o3reg::ICPConvergenceCriteria criteria(
+                        icp.relative_change, icp.relative_change,
+                        static_cast<int>(icp.iterations[l]));
+                    try {
+                        const o3reg::RegistrationResult step =
+                            m == 2 ? o3reg::RegistrationColoredICP(
+                                         *tgt_levels[l], *src_levels[l], distance, T,
+                                         o3reg::TransformationEstimationForColoredICP(
+                                             icp.lambda_geometric),
+                                         criteria)
+                                   : o3reg::RegistrationICP(
+                                         *tgt_levels[l], *src_levels[l], distance, T,
+                                         o3reg::TransformationEstimationPointToPlane(), criteria);
+                        T = step.transformation_;
+                    } catch (const std::exception&) {
+                        ok = false;  // Open3D's coloured ICP throws without correspondences
+                    }
+                }
+                r.ms = std::min(r.ms, msSince(t0));
+                r.ok = ok && T.allFinite();
+                r.T = Eigen::Isometry3d(T);
+            }
+        }
+#endif
+        for (IcpRun& r : runs) {
+            const auto [dt, dr] = poseDifference(T_gt, r.T);
+            r.err_cm = dt * 100.0;
+            r.err_deg = dr;
+        }
+        std::fprintf(stderr, "\rodometry edge %zu/%zu", k + 1, odometry_pairs.size());
+    }
+    if (!odometry_pairs.empty()) std::fprintf(stderr, "\n");
+    const int icp_methods_run = kHaveOpen3d ? kIcpMethods : 2;
+    std::printf(
+        "odometry edges with colour on both sides: %zu; error cm/deg against the ground "
+        "truth and ms:\n  edge   odometry     ",
+        odometry_pairs.size());
+    for (int m = 0; m < icp_methods_run; ++m) std::printf("| %-24s", kIcpNames[m]);
+    std::printf("\n");
+    std::array<double, kIcpMethods> icp_ms{}, icp_err_cm{}, icp_err_deg{};
+    std::array<int, kIcpMethods> icp_failed{};
+    double odo_err_cm = 0.0;
+    std::vector<double> ours_vs_open3d_cm, ours_vs_open3d_deg;
+    for (size_t k = 0; k < odometry_pairs.size(); ++k) {
+        const size_t i = odometry_pairs[k];
+        const auto [odt, odr] = poseDifference(
+            scan.gt_T_W_F[i].inverse() * scan.gt_T_W_F[i + 1],
+            *registration::odometryBetween(scan.fragments[i], scan.fragments[i + 1]));
+        odo_err_cm += odt * 100.0 / static_cast<double>(odometry_pairs.size());
+        std::string line =
+            fmt::format("  {:>2}-{:<2}  {:>5.2f}/{:<5.2f} ", i, i + 1, odt * 100.0, odr);
+        for (int m = 0; m < icp_methods_run; ++m) {
+            const IcpRun& r = icp_runs[k][static_cast<size_t>(m)];
+            line += fmt::format("| {:>5.2f}/{:<5.2f} {:>7.1f} ms{}{} ", r.err_cm, r.err_deg, r.ms,
+                                m < 2 ? fmt::format(" {:>3} it", r.iterations) : "",
+                                r.ok ? "" : " failed");
+            icp_failed[static_cast<size_t>(m)] += r.ok ? 0 : 1;
+            const double n = static_cast<double>(odometry_pairs.size());
+            icp_ms[static_cast<size_t>(m)] += r.ms / n;
+            icp_err_cm[static_cast<size_t>(m)] += r.err_cm / n;
+            icp_err_deg[static_cast<size_t>(m)] += r.err_deg / n;
+        }
+        std::printf("%s\n", line.c_str());
+        if (kHaveOpen3d) {
+            const auto [dt, dr] = poseDifference(icp_runs[k][0].T, icp_runs[k][2].T);
+            ours_vs_open3d_cm.push_back(dt * 100.0);
+            ours_vs_open3d_deg.push_back(dr);
+        }
+    }
+    const bool have_coloured = !odometry_pairs.empty();
+    if (have_coloured) {
+        std::printf("odometry: mean error %.2f cm\n", odo_err_cm);
+        for (int m = 0; m < icp_methods_run; ++m) {
+            std::printf(
+                "%-22s mean error %.2f cm / %.2f deg, mean %.1f ms per edge, %d failed (their "
+                "error is where they stopped)\n",
+                kIcpNames[m], icp_err_cm[static_cast<size_t>(m)],
+                icp_err_deg[static_cast<size_t>(m)], icp_ms[static_cast<size_t>(m)],
+                icp_failed[static_cast<size_t>(m)]);
+        }
+        if (kHaveOpen3d) {
+            std::printf(
+                "ours vs Open3D coloured ICP transforms: mean %.3f cm / %.3f deg, max %.3f cm; "
+                "ratio Open3D / ours (coloured ICP) %.2f\n",
+                mean(ours_vs_open3d_cm), mean(ours_vs_open3d_deg),
+                *std::max_element(ours_vs_open3d_cm.begin(), ours_vs_open3d_cm.end()),
+                icp_ms[2] / icp_ms[0]);
+        }
+    }
+
     // ---- 3. Pose graph ----
     const posegraph::PoseGraphConfig pgc = poseGraphConfig();
     {
@@ -992,7 +1160,10 @@ int main(int argc, char** argv) {
             "\"posegraph_nodes\":{},\"posegraph_edges\":{},\"posegraph_loops\":{},"
             "\"posegraph_wrong_loops\":{},\"posegraph_ms\":{:.2f},\"open3d_posegraph_ms\":{},"
             "\"posegraph_ratio\":{},\"posegraph_ate_m\":{:.4f},\"open3d_posegraph_ate_m\":{},"
-            "\"posegraph_pruned_wrong\":{},\"threads\":{},\"repeat\":{},"
+            "\"posegraph_pruned_wrong\":{},\"coloured_edges\":{},\"coloured_icp_ms\":{},"
+            "\"open3d_coloured_icp_ms\":{},\"coloured_icp_ratio\":{},"
+            "\"coloured_icp_err_cm\":{},\"plane_icp_err_cm\":{},"
+            "\"open3d_coloured_icp_err_cm\":{},\"threads\":{},\"repeat\":{},"
             "\"targets\":{{\"fpfh_us_per_point\":{:.0f},\"pair_ms\":{:.0f},\"posegraph_ms\":{:.0f},"
             "\"posegraph_nodes\":500}},\"meets_targets\":{}}}",
             o.scene, o.frames, nf, points_per_fragment, fpfh_us,
@@ -1008,7 +1179,12 @@ int main(int argc, char** argv) {
             kHaveOpen3d ? std::to_string(theirs_pairs.correct) : "null", o.nodes,
             sg.graph.edges.size(), sg.num_loops, sg.num_wrong, pg_ms,
             jsonNumber(o3d_pg_ms, kHaveOpen3d), ratio(o3d_pg_ms, pg_ms), pg_ate,
-            jsonNumber(o3d_pg_ate, kHaveOpen3d, 4), pruned_wrong, o.threads, o.repeat,
+            jsonNumber(o3d_pg_ate, kHaveOpen3d, 4), pruned_wrong, odometry_pairs.size(),
+            jsonNumber(icp_ms[0], have_coloured, 2),
+            jsonNumber(icp_ms[2], kHaveOpen3d && have_coloured, 2),
+            have_coloured ? ratio(icp_ms[2], icp_ms[0]) : "null",
+            jsonNumber(icp_err_cm[0], have_coloured), jsonNumber(icp_err_cm[1], have_coloured),
+            jsonNumber(icp_err_cm[2], kHaveOpen3d && have_coloured), o.threads, o.repeat,
             kTargetFpfhUs, kTargetPairMs, kTargetPoseGraphMs,
             judged ? (meets ? "true" : "false") : "null")
             .c_str());
