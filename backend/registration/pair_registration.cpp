@@ -29,6 +29,10 @@ void describe(config::Schema& s, IcpConfig& c) {
             "translations t with mean (n.t)^2 over the correspondences below this are not solved "
             "for and keep the start (solution remapping; 0 = plain Gauss-Newton)")
         .min(0.0);
+    s.field("coloured_min_normal_spread", c.coloured_min_normal_spread,
+            "min_normal_spread of pairs of fragments tracked with colour (coloured ICP): their "
+            "odometry start is reliable along what RGB-D tracking observed")
+        .min(0.0);
     s.field("colour", c.colour,
             "coloured ICP (Park et al. 2017) instead of point-to-plane where both fragments "
             "carry colour; depth-only fragments keep point-to-plane");
@@ -248,7 +252,7 @@ PairResult multiScaleIcp(const FragmentIndex& source, const FragmentIndex& targe
                               source.level_colours[l].gradient, target.levels[l].cloud(),
                               target.level_colours[l].intensity, r.T_source_target, max_distance_m,
                               iters, config.relative_change, config.lambda_geometric,
-                              config.min_normal_spread, config.num_threads)
+                              config.coloured_min_normal_spread, config.num_threads)
                 : icpPointToPlane(source.levels[l], target.levels[l].cloud(), r.T_source_target,
                                   max_distance_m, iters, config.relative_change,
                                   config.min_normal_spread, config.num_threads);
