@@ -37,9 +37,9 @@ double latticeNormal(uint64_t seed, int64_t j) {
 }  // namespace
 
 Status validateColourConfig(const ColourConfig& c) {
-    if (!(c.noise_std_levels >= 0.0) || !std::isfinite(c.noise_std_levels)) {
-        return invalidArgument(fmt::format(
-            "colour noise_std_levels must be finite and >= 0, got {}", c.noise_std_levels));
+    if (!(c.noise_std_levels >= 0.0 && c.noise_std_levels <= 255.0)) {
+        return invalidArgument(
+            fmt::format("colour noise_std_levels must be in [0, 255], got {}", c.noise_std_levels));
     }
     if (!(c.exposure_log_std >= 0.0) || !std::isfinite(c.exposure_log_std)) {
         return invalidArgument(fmt::format(

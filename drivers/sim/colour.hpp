@@ -71,8 +71,8 @@ class ColourNoiseModel {
     std::vector<int16_t> noise_levels_;  // round(noise_std_levels * z_j), j < kQuantiles
 };
 
-/// Checks a colour configuration: finite, non-negative noise and drift, a positive period,
-/// positive finite jump factors. Errors name the field.
+/// Checks a colour configuration: noise in [0, 255] levels, a finite non-negative drift, a
+/// positive period, positive finite jump factors. Errors name the field.
 Status validateColourConfig(const ColourConfig& config);
 
 }  // namespace plumb::sim

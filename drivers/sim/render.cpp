@@ -492,15 +492,24 @@ void Renderer::shadeTile(const PixelRect& tile, const TileHit* hits, RenderedVie
     const float shade_ambient = 255.0F * config_.ambient;
     const float shade_direct = 255.0F * (1.0F - config_.ambient);
     const double inv_focal = 2.0 / (camera_.fx + camera_.fy);
+    // round(x) of x >= 0, clamped to 255 (the same as uint8(min(255, x) + 0.5)).
+    auto level = [](float x) {
+        return static_cast<uint8_t>(std::min(static_cast<int>(x + 0.5F), 255));
+    };
     for (int v = tile.v0; v <= tile.v1; ++v) {
-        for (int u = tile.u0; u <= tile.u1; ++u) {
-            const int label = view->label(u, v);
+        // Row pointers: the compiler cannot hoist them past the colour stores itself.
+        const int16_t* labels = &view->label(tile.u0, v);
+        const float* cos_view = &view->cos_view(tile.u0, v);
+        Rgb8* colour = &view->colour(tile.u0, v);
+        const TileHit* row_hits = hits + (v - tile.v0) * tile_w;
+        for (int j = 0; j < tile_w; ++j) {
+            const int label = labels[j];
             if (label == kNoPrimitive) {
-                view->colour(u, v) = Rgb8{};
+                colour[j] = Rgb8{};
                 continue;
             }
-            const TileHit& hit = hits[(v - tile.v0) * tile_w + (u - tile.u0)];
-            const float cosv = view->cos_view(u, v);
+            const TileHit& hit = row_hits[j];
+            const float cosv = cos_view[j];
             // Footprint of the pixel on the surface, its longer side: z / (f cos(view angle))
             // (a pixel spans cos(a) / f radians across at angle a off the axis, at range z /
             // cos(a), stretched by 1 / cos on the surface); cos clamped so grazing views stay
@@ -508,10 +517,8 @@ void Renderer::shadeTile(const PixelRect& tile, const TileHit* hits, RenderedVie
             const double footprint_m = hit.t * inv_focal / std::max(static_cast<double>(cosv), 0.1);
             const Colour rho = textures_.albedo(label, hit.p_W, hit.normal_W, footprint_m);
             const float light = shade_ambient + shade_direct * cosv;
-            auto level = [&](float r) {
-                return static_cast<uint8_t>(std::min(255.0F, r * light) + 0.5F);
-            };
-            view->colour(u, v) = Rgb8{level(rho.x()), level(rho.y()), level(rho.z())};
+            colour[j] =
+                Rgb8{level(rho.x() * light), level(rho.y() * light), level(rho.z() * light)};
         }
     }
 }

@@ -37,7 +37,7 @@ enum class FloorPattern { kWood, kTiles };
 /// Patterns of boxes and cylinders (all in the surface's own metric coordinates).
 enum class FurniturePattern {
     kSolid,    ///< the base colour
-    kNoise,    ///< mottled: value noise, cells 12 cm and finer, +-25 % brightness
+    kNoise,    ///< mottled: value noise, cells 12, 6 and 3 cm, brightness std ~12 %
     kStripes,  ///< bands 5 cm wide, every 10 cm, at 50 % brightness (horizontal on sides)
     kChecker,  ///< 8 cm squares, alternate ones at 45 % brightness
 };

@@ -10,8 +10,9 @@
 //   box faces: the two box-frame coordinates spanning the face (sides: horizontal, z).
 //
 // Patterns (TextureMode::kTextured; kPlain gives every surface its base colour):
-//   walls    "plaster": value noise in 4 octaves, cells 24, 12, 6, 3 cm, brightness std ~15 %,
-//            plus `Scene::pictures_per_wall` framed pictures (checker, stripes or blobs in two
+//   walls    "plaster": value noise in 4 octaves, cells 24, 12, 6, 3 cm, brightness std ~14 %
+//            (precomputed per wall on a 1 cm grid with box-filtered mip levels), plus
+//            `Scene::pictures_per_wall` framed pictures (checker, stripes or blobs in two
 //            contrasting colours, features 4-12 cm) placed by `Scene::texture_seed`;
 //   floor    wood: planks 14 cm x 1.2 m along x with 5 mm gaps, per-plank tint, grain;
 //            tiles: 40 cm squares, 8 mm grout lines, per-tile tint, faint mottling;
