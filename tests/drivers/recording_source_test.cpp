@@ -41,10 +41,9 @@ class ColourPainter final : public FrameSourceDecorator {
     Result<Frame> next() override {
         auto frame = inner().next();
         if (!frame.isOk()) return frame;
-        if (std::find(without_.begin(), without_.end(), frame->index) != without_.end()) {
-            return frame;
-        }
-        frame->colour = paint(*frame);
+        const bool without =
+            std::find(without_.begin(), without_.end(), frame->index) != without_.end();
+        frame->colour = without ? ColourImage() : paint(*frame);
         return frame;
     }
     static ColourImage paint(const Frame& frame) {
@@ -111,7 +110,7 @@ TEST(RecordingSource, ReadsBackAsTheSameFramesStampsAndGroundTruth) {
         ASSERT_TRUE(original.T_W_C_gt && frame->T_W_C_gt);
         EXPECT_LT((original.T_W_C_gt->translation() - frame->T_W_C_gt->translation()).norm(), 1e-6);
         EXPECT_TRUE(original.T_W_C_gt->rotation().isApprox(frame->T_W_C_gt->rotation(), 1e-6));
-        // Colour comes back as the simulator delivered it (none until it renders colour).
+        // Colour comes back exactly as the simulator delivered it.
         EXPECT_EQ(frame->colour, original.colour) << "frame " << original.index;
     }
     EXPECT_EQ(countLines(dir / "capture.txt"), 8u);

@@ -51,19 +51,23 @@ TEST(PlumbFuseCli, FrameStepFusesFramesFloorOfJTimesStepAndTracksThem) {
     EXPECT_LT(fragment.at("ground_truth").at("ate_rmse_m").get<double>(), 0.01);
 }
 
-TEST(PlumbFuseCli, FramesWithTranslationsTheDepthLeavesFreeAreCounted) {
-    // l_shape: the first 50 frames see geometry that fixes every translation; in the next 50 the
-    // camera walks down the corridor of the L with the far wall out of range, and the walls, floor
-    // and ceiling in view all run along the walk. Those frames must be marked, per frame and per
-    // fragment, and the counts must agree.
-    const fs::path logs = testing::freshTempDir("plumb_fuse_cli_free_logs");
-    const fs::path out = testing::freshTempDir("plumb_fuse_cli_free");
-    const ProcessRun run =
-        plumbFuse(logs, {"sim:l_shape", "--frames", "100", "--intrinsics", "ci", "--noise",
-                         "parametric", "--quiet", "--out", out.string()});
-    ASSERT_EQ(run.exit_code, 0) << run.err;
-    const nlohmann::json summary = nlohmann::json::parse(slurp(out / "fragments.json"));
-    ASSERT_EQ(summary.at("fragments").size(), 2u);
+/// Runs plumb fuse on the first 100 frames of the l_shape scan at 160x120 (with `extra` options)
+/// and returns the frames marked with free translations per fragment, checking that the per-frame,
+/// per-fragment and summary counts agree; `summary` receives fragments.json.
+std::vector<int> unconstrainedPerFragment(const std::string& name,
+                                          const std::vector<std::string>& extra,
+                                          nlohmann::json* summary) {
+    const fs::path logs = testing::freshTempDir(name + "_logs");
+    const fs::path out = testing::freshTempDir(name);
+    std::vector<std::string> args = {"sim:l_shape", "--frames",  "100",        "--intrinsics",
+                                     "ci",          "--noise",   "parametric", "--quiet",
+                                     "--out",       out.string()};
+    args.insert(args.end(), extra.begin(), extra.end());
+    const ProcessRun run = plumbFuse(logs, args);
+    EXPECT_EQ(run.exit_code, 0) << run.err;
+    if (run.exit_code != 0) return {};
+    *summary = nlohmann::json::parse(slurp(out / "fragments.json"));
+    EXPECT_EQ(summary->at("fragments").size(), 2u);
     std::vector<int> per_fragment;
     int total = 0;
     for (int id = 0; id < 2; ++id) {
@@ -77,14 +81,35 @@ TEST(PlumbFuseCli, FramesWithTranslationsTheDepthLeavesFreeAreCounted) {
             marked += n > 0 ? 1 : 0;
         }
         EXPECT_EQ(fragment.at("frames_unconstrained").get<int>(), marked);
-        EXPECT_EQ(summary.at("fragments").at(static_cast<size_t>(id)).at("frames_unconstrained"),
+        EXPECT_EQ(summary->at("fragments").at(static_cast<size_t>(id)).at("frames_unconstrained"),
                   marked);
         per_fragment.push_back(marked);
         total += marked;
     }
-    EXPECT_EQ(summary.at("frames_unconstrained").get<int>(), total);
-    EXPECT_EQ(per_fragment[0], 0) << "the first fragment's views fix every translation";
-    EXPECT_GE(per_fragment[1], 8) << "the corridor leaves the walk free";
+    EXPECT_EQ(summary->at("frames_unconstrained").get<int>(), total);
+    return per_fragment;
+}
+
+TEST(PlumbFuseCli, FramesWithTranslationsTheDepthLeavesFreeAreCounted) {
+    // l_shape: the first 50 frames see geometry that fixes every translation; in the next 50 the
+    // camera walks down the corridor of the L with the far wall out of range, and the walls, floor
+    // and ceiling in view all run along the walk. Tracked by depth alone, those frames must be
+    // marked, per frame and per fragment, and the counts must agree. With colour the textured
+    // walls pin the walk: the photometric term tracks the frames and leaves (almost) none free.
+    nlohmann::json depth_summary, colour_summary;
+    const std::vector<int> depth =
+        unconstrainedPerFragment("plumb_fuse_cli_free", {"--no-colour"}, &depth_summary);
+    ASSERT_EQ(depth.size(), 2u);
+    EXPECT_EQ(depth[0], 0) << "the first fragment's views fix every translation";
+    EXPECT_GE(depth[1], 8) << "the corridor leaves the walk free";
+    EXPECT_EQ(depth_summary.at("frames_photometric").get<int>(), 0);
+    const std::vector<int> colour =
+        unconstrainedPerFragment("plumb_fuse_cli_free_rgbd", {}, &colour_summary);
+    ASSERT_EQ(colour.size(), 2u);
+    EXPECT_EQ(colour[0], 0);
+    EXPECT_LE(colour[1], depth[1] / 4) << "colour observes the walk";
+    EXPECT_GE(colour_summary.at("frames_photometric").get<int>(), 95);
+    EXPECT_EQ(colour_summary.at("frames_depth_only").get<int>(), 0);
 }
 
 TEST(PlumbFuseCli, FrameStepBelowOneOrNotANumberIsRefused) {
