@@ -30,10 +30,8 @@ std::vector<Eigen::Vector3f> intensityGradients(const PointCloud& cloud,
     // A neighbourhood spans the tangent plane when the smaller eigenvalue of its second moment
     // (per point) is at least this: nearly collinear neighbours leave one direction unfitted.
     const double min_moment = 0.01 * radius_m * radius_m;
-    detail::parallelFor(num_threads, n, [&](size_t i) {
-        std::vector<uint32_t> idx(k);
-        std::vector<float> d2(k);
-        const size_t m = tree.knnWithin(cloud.points[i], k, r2, idx.data(), d2.data());
+    const auto fit = [&](size_t i, uint32_t* idx, float* d2) {
+        const size_t m = tree.knnWithin(cloud.points[i], k, r2, idx, d2);
         if (m < 4) return;  // the point and at least 3 others
         const Eigen::Vector3d p = cloud.points[i].cast<double>();
         const Eigen::Vector3d normal = cloud.normals[i].cast<double>().normalized();
@@ -66,6 +64,14 @@ std::vector<Eigen::Vector3f> intensityGradients(const PointCloud& cloud,
                                 (A(0, 0) * b(1) - A(1, 0) * b(0)) / det);
         const Eigen::Vector3d d = g(0) * e1 + g(1) * e2;
         if (d.allFinite()) gradient[i] = d.cast<float>();
+    };
+    // Fixed chunks of points share their neighbour buffers (each point's fit is independent).
+    constexpr size_t kPointsPerChunk = 512;
+    detail::parallelFor(num_threads, (n + kPointsPerChunk - 1) / kPointsPerChunk, [&](size_t c) {
+        std::vector<uint32_t> idx(k);
+        std::vector<float> d2(k);
+        const size_t end = std::min(n, (c + 1) * kPointsPerChunk);
+        for (size_t i = c * kPointsPerChunk; i < end; ++i) fit(i, idx.data(), d2.data());
     });
     return gradient;
 }

@@ -43,10 +43,11 @@ void describe(config::Schema& s, IcpConfig& c) {
         .max(1.0);
     s.field("colour_gradient_radius_factor", c.colour_gradient_radius_factor,
             "coloured ICP: radius of the intensity gradient fit = factor x the level's voxel size "
-            "(Open3D: 2.8)")
+            "(Open3D: 2.8)",
+            "voxels")
         .positive();
     s.field("colour_gradient_max_nn", c.colour_gradient_max_nn,
-            "coloured ICP: at most this many neighbours in the intensity gradient fit")
+            "coloured ICP: at most this many neighbours in the intensity gradient fit", "points")
         .min(3);
     s.field("num_threads", c.num_threads, "worker threads, 0 = all; results do not depend on it")
         .min(0);

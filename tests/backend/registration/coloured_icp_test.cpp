@@ -331,22 +331,25 @@ PairResult pointToPlaneChain(const FragmentIndex& s, const FragmentIndex& t,
 }
 
 TEST(ColouredIcp, WithoutColourOnBothSidesItIsPointToPlane) {
-    const IcpConfig icp;  // colour on
     for (const auto& [colour_a, colour_b] :
          {std::pair{false, false}, std::pair{true, false}, std::pair{false, true}}) {
-        const CorridorPair p = makeCorridorPair(colour_a, colour_b, icp);
+        const CorridorPair p = makeCorridorPair(colour_a, colour_b, IcpConfig{});
         EXPECT_EQ(p.ia.level_colours.empty(), !colour_a);
         EXPECT_EQ(p.ib.level_colours.empty(), !colour_b);
         const Eigen::Isometry3d start = corridorStart(p.truth);
-        const PairResult r = multiScaleIcp(p.ia, p.ib, start, icp);
-        const PairResult oracle = pointToPlaneChain(p.ia, p.ib, start, icp);
-        ASSERT_TRUE(r.success) << r.reason;
-        EXPECT_TRUE(r.T_source_target.matrix() == oracle.T_source_target.matrix())
-            << colour_a << colour_b;
-        EXPECT_EQ(r.iterations, oracle.iterations);
-        EXPECT_EQ(r.inlier_rmse_m, oracle.inlier_rmse_m);
-        // And it does not recover the slide.
-        EXPECT_GT(std::abs(errorOf(r, p.truth).translation().z()), 0.01);
+        for (const double spread : {0.0, 0.005}) {
+            IcpConfig icp;  // colour on
+            icp.min_normal_spread = spread;
+            const PairResult r = multiScaleIcp(p.ia, p.ib, start, icp);
+            const PairResult oracle = pointToPlaneChain(p.ia, p.ib, start, icp);
+            ASSERT_TRUE(r.success) << r.reason;
+            EXPECT_TRUE(r.T_source_target.matrix() == oracle.T_source_target.matrix())
+                << colour_a << colour_b << " " << spread;
+            EXPECT_EQ(r.iterations, oracle.iterations);
+            EXPECT_EQ(r.inlier_rmse_m, oracle.inlier_rmse_m);
+            // And it does not recover the slide.
+            EXPECT_GT(std::abs(errorOf(r, p.truth).translation().z()), 0.01);
+        }
     }
     // Colour switched off: no colour levels are built, and the answer is point-to-plane's.
     IcpConfig off;
