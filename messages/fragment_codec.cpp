@@ -18,8 +18,18 @@ namespace {
 constexpr uint16_t kFlagNormals = 1u << 0;
 constexpr uint16_t kFlagColors = 1u << 1;
 constexpr uint16_t kFlagFloatPositions = 1u << 2;
-constexpr uint16_t kKnownFlags = kFlagNormals | kFlagColors | kFlagFloatPositions;
+constexpr uint16_t kFlagOdometryInformation = 1u << 3;  // version 2
+constexpr uint16_t kKnownFlagsV1 = kFlagNormals | kFlagColors | kFlagFloatPositions;
+constexpr uint16_t kKnownFlags = kKnownFlagsV1 | kFlagOdometryInformation;
 constexpr size_t kFrameBytes = 8 + 8 + 12 * 8 + 1;
+
+/// An information matrix: finite, symmetric, with a non-negative diagonal.
+bool validInformation(const Matrix6d& information) {
+    return information.allFinite() &&
+           (information - information.transpose())
+               .isZero(1e-9 * (1.0 + information.cwiseAbs().maxCoeff())) &&
+           information.diagonal().minCoeff() >= 0.0;
+}
 constexpr double kMaxCoordinateM = 1e6;  // |p| beyond this is absurd for a room scan
 
 static_assert(std::endian::native == std::endian::little, "the codec assumes a little-endian host");
@@ -181,6 +191,11 @@ Result<std::vector<uint8_t>> encodeFragment(const Fragment& fragment,
             fmt::format("fragment {}: voxel size {} or tracking quality {} out of range",
                         fragment.id, fragment.voxel_size_m, fragment.tracking_quality));
     }
+    const bool with_information = !fragment.odometry_information.isZero(0.0);
+    if (with_information && !validInformation(fragment.odometry_information)) {
+        return invalidArgument(fmt::format(
+            "fragment {}: odometry information is not a finite symmetric matrix", fragment.id));
+    }
     for (const FragmentFrame& f : fragment.frames) {
         if (!std::isfinite(f.timestamp_s) || !lie::isValidPose(f.T_F_C, 1e-6)) {
             return invalidArgument(fmt::format("fragment {}: frame {} has a bad time or pose",
@@ -195,11 +210,12 @@ Result<std::vector<uint8_t>> encodeFragment(const Fragment& fragment,
     if (cloud.hasNormals()) flags |= kFlagNormals;
     if (with_colors) flags |= kFlagColors;
     if (float_positions) flags |= kFlagFloatPositions;
+    if (with_information) flags |= kFlagOdometryInformation;
 
     Writer w;
     w.bytes().reserve(128 + fragment.frames.size() * kFrameBytes + cloud.size() * 13);
     w.put<uint32_t>(kFragmentMagic);
-    w.put<uint16_t>(kFragmentCodecVersion);
+    w.put<uint16_t>(with_information ? uint16_t{2} : uint16_t{1});
     w.put<uint16_t>(flags);
     w.put<uint32_t>(fragment.id);
     w.put<uint32_t>(fragment.segment);
@@ -207,6 +223,12 @@ Result<std::vector<uint8_t>> encodeFragment(const Fragment& fragment,
     w.putPose(fragment.T_W_F);
     w.put<double>(fragment.voxel_size_m);
     w.put<double>(fragment.tracking_quality);
+    if (with_information) {
+        for (int row = 0; row < 6; ++row) {
+            for (int col = row; col < 6; ++col)
+                w.put<double>(fragment.odometry_information(row, col));
+        }
+    }
     w.put<uint32_t>(static_cast<uint32_t>(fragment.frames.size()));
     for (const FragmentFrame& f : fragment.frames) {
         w.put<int64_t>(f.frame_index);
@@ -263,7 +285,7 @@ Result<Fragment> decodeFragment(std::span<const uint8_t> bytes) {
     PLUMB_RETURN_IF_ERROR(r.get(magic, "magic"));
     if (magic != kFragmentMagic) return corrupt("fragment: bad magic (not a plumb fragment)");
     PLUMB_RETURN_IF_ERROR(r.get(version, "version"));
-    if (version != kFragmentCodecVersion) {
+    if (version < 1 || version > kFragmentCodecVersion) {
         return unsupported(fmt::format("fragment: codec version {} (this build reads {})", version,
                                        kFragmentCodecVersion));
     }
@@ -273,7 +295,9 @@ Result<Fragment> decodeFragment(std::span<const uint8_t> bytes) {
                                    stored_crc, computed_crc));
     }
     PLUMB_RETURN_IF_ERROR(r.get(flags, "flags"));
-    if (flags & ~kKnownFlags) return corrupt(fmt::format("fragment: unknown flags {:#x}", flags));
+    if (flags & ~(version == 1 ? kKnownFlagsV1 : kKnownFlags)) {
+        return corrupt(fmt::format("fragment: unknown flags {:#x} for version {}", flags, version));
+    }
 
     Fragment f;
     uint8_t end = 0;
@@ -291,6 +315,19 @@ Result<Fragment> decodeFragment(std::span<const uint8_t> bytes) {
         f.tracking_quality > 1.0) {
         return corrupt(fmt::format("fragment {}: voxel size {} or tracking quality {} absurd", f.id,
                                    f.voxel_size_m, f.tracking_quality));
+    }
+    if (flags & kFlagOdometryInformation) {
+        for (int row = 0; row < 6; ++row) {
+            for (int col = row; col < 6; ++col) {
+                double v = 0.0;
+                PLUMB_RETURN_IF_ERROR(r.getFinite(v, "odometry_information"));
+                f.odometry_information(row, col) = v;
+                f.odometry_information(col, row) = v;
+            }
+        }
+        if (!validInformation(f.odometry_information)) {
+            return corrupt(fmt::format("fragment {}: odometry information is absurd", f.id));
+        }
     }
     uint32_t num_frames = 0;
     PLUMB_RETURN_IF_ERROR(r.get(num_frames, "num_frames"));

@@ -9,6 +9,10 @@
 //   | f64 tracking_quality | u32 num_frames | num_frames x { i64 frame_index | f64 timestamp_s |
 //   f64[12] T_F_C | u8 tracking_ok } (113 bytes each) | u32 num_points | f64[3] origin_F |
 //   f64 step_m | positions | normals | colours | u32 CRC-32 of everything before it.
+// Version 2 adds flag bit 3 (odometry information): when set, f64[21] follow tracking_quality,
+//   the upper triangle of Fragment::odometry_information row by row. Everything else is as in
+//   version 1. A fragment without odometry information is written as version 1, byte for byte as
+//   before, so readers of version 1 keep reading it; both versions decode.
 //
 // Positions: quantised relative to the fragment's bounding box, q = round((p - origin) / step)
 // stored as uint16 per axis, with origin = box minimum and step = (largest box side) / 65535. A
@@ -35,7 +39,8 @@
 namespace plumb::messages {
 
 inline constexpr uint32_t kFragmentMagic = 0x52464C50u;  // "PLFR" little-endian
-inline constexpr uint16_t kFragmentCodecVersion = 1;
+/// The newest version written (2, when the fragment carries odometry information; else 1).
+inline constexpr uint16_t kFragmentCodecVersion = 2;
 
 struct FragmentCodecConfig {
     /// Keep per-point colours when the cloud has them (3 bytes per point).

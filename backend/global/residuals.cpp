@@ -35,28 +35,10 @@ double layoutResidual(const Eigen::Isometry3d& T_W_i, const Eigen::Vector3d& p_i
     return r;
 }
 
-Matrix6d adjoint(const Eigen::Isometry3d& T) {
-    Matrix6d A = Matrix6d::Zero();
-    const Eigen::Matrix3d R = T.linear();
-    A.topLeftCorner<3, 3>() = R;
-    A.bottomRightCorner<3, 3>() = R;
-    A.bottomLeftCorner<3, 3>() = lie::skew(T.translation()) * R;
-    return A;
-}
-
-Matrix6d adSE3(const Vector6d& xi) {
-    Matrix6d a = Matrix6d::Zero();
-    const Eigen::Matrix3d W = lie::skew(xi.head<3>());
-    a.topLeftCorner<3, 3>() = W;
-    a.bottomRightCorner<3, 3>() = W;
-    a.bottomLeftCorner<3, 3>() = lie::skew(xi.tail<3>());
-    return a;
-}
-
 Matrix6d rightJacobianInverseSE3(const Vector6d& xi) {
     // Jr = sum_n (-ad)^n / (n+1)!; the terms shrink like |xi|^n / (n+1)!, so the sum is exact to
     // machine precision after a few dozen terms for any |xi| this is used with (pose errors).
-    const Matrix6d minus_ad = -adSE3(xi);
+    const Matrix6d minus_ad = -lie::adSE3(xi);
     Matrix6d Jr = Matrix6d::Identity();
     Matrix6d term = Matrix6d::Identity();
     for (int n = 1; n < 60; ++n) {
@@ -73,7 +55,7 @@ Vector6d pairResidual(const Eigen::Isometry3d& T_W_i, const Eigen::Isometry3d& T
     const Eigen::Isometry3d E = T_i_j.inverse() * T_W_i.inverse() * T_W_j;
     const Vector6d e = lie::logSE3(E);
     if (J_i != nullptr || J_j != nullptr) {
-        const Matrix6d Jj = rightJacobianInverseSE3(e) * adjoint(T_W_j.inverse());
+        const Matrix6d Jj = rightJacobianInverseSE3(e) * lie::adjointSE3(T_W_j.inverse());
         if (J_j != nullptr) *J_j = Jj;
         if (J_i != nullptr) *J_i = -Jj;
     }

@@ -48,13 +48,6 @@ Vector6d pairResidual(const Eigen::Isometry3d& T_W_i, const Eigen::Isometry3d& T
                       const Eigen::Isometry3d& T_i_j, Matrix6d* J_i = nullptr,
                       Matrix6d* J_j = nullptr);
 
-/// Adjoint of T for twists (omega, upsilon): Exp(Ad(T) xi) = T Exp(xi) T^-1,
-/// Ad(T) = [[R, 0], [[t]_x R, R]].
-Matrix6d adjoint(const Eigen::Isometry3d& T);
-
-/// ad(xi) = [[ [omega]_x, 0 ], [ [upsilon]_x, [omega]_x ]] (the Lie bracket [xi, .]).
-Matrix6d adSE3(const Vector6d& xi);
-
 /// Inverse right Jacobian of SE(3): Log(Exp(xi) Exp(eta)) = xi + Jr^-1(xi) eta + O(|eta|^2).
 /// Jr(xi) = sum_n (-ad(xi))^n / (n+1)!, summed to machine precision and inverted; valid for
 /// rotation angles below pi.

@@ -52,25 +52,6 @@ void describe(config::Schema& s, PoseGraphConfig& c) {
 
 namespace {
 
-Matrix6d adjoint(const Eigen::Isometry3d& T) {
-    Matrix6d ad = Matrix6d::Zero();
-    const Eigen::Matrix3d R = T.rotation();
-    ad.topLeftCorner<3, 3>() = R;
-    ad.bottomRightCorner<3, 3>() = R;
-    ad.bottomLeftCorner<3, 3>() = lie::skew(T.translation()) * R;
-    return ad;
-}
-
-/// ad(xi) for xi = (omega, upsilon): [[ω^, 0], [υ^, ω^]].
-Matrix6d smallAdjoint(const Vector6d& xi) {
-    Matrix6d ad = Matrix6d::Zero();
-    const Eigen::Matrix3d w = lie::skew(xi.head<3>());
-    ad.topLeftCorner<3, 3>() = w;
-    ad.bottomRightCorner<3, 3>() = w;
-    ad.bottomLeftCorner<3, 3>() = lie::skew(xi.tail<3>());
-    return ad;
-}
-
 bool finitePose(const Eigen::Isometry3d& T) { return T.matrix().allFinite(); }
 
 struct Problem {
@@ -139,7 +120,7 @@ LinearSystem linearise(const Problem& p, const std::vector<Eigen::Isometry3d>& T
         // e ≈ e0 + J_l^-1(e0) Ad(A) (δ_t - δ_s), A = T_st^-1 T_W_s^-1 (left perturbations).
         const Eigen::Isometry3d A = e.T_source_target.inverse() * T[e.source].inverse();
         const Vector6d r = edgeResidual(e, T[e.source], T[e.target]);
-        const Matrix6d J = (Matrix6d::Identity() - 0.5 * smallAdjoint(r)) * adjoint(A);
+        const Matrix6d J = (Matrix6d::Identity() - 0.5 * lie::adSE3(r)) * lie::adjointSE3(A);
         const Matrix6d JtL = J.transpose() * (w * e.information);
         s.H[k] = JtL * J;
         const Vector6d g = JtL * r;
@@ -455,7 +436,8 @@ double lineProcessMu(const PoseGraph& graph, const PoseGraphConfig& config) {
     int count = 0;
     for (const PoseGraphEdge& e : graph.edges) {
         if (!e.kept) continue;
-        sum += e.information(5, 5);
+        sum += e.information_source == PoseGraphEdge::Information::kTracker ? e.num_correspondences
+                                                                            : e.information(5, 5);
         ++count;
     }
     if (count == 0) return 0.0;

@@ -26,7 +26,16 @@
 // also what Open3D does) and document it here.
 //
 // μ = preference_loop_closure * τ^2 * mean_edges(Λ(5,5)) (Choi §5, Open3D): τ is the
-// correspondence distance, Λ(5,5) the correspondence count of an edge.
+// correspondence distance, Λ(5,5) the correspondence count of an edge (for an edge with the
+// tracker's information, its num_correspondences).
+//
+// Odometry edges of fragments that carry the tracker's information (Fragment::
+// odometry_information) use it instead of Choi's Λ: Λ = s Ad^T H Ad, H the tracker's J^T J
+// (left perturbation in the source frame), Ad = Ad(T_source_target) taking it to the target-frame
+// linearisation, s chosen so that trace(Λ_translation) equals that of Choi's Λ over the same
+// overlap (3 × correspondences). The total certainty is Choi's; its distribution over directions
+// is what the tracker observed, so along a corridor the depth did not pin, loop closures and the
+// layout can move the fragment.
 
 #include <Eigen/Geometry>
 #include <cstdint>
@@ -46,8 +55,16 @@ struct PoseGraphEdge {
     Kind kind = Kind::kOdometry;
     /// Maps target-fragment points into the source fragment frame (see the header comment).
     Eigen::Isometry3d T_source_target = Eigen::Isometry3d::Identity();
+    /// Where `information` comes from.
+    enum class Information {
+        kOverlap,  ///< Choi's Λ = Σ G^T G over the overlap's correspondences (reference §3.4)
+        kTracker,  ///< the device tracker's J^T J, scaled to the overlap's trace (odometry edges)
+    };
     /// 6x6 information matrix (rotation first), target-frame linearisation (reference §3.4).
     Matrix6d information = Matrix6d::Zero();
+    Information information_source = Information::kOverlap;
+    /// Correspondences within τ at T_source_target; Λ(5,5) for overlap information.
+    double num_correspondences = 0.0;
     /// Fraction of the smaller fragment within the correspondence distance after alignment.
     double overlap = 0.0;
     /// RMSE of the inlier correspondences after alignment, metres.

@@ -57,7 +57,10 @@ std::string poseGraphJson(const PoseGraph& graph, const posegraph::PoseGraphRepo
         o["overlap"] = e.overlap;
         o["inlier_rmse_m"] = e.inlier_rmse_m;
         o["line_process"] = e.line_process;
-        o["num_correspondences"] = e.information(5, 5);
+        const bool tracker =
+            e.information_source == posegraph::PoseGraphEdge::Information::kTracker;
+        o["num_correspondences"] = tracker ? e.num_correspondences : e.information(5, 5);
+        o["information_source"] = tracker ? "tracker" : "overlap";
         o["T_source_target"] = matrixJson(e.T_source_target.matrix());
         o["information"] = matrixJson(e.information);
         edges.push_back(std::move(o));

@@ -46,6 +46,9 @@ void describe(config::Schema& s, RegistrationConfig& c) {
     s.field("loop_icp_iterations", c.loop_icp_iterations,
             "coarse ICP iterations when verifying a RANSAC loop candidate")
         .min(1);
+    s.field("tracker_odometry", c.tracker_odometry,
+            "odometry edges keep the tracked transform, weighed by the tracker's information, "
+            "where fragments carry it (false: fragment-to-fragment ICP and Choi's information)");
     s.field("refinement_pass", c.refinement_pass,
             "re-align surviving edges by ICP from the optimised poses and optimise again");
     s.field("seed", c.seed, "seed of the RANSAC generators");
@@ -86,18 +89,52 @@ double tauOf(const RegistrationConfig& c) { return c.pose_graph.max_corresponden
 void setFromPair(PoseGraphEdge& e, const PairResult& eval) {
     e.T_source_target = eval.T_source_target;
     e.information = eval.information;
+    e.information_source = PoseGraphEdge::Information::kOverlap;
+    e.num_correspondences = eval.num_correspondences;
     e.overlap = eval.overlap;
     e.inlier_rmse_m = eval.inlier_rmse_m;
 }
 
-/// Odometry edge (s, s+1) by multi-scale ICP from the odometry relative pose.
-PoseGraphEdge odometryEdge(const FragmentIndex& s, const FragmentIndex& t,
-                           const Eigen::Isometry3d& T_odo, const RegistrationConfig& c,
-                           bool* icp_failed) {
+/// The tracker's information H (left perturbation in the source frame) as the edge's
+/// target-frame information Ad(T)^T H Ad(T), scaled so that its translation block has the trace
+/// of Choi's Λ over the same overlap (3 per correspondence, at least 3: see pose_graph.hpp).
+Matrix6d trackerInformation(const Matrix6d& H, const Eigen::Isometry3d& T_source_target,
+                            double num_correspondences) {
+    const Matrix6d Ad = lie::adjointSE3(T_source_target);
+    Matrix6d L = Ad.transpose() * H * Ad;
+    L = 0.5 * (L + L.transpose());
+    const double trace = L.bottomRightCorner<3, 3>().trace();
+    const double target = 3.0 * std::max(1.0, num_correspondences);
+    if (trace <= 0.0) return Matrix6d::Identity();
+    return L * (target / trace);
+}
+
+/// Whether the odometry edge into `target` takes the tracker's information.
+bool useTracker(const Fragment& source, const Fragment& target, const RegistrationConfig& c) {
+    return c.tracker_odometry && source.segment == target.segment && target.id == source.id + 1 &&
+           !target.odometry_information.isZero(0.0) &&
+           target.odometry_information.bottomRightCorner<3, 3>().trace() > 0.0;
+}
+
+}  // namespace
+
+PoseGraphEdge odometryEdge(const FragmentIndex& s, const FragmentIndex& t, const Fragment& source,
+                           const Fragment& target, const RegistrationConfig& c, bool* icp_failed) {
     PoseGraphEdge e;
     e.source = s.id;
     e.target = t.id;
     e.kind = PoseGraphEdge::Kind::kOdometry;
+    const Eigen::Isometry3d T_odo = source.T_W_F.inverse() * target.T_W_F;
+    *icp_failed = false;
+    if (useTracker(source, target, c)) {
+        const PairResult eval = evaluateAlignment(s, t, T_odo, tauOf(c), c.icp.num_threads);
+        setFromPair(e, eval);
+        e.information =
+            trackerInformation(target.odometry_information, T_odo, eval.num_correspondences);
+        e.information_source = PoseGraphEdge::Information::kTracker;
+        e.reason = "tracked transform, tracker's information";
+        return e;
+    }
     const PairResult icp = multiScaleIcp(s, t, T_odo, c.icp);
     Eigen::Isometry3d T = T_odo;
     *icp_failed = !icp.success;
@@ -115,6 +152,8 @@ PoseGraphEdge odometryEdge(const FragmentIndex& s, const FragmentIndex& t,
     setFromPair(e, eval);
     return e;
 }
+
+namespace {
 
 enum class LoopOutcome { kRansacFailed, kRejected, kTurned, kMoved, kAccepted };
 
@@ -323,7 +362,12 @@ void refineWithIndex(PoseGraph& graph, const std::vector<const FragmentIndex*>& 
     const RegistrationConfig inner = innerConfig(c);
     std::vector<size_t> todo;
     for (size_t k = 0; k < graph.edges.size(); ++k) {
-        if (graph.edges[k].kept) todo.push_back(k);
+        // An edge with the tracker's information keeps the tracked transform: ICP would slide
+        // it along what the tracker says the geometry leaves free.
+        const PoseGraphEdge& e = graph.edges[k];
+        if (e.kept && e.information_source != PoseGraphEdge::Information::kTracker) {
+            todo.push_back(k);
+        }
     }
     detail::parallelFor(c.num_threads, todo.size(), [&](size_t n) {
         PoseGraphEdge& e = graph.edges[todo[n]];
@@ -394,8 +438,7 @@ Result<PoseGraph> buildPoseGraph(const std::vector<Fragment>& fragments,
         const auto [i, j] = pairs[k];
         if (j == i + 1) {
             bool failed = false;
-            const Eigen::Isometry3d T_odo = fragments[i].T_W_F.inverse() * fragments[j].T_W_F;
-            edges[k] = odometryEdge(idx[i], idx[j], T_odo, inner, &failed);
+            edges[k] = odometryEdge(idx[i], idx[j], fragments[i], fragments[j], inner, &failed);
             outcome[k] = failed ? 1 : 0;
         } else {
             PoseGraphEdge e;
@@ -521,9 +564,9 @@ Status LiveRegistrar::addFragment(Fragment fragment) {
     if (k == 0) {
         graph_.T_W_F.push_back(fragment.T_W_F);
     } else {
-        const Eigen::Isometry3d T_odo = fragments_.back().T_W_F.inverse() * fragment.T_W_F;
         bool failed = false;
-        PoseGraphEdge odo = odometryEdge(*index_.back(), *index, T_odo, inner, &failed);
+        PoseGraphEdge odo =
+            odometryEdge(*index_.back(), *index, fragments_.back(), fragment, inner, &failed);
         ++stats_.odometry_pairs;
         if (failed) ++stats_.odometry_icp_failed;
         graph_.T_W_F.push_back(graph_.T_W_F.back() * odo.T_source_target);

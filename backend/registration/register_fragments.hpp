@@ -77,6 +77,13 @@ struct RegistrationConfig {
     double max_loop_rotation_deviation_deg = 30.0;
     /// ICP iterations at the coarsest level when verifying a RANSAC loop candidate.
     int loop_icp_iterations = 30;
+    /// Odometry edges of fragments that carry the tracker's information
+    /// (Fragment::odometry_information) keep the tracked transform and weigh it by that
+    /// information (PoseGraphEdge::Information::kTracker), and the refinement pass leaves them
+    /// alone. Fragment-to-fragment ICP slides along what the depth does not pin (a corridor, a
+    /// plain wall) and Choi's point-to-point Λ calls every direction certain; the tracker knew
+    /// better, colour included. False: ICP and Choi's Λ, as for loop closures.
+    bool tracker_odometry = true;
     /// Run the refinement pass (re-ICP of surviving edges, optimise again).
     bool refinement_pass = true;
     /// Seed of the RANSAC generators (each pair uses a seed derived from it and the pair).
@@ -97,6 +104,16 @@ struct PairStats {
     int translation_rejected = 0;  ///< moved too far from the odometry (guided.max_offset_...)
     int loops_accepted = 0;
 };
+
+/// The odometry edge (s, s+1) between consecutive fragments, built from their indices `s`, `t`
+/// and the fragments themselves. When `target` carries the tracker's information, both share a
+/// segment and c.tracker_odometry is on: the tracked transform, weighed by that information
+/// (PoseGraphEdge::Information::kTracker, see pose_graph.hpp), with the overlap figures at it.
+/// Otherwise multi-scale ICP from the odometry relative pose and Choi's Λ; `icp_failed` says
+/// whether the ICP failed and the odometry transform was kept.
+posegraph::PoseGraphEdge odometryEdge(const FragmentIndex& s, const FragmentIndex& t,
+                                      const Fragment& source, const Fragment& target,
+                                      const RegistrationConfig& c, bool* icp_failed);
 
 /// The device odometry from fragment a to fragment b (T_a_b = T_W_a^-1 T_W_b), when both belong
 /// to one tracking segment; across segments there is none.

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "common/cloud/point_cloud.hpp"
+#include "common/geometry/lie.hpp"
 
 namespace plumb {
 
@@ -43,6 +44,13 @@ struct Fragment {
     double voxel_size_m = 0.0;          ///< TSDF voxel size the surface was extracted at
     /// Mean ICP inlier fraction over the fragment's frames, in [0, 1] (1 for the first frame).
     double tracking_quality = 1.0;
+    /// How well the tracker observed this fragment's pose relative to the previous fragment of
+    /// its segment: J^T J (rotation first, 1 / m^2 of point-to-plane residual, the photometric
+    /// term weighed in) of the alignment of this fragment's first frame to the previous
+    /// fragment's model, for the left perturbation T_P_F <- Exp(xi) T_P_F in the previous
+    /// fragment's frame P. Along a plain corridor without colour its translation block is
+    /// nearly singular. Zero when unknown (the first fragment of a segment, older data).
+    Matrix6d odometry_information = Matrix6d::Zero();
 };
 
 }  // namespace plumb

@@ -107,6 +107,24 @@ Vector6d logSE3(const Eigen::Isometry3d& T) {
     return xi;
 }
 
+Matrix6d adjointSE3(const Eigen::Isometry3d& T) {
+    Matrix6d A = Matrix6d::Zero();
+    const Eigen::Matrix3d R = T.linear();
+    A.topLeftCorner<3, 3>() = R;
+    A.bottomRightCorner<3, 3>() = R;
+    A.bottomLeftCorner<3, 3>() = skew(T.translation()) * R;
+    return A;
+}
+
+Matrix6d adSE3(const Vector6d& xi) {
+    Matrix6d a = Matrix6d::Zero();
+    const Eigen::Matrix3d W = skew(xi.head<3>());
+    a.topLeftCorner<3, 3>() = W;
+    a.bottomRightCorner<3, 3>() = W;
+    a.bottomLeftCorner<3, 3>() = skew(xi.tail<3>());
+    return a;
+}
+
 Eigen::Matrix<double, 3, 6> pointJacobian(const Eigen::Vector3d& x) {
     Eigen::Matrix<double, 3, 6> J;
     J.leftCols<3>() = -skew(x);

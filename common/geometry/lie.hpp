@@ -38,6 +38,14 @@ Eigen::Isometry3d expSE3(const Vector6d& xi);
 /// Log: SE(3) -> se(3), inverse of expSE3, xi = (omega, upsilon).
 Vector6d logSE3(const Eigen::Isometry3d& T);
 
+/// Adjoint of T for twists (omega, upsilon): Exp(Ad(T) xi) = T Exp(xi) T^-1,
+/// Ad(T) = [[R, 0], [[t]_x R, R]]. An information matrix Λ_L of a left perturbation
+/// Exp(xi_L) T is Ad(T)^T Λ_L Ad(T) for the right perturbation T Exp(xi_R).
+Matrix6d adjointSE3(const Eigen::Isometry3d& T);
+
+/// ad(xi) = [[ [omega]_x, 0 ], [ [upsilon]_x, [omega]_x ]] (the Lie bracket [xi, .]).
+Matrix6d adSE3(const Vector6d& xi);
+
 /// d(Exp(xi) x)/d xi at xi = 0 for a point x: [ -[x]_x | I_3 ] (3x6).
 Eigen::Matrix<double, 3, 6> pointJacobian(const Eigen::Vector3d& x);
 

@@ -212,14 +212,19 @@ Result<FrameReport> FragmentBuilder::processImpl(const Frame& frame) {
             } else {
                 // Block budget: close early and start the next fragment with this frame.
                 report.budget_reached = true;
+                const bool in_closed_frame = !handover_;  // report.icp is relative to M
                 report.closed.push_back(closeFragment(FragmentEnd::kBlockBudget, &report.timing));
                 openFragment(T_W_C_);
+                if (in_closed_frame) current_->odometry_information = report.icp.information;
                 report.integrated = integrate(pyramid, Eigen::Isometry3d::Identity(), &report);
                 if (report.integrated) addFrame(frame, Eigen::Isometry3d::Identity(), true, 1.0);
             }
         } else {
             // First frame after a cut (or a re-localisation): it begins the next fragment.
             openFragment(T_W_C_, /*handover=*/true);
+            // This frame was aligned to the closed fragment's model: its system is the
+            // certainty of the new fragment's pose relative to the closed one.
+            current_->odometry_information = report.icp.information;
             report.integrated = integrate(pyramid, Eigen::Isometry3d::Identity(), &report);
             if (report.integrated) {
                 addFrame(frame, Eigen::Isometry3d::Identity(), true, report.icp.inlier_fraction);

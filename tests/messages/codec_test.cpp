@@ -251,6 +251,54 @@ TEST(FragmentCodec, DecoderRejectsEveryCorruption) {
     EXPECT_TRUE(decodeFragment(same).isOk());
 }
 
+/// A symmetric positive definite information matrix, weak along one translation.
+Matrix6d corridorInformation() {
+    Eigen::Matrix<double, 6, 6> A = Eigen::Matrix<double, 6, 6>::Identity();
+    A(0, 3) = 0.25;
+    A(4, 1) = -0.5;
+    Matrix6d H = A * A.transpose() * 1.5e4;
+    H.row(5).setZero();
+    H.col(5).setZero();
+    H(5, 5) = 3.0;  // the slide along z is barely observed
+    return H;
+}
+
+TEST(FragmentCodec, Version2CarriesTheOdometryInformation) {
+    Fragment f = makeFragment(400, 2.0, true, 7);
+    const std::vector<uint8_t> v1 = encodeFragment(f).value();
+    uint16_t version = 0;
+    std::memcpy(&version, v1.data() + 4, 2);
+    EXPECT_EQ(version, 1) << "a fragment without odometry information stays version 1";
+
+    f.odometry_information = corridorInformation();
+    const std::vector<uint8_t> v2 = encodeFragment(f).value();
+    std::memcpy(&version, v2.data() + 4, 2);
+    EXPECT_EQ(version, 2);
+    EXPECT_EQ(v2.size(), v1.size() + 21 * 8);
+    const Fragment back = decodeFragment(v2).value();
+    EXPECT_EQ(back.odometry_information, f.odometry_information);  // doubles, exact
+    EXPECT_EQ(back.points_F.size(), f.points_F.size());
+    EXPECT_EQ(back.frames.size(), f.frames.size());
+    EXPECT_TRUE(decodeFragment(v1).value().odometry_information.isZero(0.0));
+
+    // The information flag is not a version-1 flag; corruptions of the matrix are caught.
+    std::vector<uint8_t> bad = v2;
+    const uint16_t one = 1;
+    std::memcpy(bad.data() + 4, &one, 2);
+    fixCrc(bad);
+    EXPECT_EQ(decodeFragment(bad).status().code(), StatusCode::kCorrupt);
+    const size_t info_offset = 4 + 2 + 2 + 4 + 4 + 1 + 96 + 16;
+    const double negative = -1.0, nan = std::nan("");
+    for (const double* v : {&negative, &nan}) {
+        bad = v2;
+        std::memcpy(bad.data() + info_offset, v, 8);  // H(0,0)
+        fixCrc(bad);
+        EXPECT_EQ(decodeFragment(bad).status().code(), StatusCode::kCorrupt);
+    }
+    f.odometry_information(0, 1) += 1.0;  // not symmetric
+    EXPECT_EQ(encodeFragment(f).status().code(), StatusCode::kInvalidArgument);
+}
+
 }  // namespace
 
 }  // namespace plumb::messages

@@ -54,8 +54,10 @@ constexpr const char* kUsage =
     "                      follows the constant-velocity prediction), frames_unconstrained\n"
     "                      (frames with any), depth_only (a frame with colour tracked by\n"
     "                      depth alone, and why: too little texture, or the photometric term\n"
-    "                      rejected), frames_depth_only, tracking quality, errors against\n"
-    "                      ground truth\n"
+    "                      rejected), frames_depth_only, tracking quality,\n"
+    "                      odometry_information (the tracker's 6x6 J^T J of this fragment's\n"
+    "                      pose relative to the previous one, rotation first; absent for a\n"
+    "                      segment's first fragment), errors against ground truth\n"
     "  fragments.json      summary: source, timing, per-fragment figures, frames_photometric\n"
     "                      (tracked RGB-D), frames_depth_only and depth_only_reasons\n"
     "  trajectory.txt      odometry (TUM, camera->world = T_W_F * T_F_C of tracked frames)\n"
@@ -196,6 +198,15 @@ nlohmann::json fragmentJson(const Fragment& f, const FragmentAccuracy& acc) {
     j["T_W_F"] = poseJson(f.T_W_F);
     j["voxel_size_m"] = f.voxel_size_m;
     j["tracking_quality"] = f.tracking_quality;
+    if (!f.odometry_information.isZero(0.0)) {
+        nlohmann::json rows = nlohmann::json::array();
+        for (int r = 0; r < 6; ++r) {
+            nlohmann::json row = nlohmann::json::array();
+            for (int c = 0; c < 6; ++c) row.push_back(f.odometry_information(r, c));
+            rows.push_back(std::move(row));
+        }
+        j["odometry_information"] = std::move(rows);
+    }
     j["num_points"] = f.points_F.size();
     j["points_file"] = fmt::format("fragment_{:03d}.ply", f.id);
     nlohmann::json frames = nlohmann::json::array();

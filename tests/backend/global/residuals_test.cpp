@@ -109,7 +109,7 @@ TEST(GlobalResiduals, AdjointConjugatesTheExponential) {
     const Eigen::Isometry3d T = randomPose(rng, 0.8, 2.0);
     Vector6d xi;
     xi << 0.1, -0.2, 0.3, 0.5, -0.4, 0.2;
-    const Eigen::Isometry3d lhs = lie::expSE3(adjoint(T) * xi);
+    const Eigen::Isometry3d lhs = lie::expSE3(lie::adjointSE3(T) * xi);
     const Eigen::Isometry3d rhs = T * lie::expSE3(xi) * T.inverse();
     EXPECT_LT((lhs.matrix() - rhs.matrix()).cwiseAbs().maxCoeff(), 1e-12);
 }

@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
+#include <Eigen/Eigenvalues>
 
 #include <cstdio>
 #include <filesystem>
@@ -308,6 +309,51 @@ TEST(Registration, LiveModeIsDeterministicAndAccurate) {
     std::printf("live: %d kept loop edges, ATE RMSE %.2f cm\n", loops, ate * 100);
     EXPECT_GT(loops, 0);
     EXPECT_LT(ate, 0.05);
+}
+
+TEST(Registration, OdometryEdgesKeepTheTrackedTransformWeighedByTheTrackersInformation) {
+    const Fragment& f0 = scan().fragments[0];
+    const Fragment& f1 = scan().fragments[1];
+    ASSERT_FALSE(f1.odometry_information.isZero(0.0)) << "the device records it";
+    const FragmentIndex i0 = buildFragmentIndex(f0, prepared()[0], IcpConfig{});
+    const FragmentIndex i1 = buildFragmentIndex(f1, prepared()[1], IcpConfig{});
+    const Eigen::Isometry3d T_odo = f0.T_W_F.inverse() * f1.T_W_F;
+    RegistrationConfig c = config();
+    bool failed = true;
+    const PoseGraphEdge e = odometryEdge(i0, i1, f0, f1, c, &failed);
+    EXPECT_FALSE(failed);
+    EXPECT_EQ(e.kind, PoseGraphEdge::Kind::kOdometry);
+    EXPECT_EQ(e.information_source, PoseGraphEdge::Information::kTracker);
+    EXPECT_TRUE(e.T_source_target.isApprox(T_odo, 1e-12));
+    EXPECT_GT(e.num_correspondences, 100.0);
+    EXPECT_GT(e.overlap, 0.5);
+    const double trace = e.information.bottomRightCorner<3, 3>().trace();
+    EXPECT_NEAR(trace, 3.0 * e.num_correspondences, 1e-6 * e.num_correspondences);
+
+    // A tracker that could not see the slide along d (source frame): the edge is weak along
+    // R^T d, the same direction in the target frame, and as certain as before across it.
+    Fragment blind = f1;
+    const Eigen::Vector3d d = Eigen::Vector3d(1.0, 0.2, -0.4).normalized();
+    blind.odometry_information = Matrix6d::Identity() * 1e4;
+    blind.odometry_information.bottomRightCorner<3, 3>() =
+        1e4 * (Eigen::Matrix3d::Identity() - d * d.transpose()) + 1e-2 * d * d.transpose();
+    const PoseGraphEdge w = odometryEdge(i0, i1, f0, blind, c, &failed);
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(
+        w.information.bottomRightCorner<3, 3>());
+    const Eigen::Vector3d d_target = T_odo.linear().transpose() * d;
+    EXPECT_GT(std::abs(eig.eigenvectors().col(0).dot(d_target)), 1.0 - 1e-9);
+    EXPECT_LT(eig.eigenvalues()(0), 1e-5 * eig.eigenvalues()(1));
+    EXPECT_NEAR(eig.eigenvalues()(1), eig.eigenvalues()(2), 1e-9 * eig.eigenvalues()(2));
+
+    // Without it (older fragments, or switched off): ICP and Choi's Λ, whose Λ(5,5) is the count.
+    Fragment old = f1;
+    old.odometry_information.setZero();
+    for (const Fragment* t : {static_cast<const Fragment*>(&old), &f1}) {
+        c.tracker_odometry = t == &old;
+        const PoseGraphEdge o = odometryEdge(i0, i1, f0, *t, c, &failed);
+        EXPECT_EQ(o.information_source, PoseGraphEdge::Information::kOverlap);
+        EXPECT_EQ(o.information(5, 5), o.num_correspondences);
+    }
 }
 
 TEST(Registration, LoopsThatTurnAwayFromTheOdometryAreRejectedWithinASegment) {

@@ -18,7 +18,7 @@ namespace {
 
 std::filesystem::path cacheDir(const SimScanOptions& o) {
     std::ostringstream key;
-    key << "v4-" << o.camera << "-" << o.voxel_size_m << "-" << o.truncation_m << "-" << o.scene
+    key << "v5-" << o.camera << "-" << o.voxel_size_m << "-" << o.truncation_m << "-" << o.scene
         << "-" << o.num_frames << "-" << o.rate_hz << "-" << o.frames_per_fragment << "-"
         << (o.loop ? "loop" : "open") << "-" << o.seed;
     return std::filesystem::temp_directory_path() / "plumb-registration-cache" / key.str();
