@@ -17,6 +17,18 @@ const char* toString(PoseGraphEdge::Kind kind) {
     return kind == PoseGraphEdge::Kind::kOdometry ? "odometry" : "loop";
 }
 
+const char* toString(PoseGraphEdge::Information information) {
+    switch (information) {
+        case PoseGraphEdge::Information::kChoi:
+            return "choi";
+        case PoseGraphEdge::Information::kPlane:
+            return "point_to_plane";
+        case PoseGraphEdge::Information::kTracker:
+            return "tracker";
+    }
+    return "?";
+}
+
 void describe(config::Schema& s, PoseGraphConfig& c) {
     s.field("preference_loop_closure", c.preference_loop_closure,
             "line-process preference (Open3D preference_loop_closure)")

@@ -26,16 +26,24 @@
 // also what Open3D does) and document it here.
 //
 // μ = preference_loop_closure * τ^2 * mean_edges(Λ(5,5)) (Choi §5, Open3D): τ is the
-// correspondence distance, Λ(5,5) the correspondence count of an edge (for an edge with the
-// tracker's information, its num_correspondences).
+// correspondence distance, Λ(5,5) the correspondence count of an edge (for an edge with another
+// information, its num_correspondences).
 //
 // Odometry edges of fragments that carry the tracker's information (Fragment::
-// odometry_information) use it instead of Choi's Λ: Λ = s Ad^T H Ad, H the tracker's J^T J
-// (left perturbation in the source frame), Ad = Ad(T_source_target) taking it to the target-frame
-// linearisation, s chosen so that trace(Λ_translation) equals that of Choi's Λ over the same
-// overlap (3 × correspondences). The total certainty is Choi's; its distribution over directions
-// is what the tracker observed, so along a corridor the depth did not pin, loop closures and the
-// layout can move the fragment.
+// odometry_information) weigh by it instead of Choi's Λ: Λ = Ad^T H Ad, H the tracker's J^T J of
+// the alignment of the target fragment's first frame to the source fragment's model (left
+// perturbation in the source frame, the photometric term weighed in), Ad = Ad(T_source_target)
+// taking it to the target-frame linearisation. H is a sum over the frame's pixels in the same
+// units as Choi's sum over fragment points (m^2 of point displacement), so it is as certain as
+// the tracker was: far more than an overlap of subsampled points where depth and colour pinned
+// the pose, nearly nothing along a corridor that neither pinned, and there loop closures and
+// the layout can move the fragment.
+//
+// Choi's Λ is point-to-point and calls every direction of an overlap certain, also a slide along
+// a corridor where ICP is free to drift. RegistrationConfig::plane_information (off by default)
+// makes overlap edges weigh by the point-to-plane information over the same correspondences
+// instead, Σ J^T J with J = [(q x n)^T, n^T], scaled so that its translation block has the trace
+// of Choi's Λ (3 per correspondence).
 
 #include <Eigen/Geometry>
 #include <cstdint>
@@ -57,13 +65,14 @@ struct PoseGraphEdge {
     Eigen::Isometry3d T_source_target = Eigen::Isometry3d::Identity();
     /// Where `information` comes from.
     enum class Information {
-        kOverlap,  ///< Choi's Λ = Σ G^T G over the overlap's correspondences (reference §3.4)
-        kTracker,  ///< the device tracker's J^T J, scaled to the overlap's trace (odometry edges)
+        kChoi,   ///< Choi's Λ = Σ G^T G over the overlap's correspondences (reference §3.4)
+        kPlane,  ///< point-to-plane Σ J^T J over the same correspondences, scaled to Choi's trace
+        kTracker,  ///< the device tracker's J^T J (odometry edges)
     };
     /// 6x6 information matrix (rotation first), target-frame linearisation (reference §3.4).
     Matrix6d information = Matrix6d::Zero();
-    Information information_source = Information::kOverlap;
-    /// Correspondences within τ at T_source_target; Λ(5,5) for overlap information.
+    Information information_source = Information::kChoi;
+    /// Correspondences within τ at T_source_target; Λ(5,5) for Choi's information.
     double num_correspondences = 0.0;
     /// Fraction of the smaller fragment within the correspondence distance after alignment.
     double overlap = 0.0;
@@ -77,6 +86,8 @@ struct PoseGraphEdge {
 };
 
 const char* toString(PoseGraphEdge::Kind kind);
+/// "choi", "point_to_plane" or "tracker".
+const char* toString(PoseGraphEdge::Information information);
 
 struct PoseGraph {
     /// Fragment -> world poses, one per node (node i = fragment i).

@@ -57,10 +57,9 @@ std::string poseGraphJson(const PoseGraph& graph, const posegraph::PoseGraphRepo
         o["overlap"] = e.overlap;
         o["inlier_rmse_m"] = e.inlier_rmse_m;
         o["line_process"] = e.line_process;
-        const bool tracker =
-            e.information_source == posegraph::PoseGraphEdge::Information::kTracker;
-        o["num_correspondences"] = tracker ? e.num_correspondences : e.information(5, 5);
-        o["information_source"] = tracker ? "tracker" : "overlap";
+        const bool choi = e.information_source == posegraph::PoseGraphEdge::Information::kChoi;
+        o["num_correspondences"] = choi ? e.information(5, 5) : e.num_correspondences;
+        o["information_source"] = posegraph::toString(e.information_source);
         o["T_source_target"] = matrixJson(e.T_source_target.matrix());
         o["information"] = matrixJson(e.information);
         edges.push_back(std::move(o));

@@ -284,9 +284,11 @@ PairResult evaluateAlignment(const FragmentIndex& source, const FragmentIndex& t
     const Eigen::Vector3f t = T_source_target.translation().cast<float>();
     struct Acc {
         Matrix6d info = Matrix6d::Zero();
+        Matrix6d plane = Matrix6d::Zero();
         double err = 0.0;
         int64_t count = 0;
     };
+    const bool normals = tgt.hasNormals();
     // Λ = Σ_q G_q^T G_q over target points q (target frame) with a source neighbour within τ,
     // G_q = [-[q]_x | I_3] (reference §3.4).
     const Acc acc = detail::chunkedReduce(
@@ -298,15 +300,23 @@ PairResult evaluateAlignment(const FragmentIndex& source, const FragmentIndex& t
             if (!source.coarse.nearest(R * q + t, tau2, &j, &d2)) return;
             Eigen::Matrix<double, 3, 6> G = lie::pointJacobian(q.cast<double>());
             a.info.noalias() += G.transpose() * G;
+            if (normals) {
+                const Eigen::Vector3d n = tgt.normals[i].cast<double>();
+                Vector6d J;
+                J << q.cast<double>().cross(n), n;
+                a.plane.noalias() += J * J.transpose();
+            }
             a.err += d2;
             ++a.count;
         },
         [](Acc& total, const Acc& part) {
             total.info += part.info;
+            total.plane += part.plane;
             total.err += part.err;
             total.count += part.count;
         });
     out.information = acc.info;
+    out.plane_information = acc.plane;
     out.num_correspondences = static_cast<int>(acc.count);
     out.inlier_rmse_m = acc.count > 0 ? std::sqrt(acc.err / static_cast<double>(acc.count)) : 0.0;
     // Overlap over the smaller fragment (Choi's test: ≥ 30 % of it within τ of the other).

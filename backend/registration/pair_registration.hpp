@@ -135,11 +135,16 @@ struct PairResult {
     std::string reason;  ///< why it failed, empty on success
     Eigen::Isometry3d T_source_target = Eigen::Isometry3d::Identity();
     Matrix6d information = Matrix6d::Zero();  ///< Choi's Λ (reference §3.4)
-    double overlap = 0.0;                     ///< fraction of the smaller fragment matched
-    double inlier_rmse_m = 0.0;               ///< RMSE of the correspondences within τ
-    int num_correspondences = 0;              ///< Λ(5,5)
-    int ransac_inliers = 0;                   ///< feature correspondences agreeing (RANSAC only)
-    int iterations = 0;                       ///< RANSAC or ICP iterations run
+    /// Σ_q J_q^T J_q over the same correspondences, J_q = [(q x n_q)^T, n_q^T] with q and its
+    /// unit normal n_q in the target frame (rotation first): the point-to-plane information,
+    /// nearly singular along what the overlap's geometry does not pin (trace of its translation
+    /// block = the correspondence count).
+    Matrix6d plane_information = Matrix6d::Zero();
+    double overlap = 0.0;         ///< fraction of the smaller fragment matched
+    double inlier_rmse_m = 0.0;   ///< RMSE of the correspondences within τ
+    int num_correspondences = 0;  ///< Λ(5,5)
+    int ransac_inliers = 0;       ///< feature correspondences agreeing (RANSAC only)
+    int iterations = 0;           ///< RANSAC or ICP iterations run
 };
 
 /// Point-to-plane ICP of `target` onto `source` (source carries normals) from `init`, one level.

@@ -46,6 +46,10 @@ void describe(config::Schema& s, RegistrationConfig& c) {
     s.field("loop_icp_iterations", c.loop_icp_iterations,
             "coarse ICP iterations when verifying a RANSAC loop candidate")
         .min(1);
+    s.field("plane_information", c.plane_information,
+            "edges weigh by the point-to-plane information over their overlap, scaled to the "
+            "trace of Choi's point-to-point information (false: Choi's, which trusts a slide "
+            "along what the overlap does not pin)");
     s.field("tracker_odometry", c.tracker_odometry,
             "odometry edges keep the tracked transform, weighed by the tracker's information, "
             "where fragments carry it (false: fragment-to-fragment ICP and Choi's information)");
@@ -86,27 +90,40 @@ RegistrationConfig innerConfig(const RegistrationConfig& c) {
 
 double tauOf(const RegistrationConfig& c) { return c.pose_graph.max_correspondence_distance_m; }
 
-void setFromPair(PoseGraphEdge& e, const PairResult& eval) {
+/// L scaled so that its translation block has the trace of Choi's Λ over `num_correspondences`
+/// correspondences (3 per correspondence, at least 3: see pose_graph.hpp); the identity when L
+/// has no translation information.
+Matrix6d scaledToChoiTrace(Matrix6d L, double num_correspondences) {
+    L = 0.5 * (L + L.transpose());
+    const double trace = L.bottomRightCorner<3, 3>().trace();
+    if (!(trace > 0.0)) return Matrix6d::Identity();
+    return L * (3.0 * std::max(1.0, num_correspondences) / trace);
+}
+
+/// The edge's transform, information and figures from an evaluated alignment: the point-to-plane
+/// information (c.plane_information, where the overlap has at least 6 correspondences with
+/// normals) or Choi's Λ.
+void setFromPair(PoseGraphEdge& e, const PairResult& eval, const RegistrationConfig& c) {
     e.T_source_target = eval.T_source_target;
-    e.information = eval.information;
-    e.information_source = PoseGraphEdge::Information::kOverlap;
     e.num_correspondences = eval.num_correspondences;
     e.overlap = eval.overlap;
     e.inlier_rmse_m = eval.inlier_rmse_m;
+    if (c.plane_information && eval.num_correspondences >= 6 &&
+        eval.plane_information.bottomRightCorner<3, 3>().trace() > 0.0) {
+        e.information = scaledToChoiTrace(eval.plane_information, eval.num_correspondences);
+        e.information_source = PoseGraphEdge::Information::kPlane;
+    } else {
+        e.information = eval.information;
+        e.information_source = PoseGraphEdge::Information::kChoi;
+    }
 }
 
 /// The tracker's information H (left perturbation in the source frame) as the edge's
-/// target-frame information Ad(T)^T H Ad(T), scaled so that its translation block has the trace
-/// of Choi's Λ over the same overlap (3 per correspondence, at least 3: see pose_graph.hpp).
-Matrix6d trackerInformation(const Matrix6d& H, const Eigen::Isometry3d& T_source_target,
-                            double num_correspondences) {
+/// target-frame information Ad(T)^T H Ad(T).
+Matrix6d trackerInformation(const Matrix6d& H, const Eigen::Isometry3d& T_source_target) {
     const Matrix6d Ad = lie::adjointSE3(T_source_target);
-    Matrix6d L = Ad.transpose() * H * Ad;
-    L = 0.5 * (L + L.transpose());
-    const double trace = L.bottomRightCorner<3, 3>().trace();
-    const double target = 3.0 * std::max(1.0, num_correspondences);
-    if (trace <= 0.0) return Matrix6d::Identity();
-    return L * (target / trace);
+    const Matrix6d L = Ad.transpose() * H * Ad;
+    return 0.5 * (L + L.transpose());
 }
 
 /// Whether the odometry edge into `target` takes the tracker's information.
@@ -128,9 +145,8 @@ PoseGraphEdge odometryEdge(const FragmentIndex& s, const FragmentIndex& t, const
     *icp_failed = false;
     if (useTracker(source, target, c)) {
         const PairResult eval = evaluateAlignment(s, t, T_odo, tauOf(c), c.icp.num_threads);
-        setFromPair(e, eval);
-        e.information =
-            trackerInformation(target.odometry_information, T_odo, eval.num_correspondences);
+        setFromPair(e, eval, c);
+        e.information = trackerInformation(target.odometry_information, T_odo);
         e.information_source = PoseGraphEdge::Information::kTracker;
         e.reason = "tracked transform, tracker's information";
         return e;
@@ -149,7 +165,7 @@ PoseGraphEdge odometryEdge(const FragmentIndex& s, const FragmentIndex& t, const
         eval.information = Matrix6d::Identity();
         if (e.reason.empty()) e.reason = "no overlap; unit information";
     }
-    setFromPair(e, eval);
+    setFromPair(e, eval, c);
     return e;
 }
 
@@ -158,8 +174,9 @@ namespace {
 enum class LoopOutcome { kRansacFailed, kRejected, kTurned, kMoved, kAccepted };
 
 /// A verified loop candidate that is not kept: its alignment figures, kept = false, the reason.
-void reject(PoseGraphEdge& e, const PairResult& eval, std::string reason) {
-    setFromPair(e, eval);
+void reject(PoseGraphEdge& e, const PairResult& eval, const RegistrationConfig& c,
+            std::string reason) {
+    setFromPair(e, eval, c);
     e.kept = false;
     e.line_process = 0.0;
     e.reason = std::move(reason);
@@ -271,12 +288,12 @@ LoopOutcome loopEdge(const FragmentIndex& s, const FragmentIndex& t, const Regis
     e.target = t.id;
     e.kind = PoseGraphEdge::Kind::kLoop;
     if (!best) {
-        reject(e, first->eval, first->disagreement);
+        reject(e, first->eval, c, first->disagreement);
         return first->outcome;
     }
     PairResult eval = best->eval;
     if (eval.overlap < c.min_overlap) {
-        reject(e, eval, fmt2("rejected: overlap %.3f < %.2f", eval.overlap, c.min_overlap));
+        reject(e, eval, c, fmt2("rejected: overlap %.3f < %.2f", eval.overlap, c.min_overlap));
         return LoopOutcome::kRejected;
     }
     const PairResult fine = multiScaleIcp(s, t, eval.T_source_target, c.icp);
@@ -286,7 +303,7 @@ LoopOutcome loopEdge(const FragmentIndex& s, const FragmentIndex& t, const Regis
             evaluateAlignment(s, t, fine.T_source_target, tauOf(c), c.icp.num_threads);
         if (refined.overlap >= c.min_overlap) eval = refined;
     }
-    setFromPair(e, eval);
+    setFromPair(e, eval, c);
     e.reason = std::string("found by ") + best->method;
     return LoopOutcome::kAccepted;
 }
@@ -379,11 +396,11 @@ void refineWithIndex(PoseGraph& graph, const std::vector<const FragmentIndex*>& 
             const PairResult eval =
                 evaluateAlignment(s, t, icp.T_source_target, tauOf(inner), inner.icp.num_threads);
             if (e.kind == PoseGraphEdge::Kind::kLoop && eval.overlap < c.min_overlap) {
-                setFromPair(e, eval);
+                setFromPair(e, eval, c);
                 e.kept = false;
                 e.reason = fmt2("refinement: overlap %.3f < %.2f", eval.overlap, c.min_overlap);
             } else if (eval.num_correspondences >= 6) {
-                setFromPair(e, eval);
+                setFromPair(e, eval, c);
             }
         }
         e.line_process = 1.0;

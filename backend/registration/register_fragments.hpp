@@ -77,6 +77,11 @@ struct RegistrationConfig {
     double max_loop_rotation_deviation_deg = 30.0;
     /// ICP iterations at the coarsest level when verifying a RANSAC loop candidate.
     int loop_icp_iterations = 30;
+    /// Overlap edges weigh by the point-to-plane information over their overlap
+    /// (PoseGraphEdge::Information::kPlane), scaled to the trace of Choi's Λ, instead of Choi's
+    /// point-to-point Λ. Off: with it, wrong loop closures that slid along a corridor cost little
+    /// and are kept (BENCHMARKS.md).
+    bool plane_information = false;
     /// Odometry edges of fragments that carry the tracker's information
     /// (Fragment::odometry_information) keep the tracked transform and weigh it by that
     /// information (PoseGraphEdge::Information::kTracker), and the refinement pass leaves them

@@ -327,8 +327,15 @@ TEST(Registration, OdometryEdgesKeepTheTrackedTransformWeighedByTheTrackersInfor
     EXPECT_TRUE(e.T_source_target.isApprox(T_odo, 1e-12));
     EXPECT_GT(e.num_correspondences, 100.0);
     EXPECT_GT(e.overlap, 0.5);
-    const double trace = e.information.bottomRightCorner<3, 3>().trace();
-    EXPECT_NEAR(trace, 3.0 * e.num_correspondences, 1e-6 * e.num_correspondences);
+    // Λ = Ad^T H Ad: the same cost for the same motion, as a left perturbation of the tracker
+    // (source frame) or a right perturbation of the edge (target frame).
+    Vector6d xi_target;
+    xi_target << 0.01, -0.02, 0.005, 0.03, 0.01, -0.02;
+    const Vector6d xi_source = lie::adjointSE3(T_odo) * xi_target;
+    EXPECT_TRUE((lie::expSE3(xi_source) * T_odo).isApprox(T_odo * lie::expSE3(xi_target), 1e-12));
+    EXPECT_NEAR(xi_target.dot(e.information * xi_target),
+                xi_source.dot(f1.odometry_information * xi_source),
+                1e-9 * xi_source.dot(f1.odometry_information * xi_source));
 
     // A tracker that could not see the slide along d (source frame): the edge is weak along
     // R^T d, the same direction in the target frame, and as certain as before across it.
@@ -345,14 +352,25 @@ TEST(Registration, OdometryEdgesKeepTheTrackedTransformWeighedByTheTrackersInfor
     EXPECT_LT(eig.eigenvalues()(0), 1e-5 * eig.eigenvalues()(1));
     EXPECT_NEAR(eig.eigenvalues()(1), eig.eigenvalues()(2), 1e-9 * eig.eigenvalues()(2));
 
-    // Without it (older fragments, or switched off): ICP and Choi's Λ, whose Λ(5,5) is the count.
+    // Without it (older fragments, or switched off): ICP and the point-to-plane information over
+    // the overlap, scaled to Choi's trace; with plane_information off, Choi's Λ itself, whose
+    // Λ(5,5) is the correspondence count.
     Fragment old = f1;
     old.odometry_information.setZero();
     for (const Fragment* t : {static_cast<const Fragment*>(&old), &f1}) {
         c.tracker_odometry = t == &old;
-        const PoseGraphEdge o = odometryEdge(i0, i1, f0, *t, c, &failed);
-        EXPECT_EQ(o.information_source, PoseGraphEdge::Information::kOverlap);
-        EXPECT_EQ(o.information(5, 5), o.num_correspondences);
+        for (const bool plane : {true, false}) {
+            c.plane_information = plane;
+            const PoseGraphEdge o = odometryEdge(i0, i1, f0, *t, c, &failed);
+            if (plane) {
+                EXPECT_EQ(o.information_source, PoseGraphEdge::Information::kPlane);
+                const double tr = o.information.bottomRightCorner<3, 3>().trace();
+                EXPECT_NEAR(tr, 3.0 * o.num_correspondences, 1e-6 * o.num_correspondences);
+            } else {
+                EXPECT_EQ(o.information_source, PoseGraphEdge::Information::kChoi);
+                EXPECT_EQ(o.information(5, 5), o.num_correspondences);
+            }
+        }
     }
 }
 
