@@ -84,8 +84,8 @@ CellFit fitCell(const std::vector<SampleT>& samples, const SelfCalibrationConfig
             if (b.lo == b.hi) {
                 support[static_cast<size_t>(b.lo)] += 1.0;
             } else {
-                support[static_cast<size_t>(b.lo)] += 1.0 - b.a;
-                support[static_cast<size_t>(b.hi)] += b.a;
+                support[static_cast<size_t>(b.lo)] += (1.0 - b.a) * (1.0 - b.a);
+                support[static_cast<size_t>(b.hi)] += b.a * b.a;
             }
         }
         // Unknowns: the covered bins; an uncovered bin is tied to the nearest covered one.
@@ -205,8 +205,8 @@ void describe(config::Schema& s, SelfCalibrationConfig& c) {
             "compare the raw depth of a pixel with the model at the origin of its 2x2 disparity "
             "block (where a structured-light sensor measures it) instead of at the pixel");
     s.field("min_samples", c.min_samples,
-            "a cell's depth bin is estimated when its inlier samples' interpolation weights sum "
-            "to at least this; other cells keep the factor 1",
+            "a cell's depth bin is estimated when the squared interpolation weights of its "
+            "inlier samples on it sum to at least this; cells with no such bin keep the factor 1",
             "samples")
         .positive();
     s.field("robust_iterations", c.robust_iterations,

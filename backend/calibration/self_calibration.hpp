@@ -19,11 +19,11 @@
 // absolute residual), plus a small penalty bin_smoothness * (f[i] - f[i+1])^2 that keeps the
 // system regular when the samples sit at one depth between two bins.
 //
-// Coverage: a bin of a cell is covered when the inlier samples' interpolation weights on it sum
-// to at least min_samples. Factors of uncovered bins are not unknowns: they take the value of the
-// nearest covered bin of the same cell (flat in depth beyond the data, which is what the samples
-// next to them are fitted with). A cell with no covered bin keeps the neutral factor 1 in every
-// bin and is reported as not covered.
+// Coverage: a bin of a cell is covered when the squares of the inlier samples' interpolation
+// weights on it sum to at least min_samples. Factors of uncovered bins are not unknowns: they take
+// the value of the nearest covered bin of the same cell (flat in depth beyond the data, which is
+// what the samples next to them are fitted with). A cell with no covered bin keeps the neutral
+// factor 1 in every bin and is reported as not covered.
 //
 // Gauge (§7c): the global scale of all factors is not observable from self-consistency alone
 // (scaling every depth and the model together fits equally well). It is fixed by dividing every
@@ -78,8 +78,10 @@ struct SelfCalibrationConfig {
     /// measures it (reference §1.4.A.2; DepthCalibration looks the factor up there too); false:
     /// at (u, v) itself.
     bool compare_at_block_origin = true;
-    /// Coverage: a cell's bin is estimated when its inlier samples' interpolation weights sum to
-    /// at least this.
+    /// Coverage: a cell's bin is estimated when the squared interpolation weights of its inlier
+    /// samples on it sum to at least this (its diagonal of the normal equations: a sample at the
+    /// bin's centre counts 1, one half way to the next bin 1/4), so that a bin is not fitted from
+    /// samples that barely depend on it.
     double min_samples = 30.0;
     /// Robust fit: reweighting passes after the initial median.
     int robust_iterations = 4;
@@ -183,6 +185,8 @@ class DistortionEstimator {
 /// One step of the alternation.
 struct CalibrationIteration {
     int iteration = 0;
+    /// The step's estimate; its table is the table after the (over-relaxed) update, its change
+    /// figures compare the estimate itself with the table before the step.
     DistortionEstimate estimate;
     size_t fused_blocks = 0;  ///< TSDF blocks of the model the step compared against
 };

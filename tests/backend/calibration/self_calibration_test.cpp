@@ -153,6 +153,22 @@ TEST(SelfCalibration, StaysNeutralOnUndistortedDepth) {
     }
 }
 
+TEST(SelfCalibration, ResultsDoNotDependOnTheThreadCount) {
+    PLUMB_REQUIRE_SHARED_DATA(path, "redwood-noise/dist-model.txt");
+    const Scan scan = simulate("redwood", path.string(), 40);
+    ASSERT_EQ(scan.depth.size(), 40U);
+    std::vector<Table> tables;
+    for (int threads : {1, 2}) {
+        SelfCalibrationConfig config;
+        config.max_iterations = 2;
+        config.num_threads = config.tsdf.num_threads = config.raycast.num_threads = threads;
+        auto result = selfCalibrate(scan.depth, scan.camera, scan.T_W_C, config);
+        ASSERT_TRUE(result.isOk()) << result.status().toString();
+        tables.push_back(result->table);
+    }
+    EXPECT_EQ(tables[0].format(), tables[1].format());
+}
+
 TEST(SelfCalibration, BadInputGetsSpecificErrors) {
     PinholeCamera camera = cameraPreset("ci").value();
     SelfCalibrationConfig config;
