@@ -203,7 +203,8 @@ void describe(config::Schema& s, SelfCalibrationConfig& c) {
         .min(1);
     s.field("compare_at_block_origin", c.compare_at_block_origin,
             "compare the raw depth of a pixel with the model at the origin of its 2x2 disparity "
-            "block (where a structured-light sensor measures it) instead of at the pixel");
+            "block (where a structured-light sensor measures it) instead of at the pixel, and "
+            "fuse and render the model at the block origins only");
     s.field("min_samples", c.min_samples,
             "a cell's depth bin is estimated when the squared interpolation weights of its "
             "inlier samples on it sum to at least this; cells with no such bin keep the factor 1",

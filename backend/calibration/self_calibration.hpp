@@ -38,6 +38,11 @@
 // the model is fused from and rendered at the 2x2 block origins only (a camera of half the
 // resolution through pixels (2i, 2j)): the depth of a block belongs to its origin.
 //
+// Poses: fixed poses (ground truth) make the distortion observable through the views' mutual
+// consistency. Poses tracked from the same raw frames absorb part of the distortion (odometry
+// bends with the depth it aligns), and re-tracking every step (PoseProvider) recovers only part
+// of it; a joint optimisation of poses and table (Zhou & Koltun 2014, §7c) is not done here.
+//
 // Thread-safety: the functions and const members may run concurrently on distinct objects; results
 // never depend on num_threads.
 
@@ -75,8 +80,8 @@ struct SelfCalibrationConfig {
     int pixel_stride = 1;
     /// Samples: the raw depth at pixel (u, v) is compared with the model's depth at the origin
     /// (u - u % 2, v - v % 2) of its 2x2 disparity block, where a structured-light sensor
-    /// measures it (reference §1.4.A.2; DepthCalibration looks the factor up there too); false:
-    /// at (u, v) itself.
+    /// measures it (reference §1.4.A.2; DepthCalibration looks the factor up there too), and the
+    /// model is fused and rendered at the block origins only; false: at (u, v) itself.
     bool compare_at_block_origin = true;
     /// Coverage: a cell's bin is estimated when the squared interpolation weights of its inlier
     /// samples on it sum to at least this (its diagonal of the normal equations: a sample at the
