@@ -169,6 +169,45 @@ Result<DistortionTable> DistortionTable::load(const std::filesystem::path& path)
     return parse(text.str(), path.string());
 }
 
+DistortionTable DistortionTable::fromCells(std::vector<std::array<float, 5>> cells) {
+    PLUMB_CHECK(cells.size() == static_cast<size_t>(kCells) * kCells)
+        << "a distortion table has 80x80 cells, got " << cells.size();
+    DistortionTable table;
+    table.cells_ = std::move(cells);
+    return table;
+}
+
+DistortionTable DistortionTable::neutral() {
+    std::array<float, 5> one;
+    one.fill(1.0F);
+    return fromCells(std::vector<std::array<float, 5>>(static_cast<size_t>(kCells) * kCells, one));
+}
+
+std::string DistortionTable::format() const {
+    std::string out = "8\n6\n2\n80\n80\n";
+    out.reserve(static_cast<size_t>(kCells) * kCells * 160);
+    for (const std::array<float, 5>& c : cells_) {
+        const bool valid = std::any_of(c.begin(), c.end(), [](float f) { return f != 0.0F; });
+        out += "10\n5\n2\n% 5 1\n";
+        for (int i = 0; i < 5; ++i) out += valid ? "8000\n" : "0\n";
+        for (int sum = 0; sum < 2; ++sum) out += "% 5 1\n0\n0\n0\n0\n0\n";
+        out += "% 5 1\n";
+        for (int i = 0; i < 5; ++i) {
+            out += fmt::format("{:.17g}\n", valid ? static_cast<double>(c[i]) : 0.0);
+        }
+    }
+    return out;
+}
+
+Status DistortionTable::save(const std::filesystem::path& path) const {
+    std::ofstream out(path, std::ios::binary | std::ios::trunc);
+    if (!out) return ioError(fmt::format("{}: cannot open for writing", path.string()));
+    out << format();
+    out.close();
+    if (!out) return ioError(fmt::format("{}: writing the distortion table failed", path.string()));
+    return Status::ok();
+}
+
 int DistortionTable::cellX(int x640) { return std::clamp(x640 / 8, 0, kCells - 1); }
 
 int DistortionTable::cellY(int y480) { return std::clamp(y480 / 6, 0, kCells - 1); }

@@ -1,0 +1,520 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "backend/calibration/self_calibration.hpp"
+
+#include <fmt/format.h>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Core>
+#include <algorithm>
+#include <cmath>
+#include <utility>
+
+#include "common/tsdf/parallel.hpp"
+#include "common/tsdf/tsdf_config.hpp"
+#include "drivers/depth_calibration.hpp"
+
+namespace plumb::calibration {
+namespace {
+
+using Table = sim::DistortionTable;
+constexpr int kBins = Table::kBins;
+constexpr int kSide = Table::kCellsPerSide;
+
+/// Median of `v` (reordered); 0 when empty.
+double medianOf(std::vector<double>* v) {
+    if (v->empty()) return 0.0;
+    const size_t mid = v->size() / 2;
+    std::nth_element(v->begin(), v->begin() + static_cast<std::ptrdiff_t>(mid), v->end());
+    double m = (*v)[mid];
+    if (v->size() % 2 == 0) {
+        m = 0.5 *
+            (m + *std::max_element(v->begin(), v->begin() + static_cast<std::ptrdiff_t>(mid)));
+    }
+    return m;
+}
+
+/// The fit of one cell.
+struct CellFit {
+    std::array<double, kBins> factor{};
+    uint8_t covered = 0;  ///< bit i: bin i covered by the cell's own samples
+    size_t outliers = 0;
+};
+
+/// Robust least squares of Eq. (1) over one cell's samples (see the header).
+template <typename SampleT>
+CellFit fitCell(const std::vector<SampleT>& samples, const SelfCalibrationConfig& c) {
+    CellFit fit;
+    fit.factor.fill(1.0);
+    if (static_cast<double>(samples.size()) < c.min_samples) return fit;
+    const size_t n = samples.size();
+    std::vector<Table::BinWeights> bw(n);
+    for (size_t k = 0; k < n; ++k) bw[k] = Table::binWeights(samples[k].z_model);
+
+    // Initial estimate: the median ratio in every bin.
+    std::vector<double> scratch(n);
+    for (size_t k = 0; k < n; ++k) scratch[k] = samples[k].ratio;
+    std::array<double, kBins> f;
+    f.fill(medianOf(&scratch));
+
+    std::vector<double> residual(n), weight(n, 1.0);
+    auto predict = [&](size_t k) {
+        return (1.0 - bw[k].a) * f[static_cast<size_t>(bw[k].lo)] +
+               bw[k].a * f[static_cast<size_t>(bw[k].hi)];
+    };
+    uint8_t covered = 0;
+    for (int pass = 0; pass <= c.robust_iterations; ++pass) {
+        // Robust sigma from the median absolute residual at the current factors.
+        for (size_t k = 0; k < n; ++k) {
+            residual[k] = samples[k].ratio - predict(k);
+            scratch[k] = std::abs(residual[k]);
+        }
+        const double sigma = std::max(1.4826 * medianOf(&scratch), c.min_sigma);
+        const double huber = c.huber_k * sigma;
+        const double cutoff = c.outlier_sigmas * sigma;
+        std::array<double, kBins> support{};
+        size_t outliers = 0;
+        for (size_t k = 0; k < n; ++k) {
+            const double e = std::abs(residual[k]);
+            weight[k] = e <= huber ? 1.0 : (e <= cutoff ? huber / e : 0.0);
+            if (weight[k] == 0.0) {
+                ++outliers;
+                continue;
+            }
+            const Table::BinWeights& b = bw[k];
+            if (b.lo == b.hi) {
+                support[static_cast<size_t>(b.lo)] += 1.0;
+            } else {
+                support[static_cast<size_t>(b.lo)] += (1.0 - b.a) * (1.0 - b.a);
+                support[static_cast<size_t>(b.hi)] += b.a * b.a;
+            }
+        }
+        // Unknowns: the covered bins; an uncovered bin is tied to the nearest covered one.
+        std::array<int, kBins> unknown_of{};
+        std::array<int, kBins> covered_bins{};
+        int num_unknowns = 0;
+        covered = 0;
+        for (int i = 0; i < kBins; ++i) {
+            if (support[static_cast<size_t>(i)] >= c.min_samples) {
+                covered |= static_cast<uint8_t>(1U << i);
+                covered_bins[static_cast<size_t>(num_unknowns++)] = i;
+            }
+        }
+        if (num_unknowns == 0) {
+            fit.factor.fill(1.0);
+            fit.covered = 0;
+            return fit;
+        }
+        for (int i = 0; i < kBins; ++i) {
+            int best = 0;
+            for (int u = 1; u < num_unknowns; ++u) {
+                if (std::abs(covered_bins[static_cast<size_t>(u)] - i) <
+                    std::abs(covered_bins[static_cast<size_t>(best)] - i)) {
+                    best = u;
+                }
+            }
+            unknown_of[static_cast<size_t>(i)] = best;
+        }
+        // Normal equations of the weighted residuals of Eq. (1), plus the smoothness penalty
+        // between consecutive unknowns.
+        Eigen::Matrix<double, kBins, kBins> A = Eigen::Matrix<double, kBins, kBins>::Zero();
+        Eigen::Matrix<double, kBins, 1> b = Eigen::Matrix<double, kBins, 1>::Zero();
+        for (size_t k = 0; k < n; ++k) {
+            if (weight[k] == 0.0) continue;
+            const int p = unknown_of[static_cast<size_t>(bw[k].lo)];
+            const int q = unknown_of[static_cast<size_t>(bw[k].hi)];
+            const double jp = 1.0 - bw[k].a;
+            const double jq = bw[k].a;
+            const double w = weight[k];
+            const double r = samples[k].ratio;
+            A(p, p) += w * jp * jp;
+            A(q, q) += w * jq * jq;
+            A(p, q) += w * jp * jq;
+            A(q, p) += w * jp * jq;
+            b(p) += w * jp * r;
+            b(q) += w * jq * r;
+        }
+        for (int u = 0; u + 1 < num_unknowns; ++u) {
+            A(u, u) += c.bin_smoothness;
+            A(u + 1, u + 1) += c.bin_smoothness;
+            A(u, u + 1) -= c.bin_smoothness;
+            A(u + 1, u) -= c.bin_smoothness;
+        }
+        const Eigen::MatrixXd A_u = A.topLeftCorner(num_unknowns, num_unknowns);
+        const Eigen::VectorXd b_u = b.head(num_unknowns);
+        const Eigen::VectorXd x = A_u.ldlt().solve(b_u);
+        for (int i = 0; i < kBins; ++i) {
+            f[static_cast<size_t>(i)] = x(unknown_of[static_cast<size_t>(i)]);
+        }
+        fit.outliers = outliers;
+    }
+    fit.factor = f;
+    fit.covered = covered;
+    return fit;
+}
+
+/// The camera whose pixel (i, j) is pixel (2i, 2j) of `camera`: the origins of the 2x2 blocks.
+PinholeCamera blockOriginCamera(const PinholeCamera& camera) {
+    PinholeCamera half = camera;
+    half.width = (camera.width + 1) / 2;
+    half.height = (camera.height + 1) / 2;
+    half.fx = camera.fx / 2.0;
+    half.fy = camera.fy / 2.0;
+    half.cx = camera.cx / 2.0;
+    half.cy = camera.cy / 2.0;
+    return half;
+}
+
+/// Pixels (2i, 2j) of `image`.
+template <typename T>
+Image<T> blockOrigins(const Image<T>& image) {
+    Image<T> out((image.width() + 1) / 2, (image.height() + 1) / 2);
+    for (int j = 0; j < out.height(); ++j) {
+        for (int i = 0; i < out.width(); ++i) out(i, j) = image(2 * i, 2 * j);
+    }
+    return out;
+}
+
+/// `image` (at block origins) spread over the 2x2 blocks of a width x height image.
+template <typename T>
+Image<T> spreadBlocks(const Image<T>& image, int width, int height) {
+    Image<T> out(width, height);
+    for (int v = 0; v < height; ++v) {
+        for (int u = 0; u < width; ++u) out(u, v) = image(u / 2, v / 2);
+    }
+    return out;
+}
+
+}  // namespace
+
+void describe(config::Schema& s, SelfCalibrationConfig& c) {
+    s.field("min_depth_m", c.min_depth_m, "model depths below this are not compared", "m").min(0.0);
+    s.field("max_depth_m", c.max_depth_m, "model depths above this are not compared", "m")
+        .positive();
+    s.field("min_view_cos", c.min_view_cos,
+            "pixels whose model surface is seen at a smaller |cos| of the viewing angle are not "
+            "compared")
+        .range(0.0, 1.0);
+    s.field("max_ratio_deviation", c.max_ratio_deviation,
+            "ratios z_model / z_raw further than this from 1 are not compared (depth edges, "
+            "surfaces the model lacks)")
+        .positive();
+    s.field("pixel_stride", c.pixel_stride,
+            "every pixel_stride-th pixel along rows and columns is compared", "px")
+        .min(1);
+    s.field("compare_at_block_origin", c.compare_at_block_origin,
+            "compare the raw depth of a pixel with the model at the origin of its 2x2 disparity "
+            "block (where a structured-light sensor measures it) instead of at the pixel, and "
+            "fuse and render the model at the block origins only");
+    s.field("min_samples", c.min_samples,
+            "a cell's depth bin is estimated when the squared interpolation weights of its "
+            "inlier samples on it sum to at least this; cells with no such bin keep the factor 1",
+            "samples")
+        .positive();
+    s.field("robust_iterations", c.robust_iterations,
+            "reweighting passes of the per-cell robust fit after the initial median")
+        .min(0);
+    s.field("huber_k", c.huber_k, "Huber threshold of the robust fit, in robust sigmas").positive();
+    s.field("outlier_sigmas", c.outlier_sigmas,
+            "residuals beyond this many robust sigmas get weight 0")
+        .positive();
+    s.field("min_sigma", c.min_sigma, "lower bound of the robust sigma of a cell's ratios")
+        .positive();
+    s.field("bin_smoothness", c.bin_smoothness,
+            "weight of the penalty (f[i] - f[i+1])^2 between adjacent estimated bins", "samples")
+        .min(0.0);
+    s.field("max_iterations", c.max_iterations,
+            "at most this many undistort-fuse-estimate steps of the alternation")
+        .min(1);
+    s.field("change_tolerance", c.change_tolerance,
+            "the alternation stops when the median |change| of the estimated factors is below "
+            "this")
+        .positive();
+    s.field("relaxation", c.relaxation,
+            "from the second step on, each estimated factor moves the previous one by this "
+            "multiple of its change (in log space): f <- f_prev * (f_est / f_prev)^relaxation")
+        .min(1.0)
+        .lessThan(2.0);
+    s.section("tsdf", c.tsdf, "the model: TSDF fused from the undistorted frames");
+    s.section("raycast", c.raycast, "the model's depth at each frame's pose");
+    s.field("num_threads", c.num_threads,
+            "worker threads of the per-cell fit (0 = all); results do not depend on it")
+        .min(0);
+}
+
+Status validate(const SelfCalibrationConfig& c) {
+    auto bad = [](const char* what) {
+        return invalidArgument(fmt::format("self-calibration config: {}", what));
+    };
+    if (!(c.min_depth_m >= 0.0 && c.max_depth_m > c.min_depth_m)) {
+        return bad("need 0 <= min_depth_m < max_depth_m");
+    }
+    if (!(c.min_view_cos >= 0.0 && c.min_view_cos <= 1.0)) return bad("min_view_cos not in [0, 1]");
+    if (!(c.max_ratio_deviation > 0.0)) return bad("max_ratio_deviation must be positive");
+    if (c.pixel_stride < 1) return bad("pixel_stride must be at least 1");
+    if (!(c.min_samples > 0.0)) return bad("min_samples must be positive");
+    if (c.robust_iterations < 0) return bad("robust_iterations must be >= 0");
+    if (!(c.huber_k > 0.0 && c.outlier_sigmas > 0.0 && c.min_sigma > 0.0)) {
+        return bad("huber_k, outlier_sigmas and min_sigma must be positive");
+    }
+    if (!(c.bin_smoothness >= 0.0)) return bad("bin_smoothness must be >= 0");
+    if (c.max_iterations < 1) return bad("max_iterations must be at least 1");
+    if (!(c.change_tolerance > 0.0)) return bad("change_tolerance must be positive");
+    if (!(c.relaxation >= 1.0 && c.relaxation < 2.0)) return bad("relaxation not in [1, 2)");
+    if (c.num_threads < 0) return bad("num_threads must be >= 0");
+    return c.tsdf.validate();
+}
+
+DistortionEstimator::DistortionEstimator(int width, int height, const SelfCalibrationConfig& config)
+    : width_(width),
+      height_(height),
+      config_(config),
+      cell_of_column_(static_cast<size_t>(std::max(width, 0))),
+      cell_of_row_(static_cast<size_t>(std::max(height, 0))),
+      samples_(static_cast<size_t>(kSide) * kSide) {
+    PLUMB_CHECK(width > 0 && height > 0) << "image size " << width << "x" << height;
+    // Cells as the sensor model finds them (drivers/sim/noise.cpp): the pixel scaled to 640x480.
+    for (int u = 0; u < width; ++u) cell_of_column_[u] = Table::cellX(u * 640 / width);
+    for (int v = 0; v < height; ++v) cell_of_row_[v] = Table::cellY(v * 480 / height);
+}
+
+Status DistortionEstimator::addFrame(const DepthImage& raw, const DepthImage& model,
+                                     const Image<float>& view_cos) {
+    auto sizeError = [&](const char* what, int w, int h) {
+        return invalidArgument(fmt::format("self-calibration: {} is {}x{}, the frames are {}x{}",
+                                           what, w, h, width_, height_));
+    };
+    if (raw.width() != width_ || raw.height() != height_) {
+        return sizeError("the raw depth", raw.width(), raw.height());
+    }
+    if (model.width() != width_ || model.height() != height_) {
+        return sizeError("the model depth", model.width(), model.height());
+    }
+    if (!view_cos.empty() && (view_cos.width() != width_ || view_cos.height() != height_)) {
+        return sizeError("the view cosine image", view_cos.width(), view_cos.height());
+    }
+    const SelfCalibrationConfig& c = config_;
+    const int step = c.pixel_stride;
+    for (int v = 0; v < height_; v += step) {
+        const int mv = c.compare_at_block_origin ? v - v % 2 : v;
+        for (int u = 0; u < width_; u += step) {
+            const int mu = c.compare_at_block_origin ? u - u % 2 : u;
+            const double z_raw = raw(u, v);
+            const double z_model = model(mu, mv);
+            if (!(z_raw > 0.0) || !(z_model >= c.min_depth_m && z_model <= c.max_depth_m)) {
+                continue;
+            }
+            if (!view_cos.empty() && !(view_cos(mu, mv) >= c.min_view_cos)) continue;
+            const double ratio = z_model / z_raw;
+            if (!(std::abs(ratio - 1.0) <= c.max_ratio_deviation)) continue;
+            const size_t cell = static_cast<size_t>(cell_of_row_[v]) * kSide + cell_of_column_[u];
+            samples_[cell].push_back({static_cast<float>(z_model), static_cast<float>(ratio)});
+            ++num_samples_;
+        }
+    }
+    return Status::ok();
+}
+
+Result<DistortionEstimate> DistortionEstimator::estimate(const Table* previous) const {
+    const size_t num_cells = samples_.size();
+    std::vector<CellFit> fits(num_cells);
+    tsdf::parallelFor(config_.num_threads, static_cast<int>(num_cells), [&](int i) {
+        fits[static_cast<size_t>(i)] = fitCell(samples_[static_cast<size_t>(i)], config_);
+    });
+
+    DistortionEstimate out;
+    out.samples = num_samples_;
+    out.covered.assign(num_cells, 0);
+    for (size_t i = 0; i < num_cells; ++i) {
+        out.covered[i] = fits[i].covered;
+        out.outliers += fits[i].outliers;
+        for (int b = 0; b < kBins; ++b)
+            out.covered_cells[static_cast<size_t>(b)] += (fits[i].covered >> b) & 1;
+    }
+    // Gauge: the mean factor of the nearest covered bin is 1.
+    int gauge_bin = -1;
+    for (int b = 0; b < kBins && gauge_bin < 0; ++b) {
+        if (out.covered_cells[static_cast<size_t>(b)] > 0) gauge_bin = b;
+    }
+    if (gauge_bin < 0) {
+        return failedPrecondition(fmt::format(
+            "self-calibration: no image cell has {} samples in any depth bin ({} samples in all)",
+            config_.min_samples, num_samples_));
+    }
+    double sum = 0.0;
+    for (size_t i = 0; i < num_cells; ++i) {
+        if ((fits[i].covered >> gauge_bin) & 1)
+            sum += fits[i].factor[static_cast<size_t>(gauge_bin)];
+    }
+    const double scale = sum / out.covered_cells[static_cast<size_t>(gauge_bin)];
+    out.gauge_bin = gauge_bin;
+    out.gauge_scale = scale;
+
+    std::vector<std::array<float, kBins>> cells(num_cells);
+    for (size_t i = 0; i < num_cells; ++i) {
+        for (int b = 0; b < kBins; ++b) {
+            cells[i][static_cast<size_t>(b)] =
+                fits[i].covered == 0
+                    ? 1.0F
+                    : static_cast<float>(fits[i].factor[static_cast<size_t>(b)] / scale);
+        }
+    }
+    out.table = Table::fromCells(std::move(cells));
+
+    // Change from the previous table over the covered factors.
+    const Table neutral = Table::neutral();
+    const Table& before = previous == nullptr ? neutral : *previous;
+    std::vector<double> changes;
+    for (int y = 0; y < kSide; ++y) {
+        for (int x = 0; x < kSide; ++x) {
+            for (int b = 0; b < kBins; ++b) {
+                if (!out.isCovered(x, y, b)) continue;
+                changes.push_back(
+                    std::abs(static_cast<double>(out.table.cell(x, y)[b]) - before.cell(x, y)[b]));
+            }
+        }
+    }
+    out.compared_factors = changes.size();
+    if (!changes.empty()) {
+        out.max_change = *std::max_element(changes.begin(), changes.end());
+        out.median_change = medianOf(&changes);
+    }
+    return out;
+}
+
+Image<float> viewCosines(const tsdf::RaycastResult& ray, const PinholeCamera& camera,
+                         const Eigen::Isometry3d& T_V_C) {
+    const int w = ray.depth.width();
+    const int h = ray.depth.height();
+    Image<float> out(w, h, 0.0F);
+    const Eigen::Matrix3f R_C_V = T_V_C.rotation().transpose().cast<float>();
+    for (int v = 0; v < h; ++v) {
+        for (int u = 0; u < w; ++u) {
+            if (!(ray.depth(u, v) > 0.0F)) continue;
+            const Eigen::Vector3f& n_V = ray.normals_V(u, v);
+            if (!tsdf::isValid(n_V)) continue;
+            const Eigen::Vector3f n_C = R_C_V * n_V;
+            const Eigen::Vector3f d_C = camera.ray(u, v).cast<float>().normalized();
+            out(u, v) = std::abs(n_C.dot(d_C));
+        }
+    }
+    return out;
+}
+
+Result<SelfCalibrationResult> selfCalibrate(const std::vector<DepthImage>& raw,
+                                            const PinholeCamera& camera, const PoseProvider& poses,
+                                            const SelfCalibrationConfig& config,
+                                            const Table* initial,
+                                            const IterationObserver& observer) {
+    if (Status s = validate(config); !s.isOk()) return s;
+    if (Status s = camera.validate(); !s.isOk()) return s;
+    if (raw.empty()) return invalidArgument("self-calibration: no frames");
+    for (size_t k = 0; k < raw.size(); ++k) {
+        if (raw[k].width() != camera.width || raw[k].height() != camera.height) {
+            return invalidArgument(
+                fmt::format("self-calibration: frame {} is {}x{}, the camera is {}x{}", k,
+                            raw[k].width(), raw[k].height(), camera.width, camera.height));
+        }
+    }
+    if (!poses) return invalidArgument("self-calibration: no pose provider");
+
+    SelfCalibrationResult result;
+    result.table = initial != nullptr ? *initial : Table::neutral();
+    std::vector<DepthImage> undistorted(raw.size());
+    for (int it = 0; it < config.max_iterations; ++it) {
+        // Undistort with the current table.
+        const DepthCalibration calibration(result.table, "the current estimate");
+        for (size_t k = 0; k < raw.size(); ++k) undistorted[k] = calibration.undistort(raw[k]);
+        Result<std::vector<Eigen::Isometry3d>> T_W_C = poses(undistorted);
+        if (!T_W_C.isOk()) return T_W_C.status();
+        if (T_W_C->size() != raw.size()) {
+            return invalidArgument(
+                fmt::format("self-calibration: {} poses for {} frames", T_W_C->size(), raw.size()));
+        }
+        for (size_t k = 0; k < raw.size(); ++k) {
+            if (!(*T_W_C)[k].matrix().allFinite()) {
+                return invalidArgument(
+                    fmt::format("self-calibration: the pose of frame {} is not finite", k));
+            }
+        }
+        // Fuse the model: from the block origins only when the sensor measures on 2x2 blocks
+        // (a pixel's depth belongs to its block origin; fused at the pixel itself, every view
+        // would shift the surface by half a pixel up and left in its image).
+        const bool blocks = config.compare_at_block_origin;
+        const PinholeCamera model_camera = blocks ? blockOriginCamera(camera) : camera;
+        std::vector<DepthImage> fused(blocks ? raw.size() : 0);
+        for (size_t k = 0; k < fused.size(); ++k) fused[k] = blockOrigins(undistorted[k]);
+        const std::vector<DepthImage>& model_input = blocks ? fused : undistorted;
+        tsdf::TsdfVolume volume(config.tsdf);
+        for (size_t k = 0; k < raw.size(); ++k) {
+            Result<tsdf::IntegrationStats> s =
+                volume.integrate(model_input[k], model_camera, (*T_W_C)[k]);
+            if (!s.isOk()) {
+                return Status(
+                    s.status().code(),
+                    fmt::format("self-calibration: fusing frame {}: {}", k, s.status().message()));
+            }
+        }
+        // Compare every raw frame with the model at its pose.
+        DistortionEstimator estimator(camera.width, camera.height, config);
+        for (size_t k = 0; k < raw.size(); ++k) {
+            const tsdf::RaycastResult ray =
+                tsdf::raycast(volume, model_camera, (*T_W_C)[k], config.raycast, &model_input[k]);
+            Image<float> view_cos = viewCosines(ray, model_camera, (*T_W_C)[k]);
+            const Status s =
+                blocks ? estimator.addFrame(raw[k],
+                                            spreadBlocks(ray.depth, camera.width, camera.height),
+                                            spreadBlocks(view_cos, camera.width, camera.height))
+                       : estimator.addFrame(raw[k], ray.depth, view_cos);
+            if (!s.isOk()) return s;
+        }
+        Result<DistortionEstimate> estimate = estimator.estimate(&result.table);
+        if (!estimate.isOk()) return estimate.status();
+        CalibrationIteration step;
+        step.iteration = it;
+        step.fused_blocks = volume.numBlocks();
+        step.estimate = std::move(estimate).value();
+        // Over-relaxed update of the covered factors (from the second step on):
+        // f <- f_previous * (f_estimated / f_previous)^relaxation.
+        if (it > 0 && config.relaxation != 1.0) {
+            std::vector<std::array<float, kBins>> cells(static_cast<size_t>(kSide) * kSide);
+            for (int y = 0; y < kSide; ++y) {
+                for (int x = 0; x < kSide; ++x) {
+                    std::array<float, kBins>& c = cells[static_cast<size_t>(y) * kSide + x];
+                    c = step.estimate.table.cell(x, y);
+                    for (int b = 0; b < kBins; ++b) {
+                        const double before = result.table.cell(x, y)[static_cast<size_t>(b)];
+                        if (!step.estimate.isCovered(x, y, b) || !(before > 0.0)) continue;
+                        c[static_cast<size_t>(b)] =
+                            static_cast<float>(before * std::pow(c[static_cast<size_t>(b)] / before,
+                                                                 config.relaxation));
+                    }
+                }
+            }
+            step.estimate.table = Table::fromCells(std::move(cells));
+        }
+        result.table = step.estimate.table;
+        const bool small = it > 0 && step.estimate.median_change < config.change_tolerance;
+        if (observer) observer(step);
+        result.iterations.push_back(std::move(step));
+        if (small) {
+            result.converged = true;
+            break;
+        }
+    }
+    return result;
+}
+
+Result<SelfCalibrationResult> selfCalibrate(const std::vector<DepthImage>& raw,
+                                            const PinholeCamera& camera,
+                                            const std::vector<Eigen::Isometry3d>& T_W_C,
+                                            const SelfCalibrationConfig& config,
+                                            const Table* initial,
+                                            const IterationObserver& observer) {
+    const PoseProvider fixed =
+        [&T_W_C](const std::vector<DepthImage>&) -> Result<std::vector<Eigen::Isometry3d>> {
+        return T_W_C;
+    };
+    return selfCalibrate(raw, camera, fixed, config, initial, observer);
+}
+
+}  // namespace plumb::calibration

@@ -1,0 +1,237 @@
+// SPDX-License-Identifier: Apache-2.0
+#pragma once
+
+// Self-calibration of the depth distortion table from a scan (reference §7c; CLAMS, Teichman,
+// Miller and Thrun, RSS 2013). The table is the one of the sensor model (§1.4.A.3, drivers/sim/
+// noise.hpp): per image cell (80 x 80 cells of 8 x 6 px at 640x480) and depth bin (centres 1, 3,
+// 5, 7, 9 m) a factor f, linear in depth between bins, with
+//
+//   z_true = f(u, v, z_true) * z_raw.
+//
+// Estimation (DistortionEstimator): every raw depth z_raw is compared with the depth z_model of
+// a model of the scene rendered at the frame's pose; each such sample is an observation
+//
+//   r = z_model / z_raw = (1 - a) f[lo] + a f[hi],   (lo, hi, a) = binWeights(z_model)   (Eq. 1)
+//
+// of the two factors of its cell that bracket z_model. Per cell the five factors are the robust
+// least-squares solution of Eq. (1) over the cell's samples (iteratively reweighted: Huber weights
+// at huber_k robust sigmas, samples beyond outlier_sigmas dropped, the sigma from the median
+// absolute residual), plus a small penalty bin_smoothness * (f[i] - f[i+1])^2 that keeps the
+// system regular when the samples sit at one depth between two bins.
+//
+// Coverage: a bin of a cell is covered when the squares of the inlier samples' interpolation
+// weights on it sum to at least min_samples. Factors of uncovered bins are not unknowns: they take
+// the value of the nearest covered bin of the same cell (flat in depth beyond the data, which is
+// what the samples next to them are fitted with). A cell with no covered bin keeps the neutral
+// factor 1 in every bin and is reported as not covered.
+//
+// Gauge (§7c): the global scale of all factors is not observable from self-consistency alone
+// (scaling every depth and the model together fits equally well). It is fixed by dividing every
+// estimated factor by the mean factor of the 1 m bin over the cells covered there (or, when no
+// cell is covered at 1 m, of the nearest bin with coverage): the near bin's mean factor is 1.
+//
+// Alternation (selfCalibrate): undistort the raw depth with the current table, fuse a TSDF with
+// the poses, raycast it at every frame's pose, estimate the table against it (each estimate
+// compares the raw depth with the new model, so estimates do not compound), move the table
+// towards the estimate (over-relaxed, see SelfCalibrationConfig::relaxation), repeat until the
+// median change of the covered factors is below change_tolerance. With compare_at_block_origin
+// the model is fused from and rendered at the 2x2 block origins only (a camera of half the
+// resolution through pixels (2i, 2j)): the depth of a block belongs to its origin.
+//
+// Poses: fixed poses (ground truth) make the distortion observable through the views' mutual
+// consistency. Poses tracked from the same raw frames absorb part of the distortion (odometry
+// bends with the depth it aligns), and re-tracking every step (PoseProvider) recovers only part
+// of it; a joint optimisation of poses and table (Zhou & Koltun 2014, §7c) is not done here.
+//
+// Thread-safety: the functions and const members may run concurrently on distinct objects; results
+// never depend on num_threads.
+
+#include <Eigen/Geometry>
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+#include "common/camera/pinhole.hpp"
+#include "common/config/schema.hpp"
+#include "common/core/status.hpp"
+#include "common/image/image.hpp"
+#include "common/tsdf/raycast.hpp"
+#include "common/tsdf/tsdf_volume.hpp"
+#include "drivers/sim/noise.hpp"
+
+namespace plumb::calibration {
+
+struct SelfCalibrationConfig {
+    /// Samples: model depths outside [min_depth_m, max_depth_m] are not used, metres. Keep the
+    /// upper limit below the sensor's range limit (4 m for the simulated sensor) by a few
+    /// quantisation steps: near the limit only the raw depths that fall inside it survive, which
+    /// biases their ratio upwards.
+    double min_depth_m = 0.4;
+    double max_depth_m = 3.5;
+    /// Samples: pixels whose model surface is seen at a smaller |cos| of the viewing angle are not
+    /// used (the model and the sensor are both least reliable at grazing angles).
+    double min_view_cos = 0.3;
+    /// Samples: ratios z_model / z_raw further than this from 1 are not used (depth edges, parts
+    /// of the scene the model does not hold); the table's factors are within a few per cent of 1.
+    double max_ratio_deviation = 0.1;
+    /// Samples: every pixel_stride-th pixel along rows and columns is compared.
+    int pixel_stride = 1;
+    /// Samples: the raw depth at pixel (u, v) is compared with the model's depth at the origin
+    /// (u - u % 2, v - v % 2) of its 2x2 disparity block, where a structured-light sensor
+    /// measures it (reference §1.4.A.2; DepthCalibration looks the factor up there too), and the
+    /// model is fused and rendered at the block origins only; false: at (u, v) itself.
+    bool compare_at_block_origin = true;
+    /// Coverage: a cell's bin is estimated when the squared interpolation weights of its inlier
+    /// samples on it sum to at least this (its diagonal of the normal equations: a sample at the
+    /// bin's centre counts 1, one half way to the next bin 1/4), so that a bin is not fitted from
+    /// samples that barely depend on it.
+    double min_samples = 30.0;
+    /// Robust fit: reweighting passes after the initial median.
+    int robust_iterations = 4;
+    /// Robust fit: Huber threshold, in robust sigmas of the cell's residuals.
+    double huber_k = 1.345;
+    /// Robust fit: residuals beyond this many robust sigmas get weight 0.
+    double outlier_sigmas = 4.0;
+    /// Robust fit: lower bound of the robust sigma (dimensionless ratio units).
+    double min_sigma = 1e-4;
+    /// Weight of the penalty (f[i] - f[i+1])^2 between adjacent covered bins, in samples.
+    double bin_smoothness = 0.01;
+    /// Alternation: at most this many estimate steps.
+    int max_iterations = 8;
+    /// Alternation: stops when the median |change| of the factors covered in both the previous
+    /// and the new table is below this (dimensionless).
+    double change_tolerance = 2e-4;
+    /// Alternation: from the second step on, the table moves by this multiple of the estimated
+    /// change, in log space: f <- f_previous * (f_estimated / f_previous)^relaxation. The model
+    /// is fused from the current table, so part of the remaining distortion is seen in the model
+    /// too and each plain step (relaxation 1) removes only part of it; over-relaxation in [1, 2)
+    /// speeds up that slow convergence (errors the data determine in one step oscillate with
+    /// amplitude |1 - relaxation| instead).
+    double relaxation = 1.5;
+    /// The model: TSDF fused from the undistorted frames at their poses.
+    tsdf::TsdfConfig tsdf = defaultTsdf();
+    /// The model's depth at each frame's pose.
+    tsdf::RaycastConfig raycast;
+    /// Worker threads of the per-cell fit (0 = TBB default). Results do not depend on it.
+    int num_threads = 0;
+
+    static tsdf::TsdfConfig defaultTsdf() {
+        tsdf::TsdfConfig c;
+        c.voxel_size_m = 0.01F;
+        c.truncation_m = 0.06F;
+        c.max_depth_m = 3.5F;  // as max_depth_m: truncated ranges would bias the model too
+        return c;
+    }
+};
+
+void describe(config::Schema& s, SelfCalibrationConfig& c);
+/// OK, or kInvalidArgument naming the first field out of range.
+Status validate(const SelfCalibrationConfig& c);
+
+/// What an estimate found, beside the table.
+struct DistortionEstimate {
+    sim::DistortionTable table = sim::DistortionTable::neutral();
+    /// Per depth bin: cells covered by their own samples.
+    std::array<int, sim::DistortionTable::kBins> covered_cells{};
+    /// Per cell (y * 80 + x): bit i set when bin i is covered.
+    std::vector<uint8_t> covered;
+    /// Samples taken (after the depth, angle and ratio gates) and, of those, the fit's outliers.
+    size_t samples = 0;
+    size_t outliers = 0;
+    /// The gauge: the bin whose mean factor is 1 and the scale divided out of every factor.
+    int gauge_bin = 0;
+    double gauge_scale = 1.0;
+    /// Change from the previous table over the factors covered in both (0 when none is):
+    double median_change = 0.0;  ///< median |f_new - f_previous|
+    double max_change = 0.0;     ///< largest |f_new - f_previous|
+    size_t compared_factors = 0;
+
+    bool isCovered(int cell_x, int cell_y, int bin) const {
+        return (covered[static_cast<size_t>(cell_y) * sim::DistortionTable::kCellsPerSide +
+                        cell_x] >>
+                bin) &
+               1U;
+    }
+};
+
+/// Accumulates (raw, model) depth samples of frames of one camera and fits the table.
+/// Not thread-safe (one instance per thread); estimate() is const.
+class DistortionEstimator {
+  public:
+    /// Frames of width x height pixels (any size; cells are found by scaling to 640x480).
+    DistortionEstimator(int width, int height, const SelfCalibrationConfig& config);
+
+    /// Adds the samples of one frame: `raw` the sensor's depth (metres, 0 = invalid), `model` the
+    /// model's depth at the frame's pose (0 = no surface), `view_cos` the |cos| of the model
+    /// surface's viewing angle (empty: not gated). kInvalidArgument when a size differs from the
+    /// estimator's.
+    Status addFrame(const DepthImage& raw, const DepthImage& model, const Image<float>& view_cos);
+
+    /// The table fitted to every sample so far, and its change from `previous` (nullptr: from
+    /// the neutral table). kFailedPrecondition when no cell has a covered bin.
+    Result<DistortionEstimate> estimate(const sim::DistortionTable* previous = nullptr) const;
+
+    size_t numSamples() const { return num_samples_; }
+
+  private:
+    struct Sample {
+        float z_model;  ///< metres
+        float ratio;    ///< z_model / z_raw
+    };
+    int width_, height_;
+    SelfCalibrationConfig config_;
+    std::vector<int> cell_of_column_, cell_of_row_;
+    std::vector<std::vector<Sample>> samples_;  ///< per cell
+    size_t num_samples_ = 0;
+};
+
+/// One step of the alternation.
+struct CalibrationIteration {
+    int iteration = 0;
+    /// The step's estimate; its table is the table after the (over-relaxed) update, its change
+    /// figures compare the estimate itself with the table before the step.
+    DistortionEstimate estimate;
+    size_t fused_blocks = 0;  ///< TSDF blocks of the model the step compared against
+};
+
+struct SelfCalibrationResult {
+    sim::DistortionTable table = sim::DistortionTable::neutral();  ///< the last estimate
+    std::vector<CalibrationIteration> iterations;
+    bool converged = false;  ///< the last change was below change_tolerance
+};
+
+/// Poses T_W_C of the frames, given their depth undistorted with the current table (for
+/// alternations that re-track every iteration). Errors end the alternation.
+using PoseProvider =
+    std::function<Result<std::vector<Eigen::Isometry3d>>(const std::vector<DepthImage>& depth)>;
+
+/// Called after every iteration (for progress output); may be empty.
+using IterationObserver = std::function<void(const CalibrationIteration&)>;
+
+/// The alternation of §7c with poses from `poses` (called once per iteration with the frames
+/// undistorted by the current table), starting from `initial` (nullptr: neutral).
+/// kInvalidArgument: no frames, frames of a size other than the camera's, a pose count that
+/// differs from the frame count, a non-finite pose, an invalid camera or config.
+/// kFailedPrecondition: the model covers no cell (e.g. the frames hold no depth in range).
+Result<SelfCalibrationResult> selfCalibrate(const std::vector<DepthImage>& raw,
+                                            const PinholeCamera& camera, const PoseProvider& poses,
+                                            const SelfCalibrationConfig& config,
+                                            const sim::DistortionTable* initial = nullptr,
+                                            const IterationObserver& observer = {});
+
+/// The same with fixed poses T_W_C (e.g. ground truth), one per frame.
+Result<SelfCalibrationResult> selfCalibrate(const std::vector<DepthImage>& raw,
+                                            const PinholeCamera& camera,
+                                            const std::vector<Eigen::Isometry3d>& T_W_C,
+                                            const SelfCalibrationConfig& config,
+                                            const sim::DistortionTable* initial = nullptr,
+                                            const IterationObserver& observer = {});
+
+/// |cos| of the viewing angle of each hit of a raycast from camera pose T_V_C: the normal's
+/// component along the pixel's unit ray (0 where there is no hit).
+Image<float> viewCosines(const tsdf::RaycastResult& ray, const PinholeCamera& camera,
+                         const Eigen::Isometry3d& T_V_C);
+
+}  // namespace plumb::calibration

@@ -1,0 +1,229 @@
+// SPDX-License-Identifier: Apache-2.0
+// `plumb calibrate`: self-calibration of the depth distortion table from a scan
+// (backend/calibration, reference §7c), written in the CLAMS / Redwood dist-model.txt format that
+// --depth-calibration reads.
+
+#include <fmt/format.h>
+#include <tbb/global_control.h>
+
+#include <charconv>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "backend/calibration/self_calibration.hpp"
+#include "common/config/config.hpp"
+#include "common/config/registry.hpp"
+#include "drivers/sim/sim_source.hpp"
+#include "drivers/source.hpp"
+#include "tools/plumb/command.hpp"
+
+namespace plumb::tools {
+namespace {
+
+constexpr const char* kUsage =
+    "usage: plumb calibrate <source> --out TABLE [options]\n"
+    "\n"
+    "Estimates the depth camera's low-frequency distortion table from a scan of a static scene\n"
+    "(CLAMS self-calibration, reference §7c): the raw depth is undistorted with the current\n"
+    "table, fused into a TSDF at the frames' poses, the TSDF is raycast at every pose, and per\n"
+    "image cell (80x80 cells of 8x6 px at 640x480) and depth bin (1, 3, 5, 7, 9 m) the factor\n"
+    "z_model / z_raw is fitted robustly; this repeats until the table stops changing. The global\n"
+    "scale is fixed by the mean factor of the 1 m bin being 1. Cells without enough samples keep\n"
+    "the factor 1. Each iteration prints the change of the table and the cells covered per bin.\n"
+    "The table is written in the dist-model.txt format (`--depth-calibration TABLE` reads it).\n"
+    "\n"
+    "The frames' poses are their ground truth (the simulator, or a dataset with\n"
+    "groundtruth.txt); a frame without one is an error. Every frame is kept in memory (raw and\n"
+    "undistorted depth) with up to 8 bytes per compared pixel: for long full-resolution scans\n"
+    "use --frames, --intrinsics ci (simulator) or --set pixel_stride=2.\n"
+    "\n"
+    "source:\n"
+    "  DIR | dataset:DIR  a TUM, ICL-NUIM, Redwood, 7-Scenes or plumb-sim folder with ground\n"
+    "                     truth (detected); its raw depth is used (no depth calibration)\n"
+    "  sim:SCENE          the simulated scanner (living_room, weak_manhattan, l_shape,\n"
+    "                     corridor, or a scene .toml file), raw depth with the Redwood table\n"
+    "\n"
+    "options:\n"
+    "  --out TABLE        the table file to write (required)\n"
+    "  --frames N         use the first N frames only (default 300)\n"
+    "  --iterations K     at most K undistort-fuse-estimate steps (default: max_iterations, 8)\n"
+    "  --intrinsics X     camera preset or intrinsics file (default: detected)\n"
+    "  --depth-scale S    depth units per metre (default: the dataset's)\n"
+    "  --seed S           seed of the simulator (default 1)\n"
+    "  --noise MODE       simulator noise: redwood (default), off, parametric, undistorted\n"
+    "  --threads N        worker threads (default: all); results do not depend on it\n"
+    "  --config FILE      configuration file (see `plumb config doc calibrate`)\n"
+    "  --set KEY=VALUE    override one configuration key, e.g. min_samples=50\n"
+    "  --quiet            no per-iteration output\n"
+    "  -h, --help         this text\n"
+    "\n"
+    "exit status: 0 done, 1 the input failed (the message says which), 2 bad command line.\n";
+
+int usageError(const std::string& message) {
+    std::cerr << "plumb calibrate: " << message << "\n(see plumb calibrate --help)\n";
+    return kExitUsage;
+}
+
+int failure(const Status& status) {
+    std::cerr << "plumb calibrate: " << status.toString() << "\n";
+    return kExitFailure;
+}
+
+template <typename T>
+bool parseNumber(const std::string& text, T* value) {
+    const auto [ptr, ec] = std::from_chars(text.data(), text.data() + text.size(), *value);
+    return ec == std::errc() && ptr == text.data() + text.size();
+}
+
+int runCalibrate(const std::vector<std::string>& arguments) {
+    std::vector<std::string> args = arguments;
+    Result<config::ConfigArgs> config_args = config::extractConfigArgs(args);
+    if (!config_args.isOk()) return usageError(config_args.status().message());
+    std::string source_uri;
+    std::filesystem::path out;
+    SourceOptions source_options;
+    source_options.max_frames = 300;
+    source_options.colour = false;
+    source_options.depth_calibration = "none";  // the raw depth is what is calibrated
+    std::optional<int> iterations;
+    int threads = 0;
+    bool quiet = false;
+    for (size_t i = 0; i < args.size(); ++i) {
+        const std::string& a = args[i];
+        auto value = [&](std::string* v) {
+            if (i + 1 >= args.size()) return false;
+            *v = args[++i];
+            return true;
+        };
+        std::string v;
+        if (a == "-h" || a == "--help") {
+            std::cout << kUsage;
+            return kExitOk;
+        } else if (a == "--out") {
+            if (!value(&v) || v.empty()) return usageError("--out needs a file");
+            out = v;
+        } else if (a == "--frames") {
+            if (!value(&v) || !parseNumber(v, &source_options.max_frames) ||
+                source_options.max_frames == 0)
+                return usageError("--frames needs a positive integer");
+        } else if (a == "--iterations") {
+            int k = 0;
+            if (!value(&v) || !parseNumber(v, &k) || k < 1)
+                return usageError("--iterations needs a positive integer");
+            iterations = k;
+        } else if (a == "--intrinsics") {
+            if (!value(&source_options.intrinsics))
+                return usageError("--intrinsics needs a preset or a file");
+        } else if (a == "--depth-scale") {
+            if (!value(&v) || !parseNumber(v, &source_options.depth_scale) ||
+                !(source_options.depth_scale > 0))
+                return usageError("--depth-scale needs a positive number");
+        } else if (a == "--seed") {
+            if (!value(&v) || !parseNumber(v, &source_options.seed))
+                return usageError("--seed needs a non-negative integer");
+        } else if (a == "--noise") {
+            if (!value(&source_options.sim_noise)) return usageError("--noise needs a mode");
+            if (Status s = sim::checkNoiseMode(source_options.sim_noise); !s.isOk())
+                return usageError(s.message());
+        } else if (a == "--threads") {
+            if (!value(&v) || !parseNumber(v, &threads) || threads < 1)
+                return usageError("--threads needs a positive integer");
+        } else if (a == "--quiet") {
+            quiet = true;
+        } else if (!a.empty() && a[0] == '-') {
+            return usageError("unknown option " + a);
+        } else if (source_uri.empty()) {
+            source_uri = a;
+        } else {
+            return usageError("more than one source given: " + source_uri + " and " + a);
+        }
+    }
+    if (source_uri.empty()) return usageError("no source given");
+    if (out.empty()) return usageError("--out is required");
+
+    calibration::SelfCalibrationConfig cfg;
+    if (Status s = config::load(*config_args, cfg); !s.isOk()) return failure(s);
+    if (iterations) cfg.max_iterations = *iterations;
+    if (Status s = calibration::validate(cfg); !s.isOk()) return failure(s);
+    std::optional<tbb::global_control> thread_limit;
+    if (threads > 0) {
+        thread_limit.emplace(tbb::global_control::max_allowed_parallelism,
+                             static_cast<size_t>(threads));
+    }
+
+    const std::string uri =
+        (source_uri.rfind("sim:", 0) == 0 || source_uri.rfind("dataset:", 0) == 0)
+            ? source_uri
+            : "dataset:" + source_uri;
+    if (!source_options.sim_noise.empty() && uri.rfind("sim:", 0) != 0) {
+        return usageError("--noise applies to sim: sources only");
+    }
+    Result<std::unique_ptr<FrameSource>> opened = openFrameSource(uri, source_options);
+    if (!opened.isOk()) return failure(opened.status());
+    std::unique_ptr<FrameSource> source = std::move(opened).value();
+    const PinholeCamera camera = source->camera();
+
+    std::vector<DepthImage> depth;
+    std::vector<Eigen::Isometry3d> T_W_C;
+    for (;;) {
+        Result<Frame> frame = source->next();
+        if (!frame.isOk()) {
+            if (frame.status().code() == StatusCode::kOutOfRange) break;
+            return failure(frame.status());
+        }
+        if (!frame->T_W_C_gt) {
+            return failure(invalidArgument(fmt::format(
+                "frame {} ({}) has no ground-truth pose: plumb calibrate needs a source with "
+                "ground truth (sim:SCENE, or a dataset with groundtruth.txt)",
+                frame->index, frame->name)));
+        }
+        depth.push_back(std::move(frame->depth));
+        T_W_C.push_back(*frame->T_W_C_gt);
+    }
+    if (depth.empty()) return failure(invalidArgument("the source delivered no frames"));
+    if (!quiet) {
+        std::printf("calibrating from %zu frames of %s (%dx%d)\n", depth.size(),
+                    source->description().c_str(), camera.width, camera.height);
+    }
+
+    const auto start = std::chrono::steady_clock::now();
+    auto report = [&](const calibration::CalibrationIteration& it) {
+        if (quiet) return;
+        const calibration::DistortionEstimate& e = it.estimate;
+        const double s =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        std::printf(
+            "iteration %d: change median %.5f max %.5f over %zu factors; cells covered per bin "
+            "(1/3/5/7/9 m) %d %d %d %d %d of 6400; %zu samples, %zu outliers; %.1f s\n",
+            it.iteration + 1, e.median_change, e.max_change, e.compared_factors, e.covered_cells[0],
+            e.covered_cells[1], e.covered_cells[2], e.covered_cells[3], e.covered_cells[4],
+            e.samples, e.outliers, s);
+        std::fflush(stdout);
+    };
+    Result<calibration::SelfCalibrationResult> result =
+        calibration::selfCalibrate(depth, camera, T_W_C, cfg, nullptr, report);
+    if (!result.isOk()) return failure(result.status());
+    if (Status s = result->table.save(out); !s.isOk()) return failure(s);
+    if (!quiet) {
+        std::printf("%s after %zu iterations; table written to %s\n",
+                    result->converged ? "converged" : "stopped at the iteration limit",
+                    result->iterations.size(), out.string().c_str());
+    }
+    return kExitOk;
+}
+
+}  // namespace
+
+PLUMB_PROGRAM_CONFIG(calibrate, "calibrate", calibration::SelfCalibrationConfig,
+                     "plumb calibrate: self-calibration of the depth distortion table");
+PLUMB_COMMAND(calibrate, "calibrate",
+              "estimate the depth distortion table from a scan (self-calibration)", runCalibrate);
+
+}  // namespace plumb::tools
