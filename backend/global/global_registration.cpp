@@ -519,10 +519,11 @@ inline double huberWeight(double r, double delta, double* rho) {
     return delta / ar;
 }
 
-/// Normalised information Λ̂ = Λ / (trace(Λ_translation) / 3).
-Matrix6d normalisedInformation(const Matrix6d& information) {
-    const double n = information.bottomRightCorner<3, 3>().trace() / 3.0;
-    return n > 0.0 ? Matrix6d(information / n) : information;
+/// Normalised information Λ̂ = Λ / n, n = PairPrior::count or trace(Λ_translation) / 3.
+Matrix6d normalisedInformation(const PairPrior& prior) {
+    const double n =
+        prior.count > 0.0 ? prior.count : prior.information.bottomRightCorner<3, 3>().trace() / 3.0;
+    return n > 0.0 ? Matrix6d(prior.information / n) : prior.information;
 }
 
 struct Problem {
@@ -730,6 +731,10 @@ Status validateInputs(size_t n, const std::vector<Eigen::Isometry3d>& T_W_F,
         if (!lie::isValidPose(p.T_i_j, 1e-6)) {
             return invalidArgument(fmt::format("global: pair prior {} transform not valid", k));
         }
+        if (!std::isfinite(p.count) || p.count < 0.0) {
+            return invalidArgument(
+                fmt::format("global: pair prior {} count {} not valid", k, p.count));
+        }
         if (!p.information.allFinite() ||
             (p.information - p.information.transpose()).cwiseAbs().maxCoeff() >
                 1e-9 * std::max(1.0, p.information.cwiseAbs().maxCoeff())) {
@@ -757,7 +762,7 @@ Result<Problem> makeProblem(const std::vector<GlobalCloud>& clouds,
     pb.priors = &priors;
     pb.layout = prepared->has_value() ? &**prepared : nullptr;
     pb.config = &config;
-    for (const PairPrior& p : priors) pb.info_hat.push_back(normalisedInformation(p.information));
+    for (const PairPrior& p : priors) pb.info_hat.push_back(normalisedInformation(p));
     return pb;
 }
 

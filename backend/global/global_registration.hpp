@@ -18,9 +18,9 @@
 //    nearest neighbour in the other fragment's local k-d tree (query T_j^-1 T_i p), gated by
 //    distance and normal angle, both directions.
 //  - E_pair (Eq. 10): the pairwise-transform prior of the pose graph's kept edges,
-//    e = Log(T_i_j^-1 T_i^-1 T_j), cost e^T Λ̂ e with Λ̂ = Λ / n, n = trace(Λ_translation)/3 (the
-//    correspondence count for Choi's Λ = Σ G^T G), so e^T Λ̂ e is the mean squared displacement
-//    of the edge's points, in m², like a point residual.
+//    e = Log(T_i_j^-1 T_i^-1 T_j), cost e^T Λ̂ e with Λ̂ = Λ / n, n the edge's correspondence
+//    count (PairPrior::count; trace(Λ_translation)/3 for Choi's Λ = Σ G^T G), so e^T Λ̂ e is the
+//    mean squared displacement of the edge's points, in m², like a point residual.
 //
 // Weights ("λ1, λ2 depending on the numbers of points and fragment pairs", paper §3.3; reference
 // §5.5): every term is normalised by its count,
@@ -59,6 +59,11 @@ struct PairPrior {
     uint32_t j = 0;
     Eigen::Isometry3d T_i_j = Eigen::Isometry3d::Identity();
     Matrix6d information = Matrix6d::Identity();
+    /// The n of Λ̂ = Λ / n: the edge's correspondence count. 0: trace(Λ_translation) / 3, which is
+    /// the count for Choi's Λ. An information that is not Choi's (the tracker's, a sum over a
+    /// frame's pixels) gives its count here, so that E_pair weighs it against the other priors
+    /// as the pose graph does.
+    double count = 0.0;
 };
 
 struct GlobalConfig {

@@ -74,7 +74,9 @@ std::vector<global::PairPrior> pairPriors(const posegraph::PoseGraph& graph) {
     std::vector<global::PairPrior> priors;
     for (const auto& e : graph.edges) {
         if (!e.kept) continue;
-        priors.push_back({e.source, e.target, e.T_source_target, e.information});
+        const bool choi = e.information_source == posegraph::PoseGraphEdge::Information::kChoi;
+        priors.push_back({e.source, e.target, e.T_source_target, e.information,
+                          choi ? 0.0 : e.num_correspondences});
     }
     return priors;
 }
