@@ -129,7 +129,6 @@ Matrix6d trackerInformation(const Matrix6d& H, const Eigen::Isometry3d& T_source
 /// Whether the odometry edge into `target` takes the tracker's information.
 bool useTracker(const Fragment& source, const Fragment& target, const RegistrationConfig& c) {
     return c.tracker_odometry && source.segment == target.segment && target.id == source.id + 1 &&
-           !target.odometry_information.isZero(0.0) &&
            target.odometry_information.bottomRightCorner<3, 3>().trace() > 0.0;
 }
 
