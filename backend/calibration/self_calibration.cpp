@@ -381,6 +381,47 @@ Result<DistortionEstimate> DistortionEstimator::estimate(const Table* previous) 
     return out;
 }
 
+Result<TableComparison> compareTables(const sim::DistortionTable& learned,
+                                      const DistortionEstimate& coverage,
+                                      const sim::DistortionTable& reference) {
+    const int side = sim::DistortionTable::kCellsPerSide;
+    auto compared = [&](int x, int y, int bin) {
+        return coverage.isCovered(x, y, bin) && reference.cell(x, y)[bin] != 0.0F;
+    };
+    std::vector<double> ratios;
+    for (int bin : {0, 1}) {
+        for (int y = 0; y < side; ++y) {
+            for (int x = 0; x < side; ++x) {
+                if (!compared(x, y, bin)) continue;
+                ratios.push_back(double{learned.cell(x, y)[bin]} / reference.cell(x, y)[bin]);
+            }
+        }
+    }
+    if (ratios.empty()) {
+        return failedPrecondition(
+            "the learned table covers no cell of the 1 m or 3 m bin that the reference holds");
+    }
+    TableComparison out;
+    out.scale = medianOf(&ratios);
+    for (int bin = 0; bin < sim::DistortionTable::kBins; ++bin) {
+        std::vector<double> errors, uncalibrated;
+        for (int y = 0; y < side; ++y) {
+            for (int x = 0; x < side; ++x) {
+                if (!compared(x, y, bin)) continue;
+                const double r = reference.cell(x, y)[bin];
+                errors.push_back(std::abs(learned.cell(x, y)[bin] / out.scale - r));
+                uncalibrated.push_back(std::abs(1.0 - r));
+            }
+        }
+        TableComparison::Bin& b = out.bins[static_cast<size_t>(bin)];
+        b.cells = errors.size();
+        if (errors.empty()) continue;
+        b.median_error = medianOf(&errors);
+        b.median_uncalibrated = medianOf(&uncalibrated);
+    }
+    return out;
+}
+
 Image<float> viewCosines(const tsdf::RaycastResult& ray, const PinholeCamera& camera,
                          const Eigen::Isometry3d& T_V_C) {
     const int w = ray.depth.width();
@@ -400,11 +441,16 @@ Image<float> viewCosines(const tsdf::RaycastResult& ray, const PinholeCamera& ca
     return out;
 }
 
-Result<SelfCalibrationResult> selfCalibrate(const std::vector<DepthImage>& raw,
-                                            const PinholeCamera& camera, const PoseProvider& poses,
-                                            const SelfCalibrationConfig& config,
-                                            const Table* initial,
-                                            const IterationObserver& observer) {
+namespace {
+
+/// The alternation: per iteration the poses from `poses` (when given, else the previous
+/// iteration's), refined by `aligner` (when given) against the iteration's model.
+Result<SelfCalibrationResult> alternate(const std::vector<DepthImage>& raw,
+                                        const PinholeCamera& camera,
+                                        std::vector<Eigen::Isometry3d> T_W_C,
+                                        const PoseProvider& poses, const FrameAligner& aligner,
+                                        const SelfCalibrationConfig& config, const Table* initial,
+                                        const IterationObserver& observer) {
     if (Status s = validate(config); !s.isOk()) return s;
     if (Status s = camera.validate(); !s.isOk()) return s;
     if (raw.empty()) return invalidArgument("self-calibration: no frames");
@@ -415,7 +461,6 @@ Result<SelfCalibrationResult> selfCalibrate(const std::vector<DepthImage>& raw,
                             raw[k].width(), raw[k].height(), camera.width, camera.height));
         }
     }
-    if (!poses) return invalidArgument("self-calibration: no pose provider");
 
     SelfCalibrationResult result;
     result.table = initial != nullptr ? *initial : Table::neutral();
@@ -424,14 +469,17 @@ Result<SelfCalibrationResult> selfCalibrate(const std::vector<DepthImage>& raw,
         // Undistort with the current table.
         const DepthCalibration calibration(result.table, "the current estimate");
         for (size_t k = 0; k < raw.size(); ++k) undistorted[k] = calibration.undistort(raw[k]);
-        Result<std::vector<Eigen::Isometry3d>> T_W_C = poses(undistorted);
-        if (!T_W_C.isOk()) return T_W_C.status();
-        if (T_W_C->size() != raw.size()) {
+        if (poses) {
+            Result<std::vector<Eigen::Isometry3d>> provided = poses(undistorted);
+            if (!provided.isOk()) return provided.status();
+            T_W_C = std::move(provided).value();
+        }
+        if (T_W_C.size() != raw.size()) {
             return invalidArgument(
-                fmt::format("self-calibration: {} poses for {} frames", T_W_C->size(), raw.size()));
+                fmt::format("self-calibration: {} poses for {} frames", T_W_C.size(), raw.size()));
         }
         for (size_t k = 0; k < raw.size(); ++k) {
-            if (!(*T_W_C)[k].matrix().allFinite()) {
+            if (!T_W_C[k].matrix().allFinite()) {
                 return invalidArgument(
                     fmt::format("self-calibration: the pose of frame {} is not finite", k));
             }
@@ -447,19 +495,28 @@ Result<SelfCalibrationResult> selfCalibrate(const std::vector<DepthImage>& raw,
         tsdf::TsdfVolume volume(config.tsdf);
         for (size_t k = 0; k < raw.size(); ++k) {
             Result<tsdf::IntegrationStats> s =
-                volume.integrate(model_input[k], model_camera, (*T_W_C)[k]);
+                volume.integrate(model_input[k], model_camera, T_W_C[k]);
             if (!s.isOk()) {
                 return Status(
                     s.status().code(),
                     fmt::format("self-calibration: fusing frame {}: {}", k, s.status().message()));
             }
         }
+        if (aligner) {
+            for (size_t k = 0; k < raw.size(); ++k) {
+                Result<Eigen::Isometry3d> refined =
+                    aligner(k, model_input[k], model_camera, volume, T_W_C[k]);
+                if (!refined.isOk()) return refined.status();
+                if (refined->matrix().allFinite()) T_W_C[k] = *refined;
+            }
+        }
         // Compare every raw frame with the model at its pose.
         DistortionEstimator estimator(camera.width, camera.height, config);
         for (size_t k = 0; k < raw.size(); ++k) {
             const tsdf::RaycastResult ray =
-                tsdf::raycast(volume, model_camera, (*T_W_C)[k], config.raycast, &model_input[k]);
-            Image<float> view_cos = viewCosines(ray, model_camera, (*T_W_C)[k]);
+                tsdf::raycast(volume, model_camera, T_W_C[k], config.raycast,
+                              aligner ? nullptr : &model_input[k]);
+            Image<float> view_cos = viewCosines(ray, model_camera, T_W_C[k]);
             const Status s =
                 blocks ? estimator.addFrame(raw[k],
                                             spreadBlocks(ray.depth, camera.width, camera.height),
@@ -493,6 +550,7 @@ Result<SelfCalibrationResult> selfCalibrate(const std::vector<DepthImage>& raw,
             step.estimate.table = Table::fromCells(std::move(cells));
         }
         result.table = step.estimate.table;
+        result.T_W_C = T_W_C;
         const bool small = it > 0 && step.estimate.median_change < config.change_tolerance;
         if (observer) observer(step);
         result.iterations.push_back(std::move(step));
@@ -504,17 +562,24 @@ Result<SelfCalibrationResult> selfCalibrate(const std::vector<DepthImage>& raw,
     return result;
 }
 
+}  // namespace
+
+Result<SelfCalibrationResult> selfCalibrate(const std::vector<DepthImage>& raw,
+                                            const PinholeCamera& camera, const PoseProvider& poses,
+                                            const SelfCalibrationConfig& config,
+                                            const Table* initial,
+                                            const IterationObserver& observer) {
+    if (!poses) return invalidArgument("self-calibration: no pose provider");
+    return alternate(raw, camera, {}, poses, FrameAligner{}, config, initial, observer);
+}
+
 Result<SelfCalibrationResult> selfCalibrate(const std::vector<DepthImage>& raw,
                                             const PinholeCamera& camera,
                                             const std::vector<Eigen::Isometry3d>& T_W_C,
                                             const SelfCalibrationConfig& config,
-                                            const Table* initial,
-                                            const IterationObserver& observer) {
-    const PoseProvider fixed =
-        [&T_W_C](const std::vector<DepthImage>&) -> Result<std::vector<Eigen::Isometry3d>> {
-        return T_W_C;
-    };
-    return selfCalibrate(raw, camera, fixed, config, initial, observer);
+                                            const Table* initial, const IterationObserver& observer,
+                                            const FrameAligner& aligner) {
+    return alternate(raw, camera, T_W_C, PoseProvider{}, aligner, config, initial, observer);
 }
 
 }  // namespace plumb::calibration

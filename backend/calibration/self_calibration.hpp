@@ -200,12 +200,22 @@ struct SelfCalibrationResult {
     sim::DistortionTable table = sim::DistortionTable::neutral();  ///< the last estimate
     std::vector<CalibrationIteration> iterations;
     bool converged = false;  ///< the last change was below change_tolerance
+    /// The poses the last iteration compared the frames at (refined when an aligner was given).
+    std::vector<Eigen::Isometry3d> T_W_C;
 };
 
 /// Poses T_W_C of the frames, given their depth undistorted with the current table (for
 /// alternations that re-track every iteration). Errors end the alternation.
 using PoseProvider =
     std::function<Result<std::vector<Eigen::Isometry3d>>(const std::vector<DepthImage>& depth)>;
+
+/// Refines the pose T_W_C of frame `k` against the model of the current iteration: `depth` is
+/// the frame undistorted with the current table as the model fused it, seen by `camera` (the
+/// block-origin camera of half the resolution with compare_at_block_origin). Returns the refined
+/// pose, or the given one when the frame cannot be aligned; errors end the alternation.
+using FrameAligner = std::function<Result<Eigen::Isometry3d>(
+    size_t k, const DepthImage& depth, const PinholeCamera& camera, const tsdf::TsdfVolume& model,
+    const Eigen::Isometry3d& T_W_C)>;
 
 /// Called after every iteration (for progress output); may be empty.
 using IterationObserver = std::function<void(const CalibrationIteration&)>;
@@ -221,13 +231,37 @@ Result<SelfCalibrationResult> selfCalibrate(const std::vector<DepthImage>& raw,
                                             const sim::DistortionTable* initial = nullptr,
                                             const IterationObserver& observer = {});
 
-/// The same with fixed poses T_W_C (e.g. ground truth), one per frame.
+/// The same from poses T_W_C, one per frame: fixed (e.g. ground truth) when `aligner` is empty;
+/// else every iteration refines each frame's pose against that iteration's model before the
+/// frame is compared with it, and the refined poses are the next iteration's (poses from a
+/// reconstruction of the raw depth are consistent only where the distortion let them be; each
+/// frame re-aligned to the model of frames undistorted better is more so).
 Result<SelfCalibrationResult> selfCalibrate(const std::vector<DepthImage>& raw,
                                             const PinholeCamera& camera,
                                             const std::vector<Eigen::Isometry3d>& T_W_C,
                                             const SelfCalibrationConfig& config,
                                             const sim::DistortionTable* initial = nullptr,
-                                            const IterationObserver& observer = {});
+                                            const IterationObserver& observer = {},
+                                            const FrameAligner& aligner = {});
+
+/// How a learned table compares with a reference (e.g. the sensor's measured table).
+struct TableComparison {
+    /// The global scale divided out of the learned factors first: the median ratio learned /
+    /// reference over the covered cells of the 1 m and 3 m bins (the gauge of §7c is arbitrary).
+    double scale = 1.0;
+    struct Bin {
+        size_t cells = 0;                  ///< covered cells with a valid reference factor
+        double median_error = 0.0;         ///< median |learned / scale - reference|
+        double median_uncalibrated = 0.0;  ///< median |1 - reference| over the same cells
+    };
+    std::array<Bin, sim::DistortionTable::kBins> bins{};
+};
+
+/// Compares `learned` with `reference` over the bins `coverage` marks covered.
+/// kFailedPrecondition when no covered 1 m or 3 m bin has a valid reference factor.
+Result<TableComparison> compareTables(const sim::DistortionTable& learned,
+                                      const DistortionEstimate& coverage,
+                                      const sim::DistortionTable& reference);
 
 /// |cos| of the viewing angle of each hit of a raycast from camera pose T_V_C: the normal's
 /// component along the pixel's unit ray (0 where there is no hit).

@@ -338,6 +338,7 @@ Result<PipelineResult> runPipeline(const PipelineInput& input, const PipelineCon
     metrics["final_model"] = from_raw ? "raw frames re-integrated" : "fragment surfaces fused";
     metrics["variants"] = variants_json;
     metrics["registration"] = edgeSummary(outcome);
+    if (!input.self_calibration.is_null()) metrics["self_calibration"] = input.self_calibration;
     if (!alternation_summary.is_null()) metrics["alternation"] = alternation_summary;
     metrics["energies"] = energies;
     if (!layout_diagnostics.is_null()) metrics["layout_diagnostics"] = layout_diagnostics;

@@ -76,6 +76,10 @@ struct PipelineInput {
     GroundTruth ground_truth;  ///< may be empty
     std::string description;   ///< the input, for the report ("sim:living_room", a folder, ...)
     std::string config_toml;   ///< the effective configuration, written as config.toml
+    /// What a self-calibration of the depth found before this run (`plumb reconstruct
+    /// --self-calibrate`): written as metrics.json's "self_calibration" and shown in the report;
+    /// null when the depth was not self-calibrated.
+    nlohmann::json self_calibration;
 };
 
 /// One variant's result.

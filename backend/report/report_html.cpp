@@ -153,6 +153,39 @@ std::string stageTable(const nlohmann::json& stages) {
     return out.str();
 }
 
+/// The depth self-calibration: the learned table, its coverage and the main variant's accuracy
+/// from the raw depth and with the table.
+std::string selfCalibrationSection(const nlohmann::json& metrics) {
+    const nlohmann::json& sc = metrics["self_calibration"];
+    std::ostringstream out;
+    out << "<h2>Depth self-calibration</h2>\n<p>The depth distortion table <b>"
+        << escape(sc.value("table", std::string("?"))) << "</b> was learned from "
+        << sc.value("frames", 0) << " frames (one in " << sc.value("frame_step", 1)
+        << ") of the reconstruction from the raw depth ("
+        << escape(sc.value("raw_reconstruction", std::string("?"))) << ") in "
+        << sc.value("iterations", nlohmann::json::array()).size() << " iterations ("
+        << (sc.value("converged", false) ? "converged" : "stopped at the iteration limit")
+        << "); this reconstruction used it. Cells covered (of 6400) per depth bin 1/3/5/7/9 m:";
+    for (const auto& c : sc.value("covered_cells", nlohmann::json::array())) out << " " << c;
+    out << ".</p>\n";
+    const nlohmann::json before = sc.value("before", nlohmann::json::object());
+    const nlohmann::json& variants = metrics.value("variants", nlohmann::json::object());
+    const auto main = variants.find(variants.contains("full") ? "full" : "baseline");
+    if (!before.empty() && main != variants.end()) {
+        out << "<table><tr><th></th><th>ATE RMSE</th><th>mean reconstruction error</th></tr>";
+        auto row = [&](const char* name, double ate, double recon) {
+            out << fmt::format("<tr><td>{}</td><td>{:.2f} cm</td><td>{:.2f} cm</td></tr>", name,
+                               100.0 * ate, 100.0 * recon);
+        };
+        row("raw depth", before.value("ate_rmse_m", 0.0), before.value("recon_mean_m", 0.0));
+        const nlohmann::json& m = *main;
+        row("self-calibrated", m.contains("ate") ? m["ate"].value("rmse_m", 0.0) : 0.0,
+            m.contains("recon") ? m["recon"].value("mean_m", 0.0) : 0.0);
+        out << "</table>\n";
+    }
+    return out.str();
+}
+
 }  // namespace
 
 std::string topViewSvg(const TriangleMesh& mesh, const std::optional<Layout>& layout, int size_px,
@@ -229,6 +262,7 @@ std::string renderReportHtml(const nlohmann::json& metrics, const ReportFigures&
             out << "</p>\n";
         }
     }
+    if (metrics.contains("self_calibration")) out << selfCalibrationSection(metrics);
     if (!figures.floorplan_svg.empty())
         out << "<h2>Floor plan</h2>\n" << figures.floorplan_svg << "\n";
     if (!figures.top_views.empty()) {

@@ -55,7 +55,8 @@ TEST(PlumbCalibrateCli, HelpDocumentsEveryOption) {
     const ProcessRun run = plumbCalibrate(dir, {"--help"});
     ASSERT_EQ(run.exit_code, 0) << run.err;
     for (const char* option : {"--out", "--frames", "--iterations", "--intrinsics", "--depth-scale",
-                               "--seed", "--noise", "--threads", "--config", "--set", "--quiet"}) {
+                               "--seed", "--noise", "--threads", "--config", "--set", "--quiet",
+                               "--poses", "--refine-poses", "--reference"}) {
         EXPECT_NE(run.out.find(option), std::string::npos) << option;
     }
 }

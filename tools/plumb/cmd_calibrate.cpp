@@ -22,7 +22,9 @@
 #include "common/config/registry.hpp"
 #include "drivers/sim/sim_source.hpp"
 #include "drivers/source.hpp"
+#include "tools/plumb/calibration_aligner.hpp"
 #include "tools/plumb/command.hpp"
+#include "tools/plumb/pose_lookup.hpp"
 
 namespace plumb::tools {
 namespace {
@@ -40,9 +42,11 @@ constexpr const char* kUsage =
     "The table is written in the dist-model.txt format (`--depth-calibration TABLE` reads it).\n"
     "\n"
     "The frames' poses are their ground truth (the simulator, or a dataset with\n"
-    "groundtruth.txt); a frame without one is an error. Every frame is kept in memory (raw and\n"
-    "undistorted depth) with up to 8 bytes per compared pixel: for long full-resolution scans\n"
-    "use --frames, --intrinsics ci (simulator) or --set pixel_stride=2.\n"
+    "groundtruth.txt; a frame without one is an error), or with --poses those of a trajectory\n"
+    "file, e.g. the trajectory.txt of a `plumb reconstruct --depth-calibration none` run of the\n"
+    "same scan (frames the trajectory does not hold are skipped). Every frame is kept in memory\n"
+    "(raw and undistorted depth) with up to 8 bytes per compared pixel: for long\n"
+    "full-resolution scans use --frames, --intrinsics ci (simulator) or --set pixel_stride=2.\n"
     "\n"
     "source:\n"
     "  DIR | dataset:DIR  a TUM, ICL-NUIM, Redwood, 7-Scenes or plumb-sim folder with ground\n"
@@ -53,6 +57,14 @@ constexpr const char* kUsage =
     "options:\n"
     "  --out TABLE        the table file to write (required)\n"
     "  --frames N         use the first N frames only (default 300)\n"
+    "  --poses FILE       camera poses: a TUM trajectory (frames matched by timestamp, within\n"
+    "                     1 ms) or a .log trajectory (matched by frame index); default: the\n"
+    "                     source's ground truth\n"
+    "  --refine-poses     re-align every frame to each iteration's model by frame-to-model\n"
+    "                     ICP before comparing it (default off: measured no better, 5x slower)\n"
+    "  --reference TABLE  also compare the learned table with this one (e.g. the sensor's\n"
+    "                     measured table): per depth bin the median |learned - reference| over\n"
+    "                     the covered cells, after dividing out one global scale\n"
     "  --iterations K     at most K undistort-fuse-estimate steps (default: max_iterations, 8)\n"
     "  --intrinsics X     camera preset or intrinsics file (default: detected)\n"
     "  --depth-scale S    depth units per metre (default: the dataset's)\n"
@@ -93,6 +105,9 @@ int runCalibrate(const std::vector<std::string>& arguments) {
     source_options.colour = false;
     source_options.depth_calibration = "none";  // the raw depth is what is calibrated
     std::optional<int> iterations;
+    std::optional<std::filesystem::path> poses_path;
+    std::optional<std::filesystem::path> reference_path;
+    bool refine_poses = false;
     int threads = 0;
     bool quiet = false;
     for (size_t i = 0; i < args.size(); ++i) {
@@ -113,6 +128,14 @@ int runCalibrate(const std::vector<std::string>& arguments) {
             if (!value(&v) || !parseNumber(v, &source_options.max_frames) ||
                 source_options.max_frames == 0)
                 return usageError("--frames needs a positive integer");
+        } else if (a == "--poses") {
+            if (!value(&v) || v.empty()) return usageError("--poses needs a trajectory file");
+            poses_path = v;
+        } else if (a == "--refine-poses") {
+            refine_poses = true;
+        } else if (a == "--reference") {
+            if (!value(&v) || v.empty()) return usageError("--reference needs a table file");
+            reference_path = v;
         } else if (a == "--iterations") {
             int k = 0;
             if (!value(&v) || !parseNumber(v, &k) || k < 1)
@@ -165,6 +188,18 @@ int runCalibrate(const std::vector<std::string>& arguments) {
     if (!source_options.sim_noise.empty() && uri.rfind("sim:", 0) != 0) {
         return usageError("--noise applies to sim: sources only");
     }
+    std::optional<PoseLookup> pose_file;
+    if (poses_path) {
+        Result<PoseLookup> p = PoseLookup::read(*poses_path);
+        if (!p.isOk()) return failure(p.status());
+        pose_file = std::move(*p);
+    }
+    std::optional<sim::DistortionTable> reference;
+    if (reference_path) {
+        Result<sim::DistortionTable> t = sim::DistortionTable::load(*reference_path);
+        if (!t.isOk()) return failure(t.status());
+        reference = std::move(*t);
+    }
     Result<std::unique_ptr<FrameSource>> opened = openFrameSource(uri, source_options);
     if (!opened.isOk()) return failure(opened.status());
     std::unique_ptr<FrameSource> source = std::move(opened).value();
@@ -172,11 +207,22 @@ int runCalibrate(const std::vector<std::string>& arguments) {
 
     std::vector<DepthImage> depth;
     std::vector<Eigen::Isometry3d> T_W_C;
+    size_t without_pose = 0;
     for (;;) {
         Result<Frame> frame = source->next();
         if (!frame.isOk()) {
             if (frame.status().code() == StatusCode::kOutOfRange) break;
             return failure(frame.status());
+        }
+        if (pose_file) {
+            const std::optional<Eigen::Isometry3d> pose = pose_file->find(*frame);
+            if (!pose) {
+                ++without_pose;
+                continue;
+            }
+            depth.push_back(std::move(frame->depth));
+            T_W_C.push_back(*pose);
+            continue;
         }
         if (!frame->T_W_C_gt) {
             return failure(invalidArgument(fmt::format(
@@ -187,10 +233,18 @@ int runCalibrate(const std::vector<std::string>& arguments) {
         depth.push_back(std::move(frame->depth));
         T_W_C.push_back(*frame->T_W_C_gt);
     }
-    if (depth.empty()) return failure(invalidArgument("the source delivered no frames"));
+    if (depth.empty()) {
+        return failure(invalidArgument(
+            pose_file ? fmt::format("none of the source's frames has a pose in {} ({} poses)",
+                                    poses_path->string(), pose_file->size())
+                      : std::string("the source delivered no frames")));
+    }
     if (!quiet) {
-        std::printf("calibrating from %zu frames of %s (%dx%d)\n", depth.size(),
-                    source->description().c_str(), camera.width, camera.height);
+        std::printf("calibrating from %zu frames of %s (%dx%d), poses from %s\n", depth.size(),
+                    source->description().c_str(), camera.width, camera.height,
+                    poses_path ? poses_path->string().c_str() : "the ground truth");
+        if (without_pose > 0)
+            std::printf("%zu frames without a pose in the trajectory skipped\n", without_pose);
     }
 
     const auto start = std::chrono::steady_clock::now();
@@ -205,16 +259,50 @@ int runCalibrate(const std::vector<std::string>& arguments) {
             it.iteration + 1, e.median_change, e.max_change, e.compared_factors, e.covered_cells[0],
             e.covered_cells[1], e.covered_cells[2], e.covered_cells[3], e.covered_cells[4],
             e.samples, e.outliers, s);
+        if (reference) {
+            Result<calibration::TableComparison> c =
+                calibration::compareTables(e.table, e, *reference);
+            if (c.isOk()) {
+                std::printf("  median |learned - reference| 1 m %.3f %%, 3 m %.3f %%\n",
+                            100.0 * c->bins[0].median_error, 100.0 * c->bins[1].median_error);
+            }
+        }
         std::fflush(stdout);
     };
+    size_t unaligned = 0;
+    const bool refine = refine_poses;
+    const calibration::FrameAligner aligner =
+        refine ? icpFrameAligner(CalibrationAlignerConfig{}, &unaligned) : nullptr;
     Result<calibration::SelfCalibrationResult> result =
-        calibration::selfCalibrate(depth, camera, T_W_C, cfg, nullptr, report);
+        calibration::selfCalibrate(depth, camera, T_W_C, cfg, nullptr, report, aligner);
     if (!result.isOk()) return failure(result.status());
     if (Status s = result->table.save(out); !s.isOk()) return failure(s);
+    if (!quiet && refine) {
+        std::printf(
+            "poses refined against every iteration's model; %zu alignments failed (the "
+            "frame kept its pose)\n",
+            unaligned);
+    }
     if (!quiet) {
         std::printf("%s after %zu iterations; table written to %s\n",
                     result->converged ? "converged" : "stopped at the iteration limit",
                     result->iterations.size(), out.string().c_str());
+    }
+    if (reference) {
+        Result<calibration::TableComparison> c = calibration::compareTables(
+            result->table, result->iterations.back().estimate, *reference);
+        if (!c.isOk()) return failure(c.status());
+        std::printf("against %s (learned factors divided by %.5f):\n",
+                    reference_path->string().c_str(), c->scale);
+        for (int bin = 0; bin < sim::DistortionTable::kBins; ++bin) {
+            const calibration::TableComparison::Bin& b = c->bins[static_cast<size_t>(bin)];
+            if (b.cells == 0) continue;
+            std::printf(
+                "  %.0f m: %zu cells, median |learned - reference| %.3f %% (uncalibrated %.3f "
+                "%%)\n",
+                sim::DistortionTable::binCentreM(bin), b.cells, 100.0 * b.median_error,
+                100.0 * b.median_uncalibrated);
+        }
     }
     return kExitOk;
 }

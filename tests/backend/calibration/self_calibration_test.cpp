@@ -91,35 +91,18 @@ TEST(SelfCalibration, LearnsTheRedwoodTableFromARawScanWithGroundTruthPoses) {
     const DistortionEstimate& last = result->iterations.back().estimate;
 
     // One global scale between learnt and true factors (the gauge), over the compared bins.
-    const int side = Table::kCellsPerSide;
-    std::vector<double> ratios;
+    auto cmp = compareTables(result->table, last, *truth);
+    ASSERT_TRUE(cmp.isOk()) << cmp.status().toString();
     for (int bin : {0, 1}) {
-        for (int y = 0; y < side; ++y) {
-            for (int x = 0; x < side; ++x) {
-                if (!last.isCovered(x, y, bin) || truth->cell(x, y)[bin] == 0.0F) continue;
-                ratios.push_back(double{result->table.cell(x, y)[bin]} / truth->cell(x, y)[bin]);
-            }
-        }
-    }
-    const double scale = median(ratios);
-    for (int bin : {0, 1}) {
-        std::vector<double> errors, raw_errors;
-        for (int y = 0; y < side; ++y) {
-            for (int x = 0; x < side; ++x) {
-                const double t = truth->cell(x, y)[bin];
-                if (!last.isCovered(x, y, bin) || t == 0.0) continue;
-                errors.push_back(std::abs(result->table.cell(x, y)[bin] / scale - t));
-                raw_errors.push_back(std::abs(1.0 - t));
-            }
-        }
-        const double err = median(errors);
+        const TableComparison::Bin& b = cmp->bins[static_cast<size_t>(bin)];
         std::printf(
             "bin %d (%.0f m): %zu cells covered, median |learned - true| %.4f %% (uncalibrated "
             "|1 - true| %.4f %%), global scale %.5f\n",
-            bin, Table::binCentreM(bin), errors.size(), 100.0 * err, 100.0 * median(raw_errors),
-            scale);
-        EXPECT_GT(errors.size(), size_t{side * side / 4}) << "bin " << bin;
-        EXPECT_LE(err, 0.003) << "bin " << bin;
+            bin, Table::binCentreM(bin), b.cells, 100.0 * b.median_error,
+            100.0 * b.median_uncalibrated, cmp->scale);
+        EXPECT_GT(b.cells, size_t{Table::kCellsPerSide * Table::kCellsPerSide / 4})
+            << "bin " << bin;
+        EXPECT_LE(b.median_error, 0.003) << "bin " << bin;
     }
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -20,34 +20,14 @@ namespace {
 
 using Table = sim::DistortionTable;
 
-double median(std::vector<double> v) {
-    std::sort(v.begin(), v.end());
-    return v.empty() ? 1.0 : v[v.size() / 2];
-}
-
 /// Median over the cells covered in `bin` of |learnt / scale - true| with one scale (the median
 /// ratio over both near bins), and of |1 - true| (no calibration).
 std::pair<double, double> tableError(const DistortionEstimate& e, const Table& learnt,
                                      const Table& truth, int bin) {
-    std::vector<double> ratios, errors, neutral;
-    for (int b : {0, 1}) {
-        for (int y = 0; y < Table::kCellsPerSide; ++y) {
-            for (int x = 0; x < Table::kCellsPerSide; ++x) {
-                if (!e.isCovered(x, y, b) || truth.cell(x, y)[b] == 0.0F) continue;
-                ratios.push_back(double{learnt.cell(x, y)[b]} / truth.cell(x, y)[b]);
-            }
-        }
-    }
-    const double scale = median(ratios);
-    for (int y = 0; y < Table::kCellsPerSide; ++y) {
-        for (int x = 0; x < Table::kCellsPerSide; ++x) {
-            const double t = truth.cell(x, y)[bin];
-            if (!e.isCovered(x, y, bin) || t == 0.0) continue;
-            errors.push_back(std::abs(learnt.cell(x, y)[bin] / scale - t));
-            neutral.push_back(std::abs(1.0 - t));
-        }
-    }
-    return {median(errors), median(neutral)};
+    Result<TableComparison> c = compareTables(learnt, e, truth);
+    if (!c.isOk()) return {1.0, 1.0};
+    const TableComparison::Bin& b = c->bins[static_cast<size_t>(bin)];
+    return {b.median_error, b.median_uncalibrated};
 }
 
 TEST(SelfCalibration, WithPosesFromOwnTrackingTheFarBinImprovesOnNoCalibration) {

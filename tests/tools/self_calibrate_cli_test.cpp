@@ -1,0 +1,169 @@
+// SPDX-License-Identifier: Apache-2.0
+// Runs the built `plumb` program (PLUMB_EXE) as a user would (issue 28): `plumb reconstruct
+// --self-calibrate` learns a depth distortion table from the raw depth of a scan, reconstructs
+// with it and reports what it learned; the table it writes undistorts later scans on the device
+// (`plumb fuse --depth-calibration`); `plumb calibrate --poses` learns from a reconstruction's
+// trajectory and `--reference` measures a learned table against a known one.
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "drivers/sim/noise.hpp"
+#include "tests/testing/run_program.hpp"
+#include "tests/testing/shared_data.hpp"
+
+namespace plumb {
+namespace {
+
+namespace fs = std::filesystem;
+
+using testing::ProcessRun;
+
+ProcessRun plumb(const std::string& command, const fs::path& log_dir,
+                 const std::vector<std::string>& args) {
+    return testing::runProgram(std::string("'") + PLUMB_EXE + "' " + command, log_dir, args);
+}
+
+/// Median over the cells the learned table moved off 1 in `bin` of |learned / scale - true| and
+/// of |1 - true|, with the scale the median ratio learned / true there (the gauge is arbitrary).
+std::pair<double, double> binError(const sim::DistortionTable& learned,
+                                   const sim::DistortionTable& truth, int bin) {
+    std::vector<double> ratios;
+    for (int y = 0; y < 80; ++y) {
+        for (int x = 0; x < 80; ++x) {
+            const double l = learned.cell(x, y)[bin], t = truth.cell(x, y)[bin];
+            if (l != 1.0 && t != 0.0) ratios.push_back(l / t);
+        }
+    }
+    if (ratios.empty()) return {1.0, 0.0};
+    std::sort(ratios.begin(), ratios.end());
+    const double scale = ratios[ratios.size() / 2];
+    std::vector<double> errors, none;
+    for (int y = 0; y < 80; ++y) {
+        for (int x = 0; x < 80; ++x) {
+            const double l = learned.cell(x, y)[bin], t = truth.cell(x, y)[bin];
+            if (l == 1.0 || t == 0.0) continue;
+            errors.push_back(std::abs(l / scale - t));
+            none.push_back(std::abs(1.0 - t));
+        }
+    }
+    std::sort(errors.begin(), errors.end());
+    std::sort(none.begin(), none.end());
+    return {errors[errors.size() / 2], none[none.size() / 2]};
+}
+
+TEST(PlumbReconstructCli, SelfCalibrateLearnsTheTableFromTheRawDepthAndReportsBeforeAndAfter) {
+    PLUMB_REQUIRE_SHARED_DATA(path, "redwood-noise/dist-model.txt");
+    const fs::path logs = testing::freshTempDir("plumb_self_calibrate_cli_logs");
+    const fs::path out = testing::freshTempDir("plumb_self_calibrate_cli");
+    const ProcessRun run =
+        plumb("reconstruct", logs,
+              {"sim:living_room", "--intrinsics", "ci", "--frames", "120", "--self-calibrate",
+               "--no-baseline", "--quiet", "--set", "self_calibration.estimate.max_iterations=3",
+               "--out", out.string()});
+    ASSERT_EQ(run.exit_code, 0) << run.err;
+    std::printf("%s", run.out.c_str());
+    EXPECT_NE(run.out.find("self-calibration: table"), std::string::npos) << run.out;
+
+    // The table: closer to the sensor's true table at 3 m than no calibration at all.
+    auto learned = sim::DistortionTable::load(out / "depth_calibration.txt");
+    ASSERT_TRUE(learned.isOk()) << learned.status().toString();
+    auto truth = sim::DistortionTable::load(path);
+    ASSERT_TRUE(truth.isOk());
+    const auto [error, uncalibrated] = binError(*learned, *truth, 1);
+    std::printf("3 m bin: median |learned - true| %.3f %%, uncalibrated %.3f %%\n", 100 * error,
+                100 * uncalibrated);
+    EXPECT_LT(error, uncalibrated);
+
+    // metrics.json and the report say what was learned and what it changed.
+    const nlohmann::json m = nlohmann::json::parse(testing::slurp(out / "metrics.json"));
+    ASSERT_TRUE(m.contains("self_calibration")) << m.dump();
+    const nlohmann::json& sc = m["self_calibration"];
+    EXPECT_EQ(sc.at("table"), "depth_calibration.txt");
+    EXPECT_GT(sc.at("frames").get<int>(), 30);
+    EXPECT_GE(sc.at("iterations").size(), 1U);
+    EXPECT_LE(sc.at("iterations").size(), 3U);
+    EXPECT_GT(sc.at("covered_cells").at(1).get<int>(), 1000);
+    EXPECT_GT(sc.at("before").at("ate_rmse_m").get<double>(), 0.0);
+    EXPECT_GT(sc.at("before").at("recon_mean_m").get<double>(), 0.0);
+    EXPECT_TRUE(fs::exists(out / "self_calibration" / "raw" / "metrics.json"));
+    EXPECT_TRUE(fs::exists(out / "self_calibration" / "raw" / "trajectory.txt"));
+    EXPECT_NE(testing::slurp(out / "report.html").find("Depth self-calibration"),
+              std::string::npos);
+
+    // The learned table undistorts a later scan on the device pipeline as a measured one does.
+    const fs::path fused = testing::freshTempDir("plumb_self_calibrate_cli_fuse");
+    const ProcessRun fuse =
+        plumb("fuse", logs,
+              {"sim:living_room", "--intrinsics", "ci", "--frames", "30", "--depth-calibration",
+               (out / "depth_calibration.txt").string(), "--out", fused.string(), "--quiet"});
+    ASSERT_EQ(fuse.exit_code, 0) << fuse.err;
+    EXPECT_TRUE(fs::exists(fused / "fragment_000.ply"));
+}
+
+TEST(PlumbReconstructCli, SelfCalibrateExcludesAGivenDepthCalibration) {
+    const fs::path out = testing::freshTempDir("plumb_self_calibrate_cli_bad");
+    const ProcessRun run = plumb("reconstruct", out,
+                                 {"sim:living_room", "--self-calibrate", "--depth-calibration",
+                                  "none", "--out", out.string()});
+    EXPECT_EQ(run.exit_code, 2);
+    EXPECT_NE(run.err.find("--self-calibrate learns the depth calibration"), std::string::npos)
+        << run.err;
+}
+
+TEST(PlumbCalibrateCli, LearnsFromAReconstructionsTrajectoryAndComparesWithAReference) {
+    PLUMB_REQUIRE_SHARED_DATA(path, "redwood-noise/dist-model.txt");
+    const fs::path dir = testing::freshTempDir("plumb_calibrate_cli_poses");
+    const std::vector<std::string> scan = {"sim:living_room", "--intrinsics", "ci", "--frames",
+                                           "60"};
+    std::vector<std::string> args = scan;
+    for (const char* a : {"--no-baseline", "--no-gt", "--quiet", "--out"}) args.push_back(a);
+    args.push_back((dir / "raw").string());
+    args.push_back("--depth-calibration");
+    args.push_back("none");
+    const ProcessRun reconstruct = plumb("reconstruct", dir, args);
+    ASSERT_EQ(reconstruct.exit_code, 0) << reconstruct.err;
+
+    for (const char* trajectory : {"trajectory.txt", "trajectory.log"}) {
+        args = scan;
+        for (const std::string& a :
+             {std::string("--iterations"), std::string("2"), std::string("--poses"),
+              (dir / "raw" / trajectory).string(), std::string("--reference"), path.string(),
+              std::string("--out"), (dir / "table.txt").string()}) {
+            args.push_back(a);
+        }
+        const bool refine = std::string(trajectory) == "trajectory.log";
+        if (refine) args.push_back("--refine-poses");
+        const ProcessRun run = plumb("calibrate", dir, args);
+        ASSERT_EQ(run.exit_code, 0) << trajectory << ": " << run.err;
+        EXPECT_EQ(
+            run.out.find("poses refined against every iteration's model") != std::string::npos,
+            refine)
+            << run.out;
+        std::printf("%s", run.out.c_str());
+        // Every frame of the scan was tracked, and each found its pose in the trajectory.
+        EXPECT_NE(run.out.find("calibrating from 60 frames"), std::string::npos) << run.out;
+        EXPECT_NE(run.out.find("poses from " + (dir / "raw" / trajectory).string()),
+                  std::string::npos);
+        EXPECT_NE(run.out.find("median |learned - reference| 1 m"), std::string::npos);
+        EXPECT_NE(run.out.find("3 m: "), std::string::npos) << run.out;
+        EXPECT_TRUE(sim::DistortionTable::load(dir / "table.txt").isOk());
+    }
+
+    args = scan;
+    for (const std::string& a : {std::string("--poses"), (dir / "missing.txt").string(),
+                                 std::string("--out"), (dir / "t.txt").string()}) {
+        args.push_back(a);
+    }
+    const ProcessRun missing = plumb("calibrate", dir, args);
+    EXPECT_EQ(missing.exit_code, 1);
+    EXPECT_NE(missing.err.find("missing.txt"), std::string::npos) << missing.err;
+}
+
+}  // namespace
+}  // namespace plumb
