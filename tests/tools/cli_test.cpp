@@ -43,6 +43,11 @@ std::vector<std::string> smallFuse(const fs::path& out) {
             "--noise",         "parametric", "--out", out.string()};
 }
 
+/// True when this build has the backend commands (reconstruct, replay).
+bool hasBackend(const fs::path& log_dir) {
+    return contains(plumb(log_dir, "--help").out, "  reconstruct ");
+}
+
 /// Expects exit 2 and exactly one stderr line naming `what`, with the command's help hint,
 /// and that nothing was written to `out`.
 void expectUsageError(const ProcessRun& run, const std::string& command, const std::string& what,
@@ -91,6 +96,13 @@ TEST(PlumbCli, BadConfigurationIntrinsicsOrSceneExitTwoBeforeAnyWork) {
                      "demo", "no built-in scene 'no_such_room'", out);
     expectUsageError(plumb(logs, "replay"), "replay", "LCM log", out);
     expectUsageError(plumb(logs, "eval traj", {"--bogus"}), "eval traj", "--bogus", out);
+
+    if (hasBackend(logs)) {  // replay checks its configuration before reading the log
+        expectUsageError(
+            plumb(logs, "replay",
+                  {(logs / "scan.lcmlog").string(), "--out", out.string(), "--set", "nosuchkey=1"}),
+            "replay", "unknown key 'nosuchkey'", out);
+    }
 
     const ProcessRun level = plumb(logs, "--log-level loud fuse", smallFuse(out));
     EXPECT_EQ(level.exit_code, 2) << level.err;
@@ -196,6 +208,17 @@ TEST(PlumbCli, LogLevelBeforeOrAfterTheCommandSilencesInfoLines) {
     EXPECT_FALSE(contains(inline_form.err, " info: ")) << inline_form.err;
     // The run itself is the same whatever is logged.
     EXPECT_EQ(slurp(logs / "normal/trajectory.txt"), slurp(logs / "after/trajectory.txt"));
+
+    // The same for a command with its own logger and a whole pipeline behind it (in builds with
+    // the backend).
+    if (hasBackend(logs)) {
+        const ProcessRun reconstruct =
+            plumb(logs, "reconstruct",
+                  {"sim:living_room", "--frames", "40", "--intrinsics", "ci", "--noise",
+                   "parametric", "--out", (logs / "reconstruct").string(), "--log-level", "error"});
+        ASSERT_EQ(reconstruct.exit_code, 0) << reconstruct.err;
+        EXPECT_EQ(reconstruct.err, "");
+    }
 
     // After a command that logs nothing, too.
     const ProcessRun sim_help = plumb(logs, "sim --help --log-level debug");

@@ -72,7 +72,7 @@ constexpr const char* kUsage =
     "\n"
     "options:\n"
     "  --out DIR          output folder (required; created)\n"
-    "  --frames N         use the first N frames only (simulator default 600)\n"
+    "  --frames N         use the first N frames only (default: all; the simulator 600)\n"
     "  --frame-step X     process only frames floor(j X), j = 0, 1, ... (X >= 1, may be\n"
     "                     fractional): what a live device that keeps up with 1/X of the sensor\n"
     "                     rate does when it drops the frames it has no time for (default 1)\n"

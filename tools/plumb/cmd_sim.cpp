@@ -2,9 +2,7 @@
 // `plumb sim`: renders a simulated handheld scan of a room into a TUM-layout dataset.
 
 #include <chrono>
-#include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <filesystem>
 #include <string>
 #include <vector>

@@ -4,14 +4,11 @@
 // Sub-commands of the `plumb` program register themselves with PLUMB_COMMAND; main() dispatches
 // `plumb <name> args...` to the matching function, which returns the process exit code.
 //
-// Every command reports the same way (tools/plumb/command.cpp):
-//   bad command line or configuration   usageError("fuse", "--frames needs a positive integer")
-//                                        -> "plumb fuse: --frames needs ... (see plumb fuse
-//                                        --help)"
-//                                           on stderr, exit kExitUsage
-//   the work failed                      failure("fuse", status)
-//                                        -> "plumb fuse: corrupt: depth/12.png: ..." on stderr,
-//                                           exit kExitFailure
+// Every command reports the same way (tools/plumb/command.cpp): a bad command line or
+// configuration with usageError() (one line and a hint to --help, exit kExitUsage), failed work
+// with failure() (the Status as text, exit kExitFailure), both on stderr:
+//   plumb fuse: --frames needs a positive integer (see plumb fuse --help)
+//   plumb fuse: corrupt: depth/12.png: cannot decode PNG (truncated or damaged, 5441 bytes): ...
 
 #include <charconv>
 #include <cmath>

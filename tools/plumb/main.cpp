@@ -20,6 +20,13 @@ std::vector<Command>& registry() {
     return commands;
 }
 
+/// `list` in the order of the command names.
+std::vector<Command> sortedByName(std::vector<Command> list) {
+    std::sort(list.begin(), list.end(),
+              [](const Command& a, const Command& b) { return std::strcmp(a.name, b.name) < 0; });
+    return list;
+}
+
 void printUsage(FILE* out) {
     std::fprintf(out,
                  "usage: plumb <command> [options]\n"
@@ -27,10 +34,9 @@ void printUsage(FILE* out) {
                  "       plumb --version\n\n"
                  "Turns depth scans of rooms into registered models with their layout.\n\n"
                  "commands:\n");
-    std::vector<Command> sorted = registry();
-    std::sort(sorted.begin(), sorted.end(),
-              [](const Command& a, const Command& b) { return std::strcmp(a.name, b.name) < 0; });
-    for (const Command& c : sorted) std::fprintf(out, "  %-12s %s\n", c.name, c.summary);
+    for (const Command& c : sortedByName(registry())) {
+        std::fprintf(out, "  %-12s %s\n", c.name, c.summary);
+    }
     std::fprintf(out,
                  "\noptions:\n"
                  "  -h, --help      this text\n"
@@ -42,8 +48,8 @@ void printUsage(FILE* out) {
 }
 
 /// Removes every `--log-level L` and `--log-level=L` from `args` (before or after the command)
-/// into `*level`, the last one winning; false, with `*message` set, for a missing or bad level.
-bool extractLogLevel(std::vector<std::string>& args, log::Level* level, std::string* message) {
+/// into `*level`, the last one winning; false for a missing or bad level.
+bool extractLogLevel(std::vector<std::string>& args, log::Level* level) {
     constexpr std::string_view kFlag = "--log-level";
     std::vector<std::string> kept;
     for (size_t i = 0; i < args.size(); ++i) {
@@ -57,10 +63,7 @@ bool extractLogLevel(std::vector<std::string>& args, log::Level* level, std::str
             kept.push_back(a);
             continue;
         }
-        if (!text || !log::parseLevel(*text, level)) {
-            *message = "--log-level takes trace|debug|info|warn|error|off";
-            return false;
-        }
+        if (!text || !log::parseLevel(*text, level)) return false;
     }
     args = std::move(kept);
     return true;
@@ -82,13 +85,14 @@ int runGroup(const std::vector<std::string>& args) {
         return kExitUsage;
     }
     FILE* out = help ? stdout : stderr;
-    std::sort(members.begin(), members.end(),
-              [](const Command& a, const Command& b) { return std::strcmp(a.name, b.name) < 0; });
     std::fprintf(out, "usage: plumb %s <what> [options]\n\ncommands:\n", word.c_str());
-    for (const Command& c : members) std::fprintf(out, "  %-12s %s\n", c.name, c.summary);
+    for (const Command& c : sortedByName(members)) {
+        std::fprintf(out, "  %-12s %s\n", c.name, c.summary);
+    }
     std::fprintf(out, "\nSee plumb %s <what> --help for the options of each.\n", word.c_str());
     return help ? kExitOk : kExitUsage;
 }
+
 }  // namespace
 
 bool registerCommand(const Command& command) {
@@ -104,9 +108,10 @@ int main(int argc, char** argv) {
     using namespace plumb::tools;
     std::vector<std::string> args(argv + 1, argv + argc);
     plumb::log::Level level = plumb::log::Level::kInfo;
-    std::string message;
-    if (!extractLogLevel(args, &level, &message)) {
-        std::fprintf(stderr, "plumb: %s (see plumb --help)\n", message.c_str());
+    if (!extractLogLevel(args, &level)) {
+        std::fprintf(
+            stderr,
+            "plumb: --log-level takes trace|debug|info|warn|error|off (see plumb --help)\n");
         return kExitUsage;
     }
     plumb::log::setupLogging("plumb", level);
