@@ -225,6 +225,20 @@ TEST(PlumbCli, LogLevelBeforeOrAfterTheCommandSilencesInfoLines) {
     EXPECT_EQ(sim_help.exit_code, 0) << sim_help.err;
 }
 
+TEST(PlumbCli, LogLevelReachesTheDemosDeviceAndBackend) {
+    const fs::path logs = testing::freshTempDir("plumb_cli_demo_log_level");
+    if (!contains(plumb(logs, "--help").out, "  demo ") || !hasBackend(logs)) {
+        GTEST_SKIP() << "this build has no demo";
+    }
+    const ProcessRun run =
+        plumb(logs, "--log-level error demo",
+              {"--frames", "60", "--noise", "parametric", "--out", (logs / "demo").string()});
+    ASSERT_EQ(run.exit_code, 0) << run.err;
+    EXPECT_EQ(run.err, "") << "plumb-device and plumb-backend log at plumb's level";
+    EXPECT_TRUE(contains(run.out, "plumb demo: done")) << run.out;
+    EXPECT_TRUE(fs::exists(logs / "demo/metrics.json"));
+}
+
 /// Flips one byte inside the data of the first IDAT chunk of the PNG at `path`.
 void damageIdat(const fs::path& path) {
     std::string bytes = slurp(path);
