@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "drivers/source.hpp"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -11,6 +13,7 @@
 #include "drivers/dataset/dataset.hpp"
 #include "drivers/depth_calibration.hpp"
 #include "drivers/openni2/openni2_source.hpp"
+#include "drivers/sim/scene.hpp"
 #include "drivers/sim/sim_source.hpp"
 #include "drivers/v4l2/v4l2_source.hpp"
 
@@ -128,6 +131,27 @@ Result<std::unique_ptr<FrameSource>> openFrameSource(const std::string& uri,
     if (!calibration.isOk()) return calibration.status();
     return std::unique_ptr<FrameSource>(std::make_unique<CalibratedSource>(
         std::move(source).value(), std::move(calibration).value()));
+}
+
+Status checkSourceArguments(const std::string& uri, const SourceOptions& options) {
+    const bool sim = uri.rfind("sim:", 0) == 0;
+    if (!options.intrinsics.empty()) {
+        const Result<PinholeCamera> preset = cameraPreset(options.intrinsics);
+        std::error_code ec;
+        if (!preset.isOk() && sim) {
+            return invalidArgument(
+                fmt::format("intrinsics '{}': the simulator takes a camera preset: {}",
+                            options.intrinsics, preset.status().message()));
+        }
+        if (!preset.isOk() && !std::filesystem::is_regular_file(options.intrinsics, ec)) {
+            return invalidArgument(
+                fmt::format("intrinsics '{}' is neither a camera preset nor an existing file: {}",
+                            options.intrinsics, preset.status().message()));
+        }
+    }
+    PLUMB_RETURN_IF_ERROR(checkDepthCalibration(options.depth_calibration));
+    if (sim) PLUMB_RETURN_IF_ERROR(sim::checkSceneName(uri.substr(4)));
+    return Status::ok();
 }
 
 bool isLiveCameraUri(const std::string& uri) {

@@ -56,6 +56,13 @@ Result<std::unique_ptr<FrameSource>> openFrameSource(const std::string& uri,
 /// Checks a --depth-calibration value: "", "sensor", "none" or an existing file.
 Status checkDepthCalibration(const std::string& value);
 
+/// Checks, without opening anything, the values a command line gives openFrameSource, so that a
+/// typo is reported as such before any work: the intrinsics (empty, a camera preset, or for
+/// sources other than sim: an existing file), the depth calibration (checkDepthCalibration) and
+/// the scene of a sim: URI (sim::checkSceneName). Not whether the files parse or a camera is
+/// there: openFrameSource says that. InvalidArgument or NotFound naming the value otherwise.
+Status checkSourceArguments(const std::string& uri, const SourceOptions& options);
+
 /// True when `uri` names a live camera (an OpenNI2 device or a V4L2 node) rather than a
 /// recording, a dataset or the simulator: a camera that can be absent, leave and come back.
 bool isLiveCameraUri(const std::string& uri);

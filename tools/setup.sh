@@ -18,7 +18,7 @@ packages=(
     libeigen3-dev libtbb-dev libfmt-dev libspdlog-dev libtomlplusplus-dev nlohmann-json3-dev
     libnanoflann-dev
     # drivers
-    libopencv-dev libopenni2-dev libusb-1.0-0-dev libv4l-dev
+    libopencv-dev libpng-dev libopenni2-dev libusb-1.0-0-dev libv4l-dev
     # messages: LCM (lcm.pc requires glib)
     liblcm-dev liblcm-bin libglib2.0-dev
     # backend: PCL (its VTK needs MPI's C bindings), Ceres, Boost graph

@@ -4,6 +4,7 @@
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -42,7 +43,7 @@ constexpr const char* kUsage =
     "  --key-file FILE      shared key (hex): only authenticated messages are accepted\n"
     "  --key-id N           identifier of the key (default 1)\n"
     "  --config FILE        pipeline configuration (TOML); --set KEY=VALUE overrides\n"
-    "  --log-level L        trace|debug|info|warn|error (default info)\n";
+    "  --log-level L        trace|debug|info|warn|error|off (default info)\n";
 
 std::atomic<int> g_stop_requests{0};
 extern "C" void onSignal(int) { g_stop_requests.fetch_add(1); }
@@ -50,8 +51,7 @@ extern "C" void onSignal(int) { g_stop_requests.fetch_add(1); }
 const char* g_program = "plumb-backend";
 
 int usageError(const std::string& message) {
-    std::fprintf(stderr, "%s: %s\n\n", g_program, message.c_str());
-    std::fprintf(stderr, "usage: %s%s", g_program, kUsage);
+    std::fprintf(stderr, "%s: %s (see %s --help)\n", g_program, message.c_str(), g_program);
     return 2;
 }
 
@@ -74,7 +74,7 @@ int runBackendCommand(std::vector<std::string> args, const char* program) {
     std::string log_path, fragments_dir, out_dir, gt_dir;
     backend::IngestRunOptions options;
     messages::LinkOptions link_options;
-    log::Level level = log::Level::kInfo;
+    std::optional<log::Level> level;  // unset: the level the process already runs at
     for (size_t i = 0; i < args.size(); ++i) {
         const std::string& a = args[i];
         auto value = [&](std::string* v) {
@@ -123,8 +123,10 @@ int runBackendCommand(std::vector<std::string> args, const char* program) {
                 return usageError("--key-id needs a non-negative 32-bit integer");
             link_options.key_id = static_cast<int32_t>(d);
         } else if (a == "--log-level") {
-            if (!value(&v) || !log::parseLevel(v, &level))
+            log::Level parsed = log::Level::kInfo;
+            if (!value(&v) || !log::parseLevel(v, &parsed))
                 return usageError("--log-level needs trace|debug|info|warn|error|off");
+            level = parsed;
         } else {
             return usageError("unknown argument '" + a + "'");
         }
@@ -138,6 +140,13 @@ int runBackendCommand(std::vector<std::string> args, const char* program) {
         log::info("no --until-end, --expect or --timeout: receiving until SIGINT/SIGTERM");
     }
     log::setupLogging(g_program, level);
+#ifdef PLUMB_BACKEND_HAS_PIPELINE
+    // Checked before any work: a configuration that does not load is a bad command line.
+    backend::PipelineConfig pipeline_config;
+    if (Status s = config::load(*config_args, pipeline_config); !s.isOk()) {
+        return usageError(s.message());
+    }
+#endif
     options.out_dir = out_dir;
     options.fragments_dir = fragments_dir.empty() ? std::filesystem::path(out_dir) / "fragments"
                                                   : std::filesystem::path(fragments_dir);
@@ -193,11 +202,6 @@ int runBackendCommand(std::vector<std::string> args, const char* program) {
     }
     if (!finalise || code != 0) return code;
 #ifdef PLUMB_BACKEND_HAS_PIPELINE
-    backend::PipelineConfig pipeline_config;
-    if (Status s = config::load(*config_args, pipeline_config); !s.isOk()) {
-        log::error("{}", s.toString());
-        return 2;
-    }
     auto store = messages::FragmentStore::open(options.fragments_dir);
     if (!store.isOk()) {
         log::error("{}", store.status().toString());

@@ -10,6 +10,8 @@
 #include <cstdio>
 #include <utility>
 
+#include "common/core/logging.hpp"
+
 namespace plumb {
 namespace {
 
@@ -58,7 +60,9 @@ std::string formatDuration(double seconds) {
 
 Progress::Progress(std::string label, uint64_t total, ProgressOptions options)
     : label_(std::move(label)), total_(total), options_(std::move(options)) {
-    quiet_ = options_.mode == ProgressOptions::Mode::kQuiet;
+    quiet_ =
+        options_.mode == ProgressOptions::Mode::kQuiet ||
+        (options_.mode == ProgressOptions::Mode::kAuto && log::currentLevel() > log::Level::kInfo);
     live_ = options_.mode == ProgressOptions::Mode::kLive ||
             (options_.mode == ProgressOptions::Mode::kAuto && options_.stream == nullptr &&
              ::isatty(options_.fd) == 1);

@@ -32,7 +32,8 @@ namespace plumb {
 
 struct ProgressOptions {
     enum class Mode {
-        kAuto,   ///< live on a terminal, plain otherwise
+        kAuto,   ///< live on a terminal, plain otherwise; nothing when the process logs only
+                 ///< warnings or less (log::currentLevel() above info: `--log-level warn`)
         kLive,   ///< always the redrawn single line
         kPlain,  ///< always periodic plain lines
         kQuiet,  ///< no output at all

@@ -11,15 +11,16 @@
 #include <system_error>
 #include <vector>
 
-// Host builds decode and encode with OpenCV; builds without OpenCV (the aarch64 device build, see
-// toolchains/) use libpng directly. Both give the same pixels and the same errors.
-#if PLUMB_DRIVERS_LIBPNG
+// Every build decodes PNG with libpng, whose errors and warnings become the Status message
+// (libpng's default handlers would print "libpng error: ..." to stderr). Host builds encode PNG
+// and decode JPEG with OpenCV; builds without OpenCV (the aarch64 device build, see toolchains/)
+// encode with libpng too and read no JPEG. Both give the same pixels and the same errors.
 #include <png.h>
 
 #include <csetjmp>
 // libpng reports errors by longjmp; nothing read after a jump is modified after its setjmp.
 #pragma GCC diagnostic ignored "-Wclobbered"
-#else
+#if PLUMB_DRIVERS_OPENCV
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #endif
@@ -29,7 +30,46 @@ namespace {
 
 constexpr unsigned char kPngSignature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
 
-#if !PLUMB_DRIVERS_LIBPNG
+// libpng from memory: the reader walks `bytes`; errors longjmp back with their message, warnings
+// are kept for the message of a failure.
+struct PngMemory {
+    const std::vector<unsigned char>* bytes = nullptr;
+    size_t offset = 0;
+    std::string error;
+    std::string warnings;
+};
+
+void pngRead(png_structp png, png_bytep out, png_size_t n) {
+    auto* mem = static_cast<PngMemory*>(png_get_io_ptr(png));
+    if (mem->offset + n > mem->bytes->size()) png_error(png, "the data ends early");
+    std::memcpy(out, mem->bytes->data() + mem->offset, n);
+    mem->offset += n;
+}
+
+void pngReadError(png_structp png, png_const_charp message) {
+    static_cast<PngMemory*>(png_get_error_ptr(png))->error = message;
+    png_longjmp(png, 1);
+}
+
+void pngReadWarning(png_structp png, png_const_charp message) {
+    std::string& warnings = static_cast<PngMemory*>(png_get_error_ptr(png))->warnings;
+    warnings += (warnings.empty() ? "" : "; ") + std::string(message);
+}
+
+/// The reader with plumb's handlers: nothing goes to stderr.
+png_structp createPngReader(PngMemory* mem) {
+    return png_create_read_struct(PNG_LIBPNG_VER_STRING, mem, pngReadError, pngReadWarning);
+}
+
+/// "<name>: cannot decode PNG (truncated or damaged, N bytes): <libpng's error>[ (warnings: ...)]"
+Status pngFailure(const std::string& name, const PngMemory& mem) {
+    std::string text = fmt::format("{}: cannot decode PNG (truncated or damaged, {} bytes): {}",
+                                   name, mem.bytes->size(), mem.error);
+    if (!mem.warnings.empty()) text += " (warnings: " + mem.warnings + ")";
+    return corrupt(text);
+}
+
+#if PLUMB_DRIVERS_OPENCV
 const char* bitDepthName(int cv_depth) {
     switch (cv_depth) {
         case CV_8U:
@@ -48,28 +88,6 @@ const char* bitDepthName(int cv_depth) {
     }
 }
 #else
-// libpng from memory: the reader walks `bytes`; errors longjmp back with their message.
-struct PngMemory {
-    const std::vector<unsigned char>* bytes = nullptr;
-    size_t offset = 0;
-    std::string error;
-};
-
-void pngRead(png_structp png, png_bytep out, png_size_t n) {
-    auto* mem = static_cast<PngMemory*>(png_get_io_ptr(png));
-    if (mem->offset + n > mem->bytes->size()) png_error(png, "truncated");
-    std::memcpy(out, mem->bytes->data() + mem->offset, n);
-    mem->offset += n;
-}
-
-void pngError(png_structp png, png_const_charp message) {
-    auto* mem = static_cast<PngMemory*>(png_get_error_ptr(png));
-    mem->error = message;
-    png_longjmp(png, 1);
-}
-
-void pngWarning(png_structp, png_const_charp) {}
-
 struct PngOut {
     std::vector<unsigned char> bytes;
     std::string error;
@@ -87,13 +105,15 @@ void pngWriteError(png_structp png, png_const_charp message) {
     png_longjmp(png, 1);
 }
 
+void pngWriteWarning(png_structp, png_const_charp) {}
+
 // Encodes an image of 8 or 16 bits per sample (native-endian samples), `channels` 1 (grey) or 3
 // (RGB), as PNG.
 Status encodePng(const std::filesystem::path& path, const void* pixels, int width, int height,
                  int bit_depth, int channels, std::vector<unsigned char>* bytes) {
     PngOut out;
     png_structp png =
-        png_create_write_struct(PNG_LIBPNG_VER_STRING, &out, pngWriteError, pngWarning);
+        png_create_write_struct(PNG_LIBPNG_VER_STRING, &out, pngWriteError, pngWriteWarning);
     if (png == nullptr) return ioError(fmt::format("cannot encode {} as PNG", path.string()));
     png_infop info = png_create_info_struct(png);
     const size_t bytes_per_row = static_cast<size_t>(width) * channels * (bit_depth / 8);
@@ -170,18 +190,16 @@ Result<Depth16Image> readDepthPng(const std::filesystem::path& path, int width, 
         return corrupt(
             fmt::format("{}: not a PNG file ({} bytes, no PNG signature)", name, bytes.size()));
     }
-#if PLUMB_DRIVERS_LIBPNG
     PngMemory mem;
     mem.bytes = &bytes;
-    png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &mem, pngError, pngWarning);
+    png_structp png = createPngReader(&mem);
     if (png == nullptr) return corrupt(fmt::format("{}: cannot decode PNG", name));
     png_infop info = png_create_info_struct(png);
     Depth16Image out;
     std::string shape_error;
     if (info == nullptr || setjmp(png_jmpbuf(png))) {
         png_destroy_read_struct(&png, &info, nullptr);
-        return corrupt(fmt::format("{}: cannot decode PNG (truncated or damaged, {} bytes): {}",
-                                   name, bytes.size(), mem.error));
+        return pngFailure(name, mem);
     }
     png_set_read_fn(png, &mem, pngRead);
     png_read_info(png, info);
@@ -201,45 +219,20 @@ Result<Depth16Image> readDepthPng(const std::filesystem::path& path, int width, 
         return corrupt(shape_error);
     }
     png_set_swap(png);  // big-endian samples to native
+    png_set_interlace_handling(png);
+    png_read_update_info(png, info);
     out = Depth16Image(width, height);
     std::vector<png_bytep> rows(static_cast<size_t>(height));
     for (int v = 0; v < height; ++v) rows[v] = reinterpret_cast<png_bytep>(&out(0, v));
     png_read_image(png, rows.data());
     png_read_end(png, nullptr);
     png_destroy_read_struct(&png, &info, nullptr);
-#else
-    cv::Mat mat;
-    try {
-        mat = cv::imdecode(bytes, cv::IMREAD_UNCHANGED);
-    } catch (const cv::Exception& e) {
-        return corrupt(fmt::format("{}: cannot decode PNG: {}", name, e.what()));
-    }
-    if (mat.empty()) {
-        return corrupt(fmt::format("{}: cannot decode PNG (truncated or damaged, {} bytes)", name,
-                                   bytes.size()));
-    }
-    if (mat.depth() != CV_16U) {
-        return corrupt(
-            fmt::format("{}: expected 16-bit depth, got {}", name, bitDepthName(mat.depth())));
-    }
-    if (mat.channels() != 1) {
-        return corrupt(fmt::format("{}: expected 1 channel, got {}", name, mat.channels()));
-    }
-    if (mat.cols != width || mat.rows != height) {
-        return corrupt(
-            fmt::format("{}: expected {}x{}, got {}x{}", name, width, height, mat.cols, mat.rows));
-    }
-    Depth16Image out(width, height);
-    for (int v = 0; v < height; ++v) {
-        std::memcpy(&out(0, v), mat.ptr<uint16_t>(v), sizeof(uint16_t) * width);
-    }
-#endif
     return out;
 }
 
 Status writeDepthPng(const std::filesystem::path& path, const Depth16Image& depth) {
     PLUMB_CHECK(!depth.empty()) << "writing an empty depth image to " << path;
-#if PLUMB_DRIVERS_LIBPNG
+#if !PLUMB_DRIVERS_OPENCV
     std::vector<unsigned char> bytes;
     PLUMB_RETURN_IF_ERROR(
         encodePng(path, depth.data(), depth.width(), depth.height(), 16, 1, &bytes));
@@ -262,7 +255,7 @@ Status writeDepthPng(const std::filesystem::path& path, const Depth16Image& dept
 Status writeGrayPng(const std::filesystem::path& path, const GrayImage& gray) {
     PLUMB_CHECK(!gray.empty()) << "writing an empty grey image to " << path;
     std::vector<unsigned char> bytes;
-#if PLUMB_DRIVERS_LIBPNG
+#if !PLUMB_DRIVERS_OPENCV
     PLUMB_RETURN_IF_ERROR(encodePng(path, gray.data(), gray.width(), gray.height(), 8, 1, &bytes));
 #else
     const cv::Mat mat(gray.height(), gray.width(), CV_8UC1,
@@ -280,21 +273,19 @@ Status writeGrayPng(const std::filesystem::path& path, const GrayImage& gray) {
 
 namespace {
 
-#if PLUMB_DRIVERS_LIBPNG
 /// Decodes an 8-bit PNG to RGB (palettes expanded, alpha dropped); errors name `name`.
 Result<ColourImage> decodeColourPng(const std::vector<unsigned char>& bytes,
                                     const std::string& name) {
     PngMemory mem;
     mem.bytes = &bytes;
-    png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &mem, pngError, pngWarning);
+    png_structp png = createPngReader(&mem);
     if (png == nullptr) return corrupt(fmt::format("{}: cannot decode PNG", name));
     png_infop info = png_create_info_struct(png);
     ColourImage out;
     std::string shape_error;
     if (info == nullptr || setjmp(png_jmpbuf(png))) {
         png_destroy_read_struct(&png, &info, nullptr);
-        return corrupt(fmt::format("{}: cannot decode PNG (truncated or damaged, {} bytes): {}",
-                                   name, bytes.size(), mem.error));
+        return pngFailure(name, mem);
     }
     png_set_read_fn(png, &mem, pngRead);
     png_read_info(png, info);
@@ -311,7 +302,11 @@ Result<ColourImage> decodeColourPng(const std::vector<unsigned char>& bytes,
         return corrupt(shape_error);
     }
     if (color_type == PNG_COLOR_TYPE_PALETTE) png_set_palette_to_rgb(png);
-    if ((color_type & PNG_COLOR_MASK_ALPHA) != 0) png_set_strip_alpha(png);
+    // Alpha, stored or from a transparency chunk (which palette expansion turns into alpha).
+    if ((color_type & PNG_COLOR_MASK_ALPHA) != 0 || png_get_valid(png, info, PNG_INFO_tRNS)) {
+        png_set_strip_alpha(png);
+    }
+    png_set_interlace_handling(png);
     png_read_update_info(png, info);
     const int w = static_cast<int>(png_get_image_width(png, info));
     const int h = static_cast<int>(png_get_image_height(png, info));
@@ -327,10 +322,12 @@ Result<ColourImage> decodeColourPng(const std::vector<unsigned char>& bytes,
     png_destroy_read_struct(&png, &info, nullptr);
     return out;
 }
-#else
-/// Decodes an 8-bit PNG or JPEG with OpenCV (BGR or BGRA) into RGB; errors name `name`.
-Result<ColourImage> decodeColourOpenCv(const std::vector<unsigned char>& bytes,
-                                       const std::string& name, const char* kind) {
+
+#if PLUMB_DRIVERS_OPENCV
+/// Decodes an 8-bit JPEG with OpenCV (BGR) into RGB; errors name `name`.
+Result<ColourImage> decodeJpegOpenCv(const std::vector<unsigned char>& bytes,
+                                     const std::string& name) {
+    constexpr const char* kind = "JPEG";
     cv::Mat mat;
     try {
         mat = cv::imdecode(bytes, cv::IMREAD_UNCHANGED);
@@ -370,24 +367,16 @@ Result<ColourImage> decodeColourImage(std::span<const uint8_t> data, const std::
         return corrupt(fmt::format(
             "{}: not a PNG or JPEG file ({} bytes, no PNG or JPEG signature)", name, bytes.size()));
     }
-#if PLUMB_DRIVERS_LIBPNG
-    if (!png) {
-        return unsupported(fmt::format(
-            "{}: JPEG colour needs a build with OpenCV (this build reads PNG only)", name));
-    }
-    return decodeColourPng(bytes, name);
+    if (png) return decodeColourPng(bytes, name);
+#if PLUMB_DRIVERS_OPENCV
+    return decodeJpegOpenCv(bytes, name);
 #else
-    return decodeColourOpenCv(bytes, name, png ? "PNG" : "JPEG");
+    return unsupported(
+        fmt::format("{}: JPEG colour needs a build with OpenCV (this build reads PNG only)", name));
 #endif
 }
 
-bool canDecodeJpeg() {
-#if PLUMB_DRIVERS_LIBPNG
-    return false;
-#else
-    return true;
-#endif
-}
+bool canDecodeJpeg() { return PLUMB_DRIVERS_OPENCV != 0; }
 
 Result<ColourImage> readColourImage(const std::filesystem::path& path) {
     auto file = readBytes(path, "colour image");
@@ -443,7 +432,7 @@ ColourImage resizeColour(const ColourImage& colour, int width, int height) {
 Status writeColourPng(const std::filesystem::path& path, const ColourImage& colour) {
     PLUMB_CHECK(!colour.empty()) << "writing an empty colour image to " << path;
     std::vector<unsigned char> bytes;
-#if PLUMB_DRIVERS_LIBPNG
+#if !PLUMB_DRIVERS_OPENCV
     PLUMB_RETURN_IF_ERROR(
         encodePng(path, colour.data(), colour.width(), colour.height(), 8, 3, &bytes));
 #else

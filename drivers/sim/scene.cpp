@@ -706,12 +706,30 @@ Result<Scene> loadSceneFile(const std::filesystem::path& path) {
     return parseSceneToml(text.str(), path.string());
 }
 
+namespace {
+
+/// resolveScene's rule: a `.toml` extension or a directory separator names a file.
+bool namesSceneFile(const std::string& name_or_path) {
+    return std::filesystem::path(name_or_path).extension() == ".toml" ||
+           name_or_path.find('/') != std::string::npos;
+}
+
+}  // namespace
+
 Result<Scene> resolveScene(const std::string& name_or_path) {
-    const std::filesystem::path p(name_or_path);
-    if (p.extension() == ".toml" || name_or_path.find('/') != std::string::npos) {
-        return loadSceneFile(p);
-    }
+    if (namesSceneFile(name_or_path)) return loadSceneFile(name_or_path);
     return builtinScene(name_or_path);
+}
+
+Status checkSceneName(const std::string& name_or_path) {
+    if (namesSceneFile(name_or_path)) {
+        std::error_code ec;
+        if (std::filesystem::is_regular_file(name_or_path, ec)) return Status::ok();
+        return notFound(fmt::format("{}: no such scene file", name_or_path));
+    }
+    const std::vector<std::string> names = builtinSceneNames();
+    if (std::find(names.begin(), names.end(), name_or_path) != names.end()) return Status::ok();
+    return builtinScene(name_or_path).status();
 }
 
 PointCloud sampleSurfaces(const Scene& s, double spacing_m) {

@@ -167,6 +167,11 @@ Result<Scene> loadSceneFile(const std::filesystem::path& path);
 /// A built-in name or a path to a `.toml` scene file.
 Result<Scene> resolveScene(const std::string& name_or_path);
 
+/// Checks a scene argument without loading it: Ok for a built-in name or, when resolveScene takes
+/// the argument as a file (a `.toml` extension or a '/'), an existing file. NotFound otherwise,
+/// listing the built-in scenes. Whether the file parses is resolveScene's to say.
+Status checkSceneName(const std::string& name_or_path);
+
 /// Dense ground-truth surface samples in W on a square grid of `spacing_m` on every visible
 /// surface (floor, ceiling, walls minus openings, box faces, cylinder sides and top caps); points
 /// inside boxes or cylinders (e.g. floor under furniture) are left out. Normals point out of the

@@ -10,6 +10,7 @@
 #include <filesystem>
 
 #include <fstream>
+#include <iterator>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <set>
@@ -829,6 +830,48 @@ TEST(ColourPng, WriteReadRoundTripIsExactAndResizeInterpolates) {
 
 // ---------------------------------------------------------------------------------------------
 // Damaged folders.
+
+/// Flips one byte inside the data of the first IDAT chunk of the PNG at `path`.
+void damageIdat(const fs::path& path) {
+    std::ifstream in(path, std::ios::binary);
+    std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    in.close();
+    const size_t idat = bytes.find("IDAT");
+    ASSERT_NE(idat, std::string::npos) << path;
+    ASSERT_LT(idat + 14, bytes.size());
+    bytes[idat + 14] = static_cast<char>(bytes[idat + 14] ^ 0x5a);
+    writeText(path, bytes);
+}
+
+TEST(DatasetErrors, LibpngMessagesGoIntoTheStatusNotToStderr) {
+    const fs::path dir = testing::freshTempDir("dataset-libpng-messages");
+    writePng(dir / "truncated.png", rampDepth(160, 120, 800));
+    fs::resize_file(dir / "truncated.png", fs::file_size(dir / "truncated.png") / 2);
+    writePng(dir / "damaged.png", rampDepth(160, 120, 800));
+    damageIdat(dir / "damaged.png");
+    writePng(dir / "colour.png", taggedColour(160, 120, 2));
+    damageIdat(dir / "colour.png");
+
+    ::testing::internal::CaptureStderr();
+    const Result<Depth16Image> truncated = readDepthPng(dir / "truncated.png", 160, 120);
+    const Result<Depth16Image> damaged = readDepthPng(dir / "damaged.png", 160, 120);
+    const Result<ColourImage> colour = readColourImage(dir / "colour.png");
+    const std::string err = ::testing::internal::GetCapturedStderr();
+
+    EXPECT_EQ(err, "") << "libpng must not print";
+    EXPECT_EQ(truncated.status().code(), StatusCode::kCorrupt);
+    EXPECT_NE(truncated.status().message().find("truncated.png: cannot decode PNG"),
+              std::string::npos)
+        << truncated.status().message();
+    EXPECT_NE(truncated.status().message().find("the data ends early"), std::string::npos)
+        << truncated.status().message();
+    // libpng's own words (it names the chunk) are in the message.
+    for (const Status& s : {damaged.status(), colour.status()}) {
+        EXPECT_EQ(s.code(), StatusCode::kCorrupt) << s.toString();
+        EXPECT_NE(s.message().find(".png: cannot decode PNG"), std::string::npos) << s.message();
+        EXPECT_NE(s.message().find("IDAT: "), std::string::npos) << s.message();
+    }
+}
 
 TEST(DatasetErrors, EachBadFrameGetsItsSpecificErrorAndTheStreamGoesOn) {
     const fs::path dir = writePlumbFolder(

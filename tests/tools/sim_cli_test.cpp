@@ -155,7 +155,7 @@ TEST(PlumbSimCli, ColourOptions) {
 TEST(PlumbSimCli, BadInputGetsSpecificErrors) {
     const fs::path logs = testing::freshTempDir("plumb_sim_cli_bad");
     ProcessRun run = plumbSim(logs, {"no_such_room", "--out", (logs / "x").string()});
-    EXPECT_EQ(run.exit_code, 1);
+    EXPECT_EQ(run.exit_code, 2);  // a scene that does not exist is a bad command line
     EXPECT_NE(run.err.find("living_room"), std::string::npos) << run.err;
     run = plumbSim(logs, {"living_room", "--frames", "0", "--out", (logs / "x").string()});
     EXPECT_EQ(run.exit_code, 2);

@@ -40,12 +40,13 @@ constexpr const char* kUsage =
     "    need no quotes. Overrides are validated like the file; errors name the flag.\n"
     "  * The effective configuration is written to every output directory as config.toml, each\n"
     "    key with its meaning, type, unit, range and default as comments; loading that file\n"
-    "    gives back exactly the same configuration.\n";
+    "    gives back exactly the same configuration.\n"
+    "  * A program given a configuration that does not load exits with 2, like a bad command\n"
+    "    line, before doing any work.\n"
+    "\n"
+    "exit status: 0 done, 1 check found errors, 2 bad command line.\n";
 
-int usageError(const std::string& message) {
-    std::fprintf(stderr, "plumb config: %s (see plumb config --help)\n", message.c_str());
-    return kExitUsage;
-}
+constexpr const char* kCommand = "config";
 
 void printSchemas(FILE* out) {
     const std::vector<config::ProgramConfig> configs = config::programConfigs();
@@ -68,26 +69,26 @@ Result<config::ProgramConfig> schemaArgument(const std::vector<std::string>& arg
 int runCheck(std::vector<std::string> args) {
     args.erase(args.begin());  // "check"
     const Result<config::ConfigArgs> flags = config::extractConfigArgs(args);
-    if (!flags.isOk()) return usageError(flags.status().message());
+    if (!flags.isOk()) return usageError(kCommand, flags.status().message());
     config::ConfigArgs config_args = flags.value();
     std::string schema;
     for (size_t i = 0; i < args.size(); ++i) {
         if (args[i] == "--schema") {
-            if (i + 1 >= args.size()) return usageError("--schema needs a name");
+            if (i + 1 >= args.size()) return usageError(kCommand, "--schema needs a name");
             schema = args[++i];
         } else if (args[i].rfind("--schema=", 0) == 0) {
             schema = args[i].substr(9);
         } else if (!args[i].empty() && args[i][0] == '-') {
-            return usageError("unknown option '" + args[i] + "'");
+            return usageError(kCommand, "unknown option '" + args[i] + "'");
         } else if (config_args.file.empty()) {
             config_args.file = args[i];
         } else {
-            return usageError("check takes one configuration file");
+            return usageError(kCommand, "check takes one configuration file");
         }
     }
-    if (schema.empty()) return usageError("check needs --schema <name>");
+    if (schema.empty()) return usageError(kCommand, "check needs --schema <name>");
     const Result<config::ProgramConfig> p = config::findProgramConfig(schema);
-    if (!p.isOk()) return usageError(p.status().message());
+    if (!p.isOk()) return usageError(kCommand, p.status().message());
     const Result<std::string> effective = p->check(config_args);
     if (!effective.isOk()) {
         std::fprintf(stderr, "plumb config check: %s\n", effective.status().message().c_str());
@@ -106,19 +107,19 @@ int runConfig(const std::vector<std::string>& args) {
     }
     const std::string& what = args[0];
     if (what == "list") {
-        if (args.size() != 1) return usageError("list takes no arguments");
+        if (args.size() != 1) return usageError(kCommand, "list takes no arguments");
         printSchemas(stdout);
         return kExitOk;
     }
     if (what == "doc" || what == "defaults") {
         const Result<config::ProgramConfig> p = schemaArgument(args);
-        if (!p.isOk()) return usageError(p.status().message());
+        if (!p.isOk()) return usageError(kCommand, p.status().message());
         const std::string text = what == "doc" ? p->markdown() : p->defaults_toml();
         std::fputs(text.c_str(), stdout);
         return kExitOk;
     }
     if (what == "check") return runCheck(args);
-    return usageError("unknown sub-command '" + what + "'");
+    return usageError(kCommand, "unknown sub-command '" + what + "'");
 }
 
 }  // namespace

@@ -10,7 +10,6 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
-#include <charconv>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
@@ -21,6 +20,7 @@
 #include <thread>
 #include <vector>
 
+#include "common/core/logging.hpp"
 #include "common/io/ply.hpp"
 #include "common/io/trajectory.hpp"
 #include "common/layout/layout.hpp"
@@ -63,10 +63,7 @@ constexpr const char* kUsage =
     "\n"
     "exit status: 0 done, 1 a process or stage failed, 2 bad command line.\n";
 
-int usageError(const std::string& message) {
-    std::cerr << "plumb demo: " << message << "\n(see plumb demo --help)\n";
-    return kExitUsage;
-}
+constexpr const char* kCommand = "demo";
 
 /// plumb-device and plumb-backend live beside `plumb` in an install (same folder) and in the
 /// build tree (../device, ../backend); else on PATH.
@@ -149,25 +146,24 @@ int runDemo(const std::vector<std::string>& args) {
             out = args[++i];
         } else if (a == "--scene" && has_value) {
             scene = args[++i];
+            if (Status s = sim::checkSceneName(scene); !s.isOk())
+                return usageError(kCommand, s.message());
         } else if (a == "--frames" && has_value) {
-            const std::string& v = args[++i];
-            const auto [p, ec] = std::from_chars(v.data(), v.data() + v.size(), frames);
-            if (ec != std::errc() || p != v.data() + v.size() || frames < 60)
-                return usageError("--frames needs an integer >= 60");
+            if (!parseNumber(args[++i], &frames) || frames < 60)
+                return usageError(kCommand, "--frames needs an integer >= 60");
         } else if (a == "--noise" && has_value) {
             noise = args[++i];
-            if (Status s = sim::checkNoiseMode(noise); !s.isOk()) return usageError(s.message());
+            if (Status s = sim::checkNoiseMode(noise); !s.isOk())
+                return usageError(kCommand, s.message());
         } else if (a == "--depth-calibration" && has_value) {
             depth_calibration = args[++i];
             if (Status s = checkDepthCalibration(depth_calibration); !s.isOk())
-                return usageError(s.message());
+                return usageError(kCommand, s.message());
         } else if (a == "--port" && has_value) {
-            const std::string& v = args[++i];
-            const auto [p, ec] = std::from_chars(v.data(), v.data() + v.size(), port);
-            if (ec != std::errc() || p != v.data() + v.size() || port < 1024 || port > 65535)
-                return usageError("--port needs an integer in [1024, 65535]");
+            if (!parseNumber(args[++i], &port) || port < 1024 || port > 65535)
+                return usageError(kCommand, "--port needs an integer in [1024, 65535]");
         } else {
-            return usageError("unknown or incomplete option " + a);
+            return usageError(kCommand, "unknown or incomplete option " + a);
         }
     }
     const std::optional<fs::path> device = findProgram("plumb-device", "device");
@@ -181,36 +177,29 @@ int runDemo(const std::vector<std::string>& args) {
     fs::remove_all(out, ec);
     fs::create_directories(out, ec);
     if (ec) {
-        std::cerr << "plumb demo: " << out.string() << ": " << ec.message() << "\n";
-        return kExitFailure;
+        return failure(kCommand, ioError(out.string() + ": " + ec.message()));
     }
     const fs::path gt_dir = out / "ground_truth";
     std::cout << fmt::format("plumb demo: simulated scan of '{}', {} frames, noise {}\n", scene,
                              frames, noise);
-    if (Status s = writeGroundTruth(scene, frames, gt_dir); !s.isOk()) {
-        std::cerr << "plumb demo: " << s.toString() << "\n";
-        return kExitFailure;
-    }
+    if (Status s = writeGroundTruth(scene, frames, gt_dir); !s.isOk()) return failure(kCommand, s);
     const std::string url = fmt::format("udpm://239.255.76.67:{}?ttl=0", port);
+    const std::string log_level = log::levelName(log::currentLevel());  // plumb's, for both
     std::cout << fmt::format("plumb demo: device and backend talk over {}\n", url);
 
     Result<pid_t> backend_pid =
         spawn(*backend, {"--live", "--until-end", "--out", out.string(), "--lcm-url", url, "--gt",
-                         gt_dir.string(), "--timeout", "3600"});
-    if (!backend_pid.isOk()) {
-        std::cerr << "plumb demo: " << backend_pid.status().toString() << "\n";
-        return kExitFailure;
-    }
+                         gt_dir.string(), "--timeout", "3600", "--log-level", log_level});
+    if (!backend_pid.isOk()) return failure(kCommand, backend_pid.status());
     std::this_thread::sleep_for(std::chrono::milliseconds(500));
     Result<pid_t> device_pid =
         spawn(*device, {"--source", "sim:" + scene, "--frames", std::to_string(frames), "--noise",
                         noise, "--depth-calibration", depth_calibration, "--lcm-url", url,
-                        "--spool-dir", (out / "device_spool").string()});
+                        "--spool-dir", (out / "device_spool").string(), "--log-level", log_level});
     if (!device_pid.isOk()) {
         kill(*backend_pid, SIGTERM);
         waitExit(*backend_pid);
-        std::cerr << "plumb demo: " << device_pid.status().toString() << "\n";
-        return kExitFailure;
+        return failure(kCommand, device_pid.status());
     }
     const int device_rc = waitExit(*device_pid);
     if (device_rc != 0) {

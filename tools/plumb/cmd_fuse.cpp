@@ -7,7 +7,6 @@
 #include <tbb/global_control.h>
 
 #include <algorithm>
-#include <charconv>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -73,7 +72,7 @@ constexpr const char* kUsage =
     "\n"
     "options:\n"
     "  --out DIR          output folder (required; created)\n"
-    "  --frames N         use the first N frames only (simulator default 600)\n"
+    "  --frames N         use the first N frames only (default: all; the simulator 600)\n"
     "  --frame-step X     process only frames floor(j X), j = 0, 1, ... (X >= 1, may be\n"
     "                     fractional): what a live device that keeps up with 1/X of the sensor\n"
     "                     rate does when it drops the frames it has no time for (default 1)\n"
@@ -85,28 +84,16 @@ constexpr const char* kUsage =
     "                     or a CLAMS/Redwood dist-model.txt\n"
     "  --no-colour        read depth only, even when the source has colour\n"
     "  --threads N        worker threads (default: all); results do not depend on it\n"
-    "  --config FILE      configuration file (see `plumb config doc fusion`)\n"
+    "  --config FILE      configuration file (see `plumb config doc fusion`; default: none,\n"
+    "                     every key at its default)\n"
     "  --set KEY=VALUE    override one configuration key, e.g. frames_per_fragment=100\n"
+    "                     (repeatable)\n"
     "  --quiet            no progress output\n"
     "  -h, --help         this text\n"
     "\n"
     "exit status: 0 done, 1 the input failed (the message says which), 2 bad command line.\n";
 
-int usageError(const std::string& message) {
-    std::cerr << "plumb fuse: " << message << "\n(see plumb fuse --help)\n";
-    return kExitUsage;
-}
-
-int failure(const Status& status) {
-    std::cerr << "plumb fuse: " << status.toString() << "\n";
-    return kExitFailure;
-}
-
-template <typename T>
-bool parseNumber(const std::string& text, T* value) {
-    const auto [ptr, ec] = std::from_chars(text.data(), text.data() + text.size(), *value);
-    return ec == std::errc() && ptr == text.data() + text.size();
-}
+constexpr const char* kCommand = "fuse";
 
 struct FuseOptions {
     std::string source;
@@ -236,7 +223,7 @@ nlohmann::json fragmentJson(const Fragment& f, const FragmentAccuracy& acc) {
 int runFuse(const std::vector<std::string>& arguments) {
     std::vector<std::string> args = arguments;
     Result<config::ConfigArgs> config_args = config::extractConfigArgs(args);
-    if (!config_args.isOk()) return usageError(config_args.status().message());
+    if (!config_args.isOk()) return usageError(kCommand, config_args.status().message());
     FuseOptions o;
     for (size_t i = 0; i < args.size(); ++i) {
         const std::string& a = args[i];
@@ -250,56 +237,60 @@ int runFuse(const std::vector<std::string>& arguments) {
             std::cout << kUsage;
             return kExitOk;
         } else if (a == "--out") {
-            if (!value(&v) || v.empty()) return usageError("--out needs a folder");
+            if (!value(&v) || v.empty()) return usageError(kCommand, "--out needs a folder");
             o.out = v;
         } else if (a == "--frames") {
             if (!value(&v) || !parseNumber(v, &o.source_options.max_frames) ||
                 o.source_options.max_frames == 0)
-                return usageError("--frames needs a positive integer");
+                return usageError(kCommand, "--frames needs a positive integer");
         } else if (a == "--frame-step") {
             if (!value(&v) || !parseNumber(v, &o.frame_step) || !(o.frame_step >= 1.0) ||
                 !std::isfinite(o.frame_step))
-                return usageError("--frame-step needs a number >= 1");
+                return usageError(kCommand, "--frame-step needs a number >= 1");
         } else if (a == "--intrinsics") {
             if (!value(&o.source_options.intrinsics))
-                return usageError("--intrinsics needs a preset or a file");
+                return usageError(kCommand, "--intrinsics needs a preset or a file");
         } else if (a == "--depth-scale") {
             if (!value(&v) || !parseNumber(v, &o.source_options.depth_scale) ||
                 !(o.source_options.depth_scale > 0))
-                return usageError("--depth-scale needs a positive number");
+                return usageError(kCommand, "--depth-scale needs a positive number");
         } else if (a == "--seed") {
             if (!value(&v) || !parseNumber(v, &o.source_options.seed))
-                return usageError("--seed needs a non-negative integer");
+                return usageError(kCommand, "--seed needs a non-negative integer");
         } else if (a == "--depth-calibration") {
             if (!value(&o.source_options.depth_calibration))
-                return usageError("--depth-calibration needs a value");
+                return usageError(kCommand, "--depth-calibration needs a value");
             if (Status s = checkDepthCalibration(o.source_options.depth_calibration); !s.isOk())
-                return usageError(s.message());
+                return usageError(kCommand, s.message());
         } else if (a == "--no-colour") {
             o.source_options.colour = false;
         } else if (a == "--noise") {
-            if (!value(&o.source_options.sim_noise)) return usageError("--noise needs a mode");
+            if (!value(&o.source_options.sim_noise))
+                return usageError(kCommand, "--noise needs a mode");
             if (Status s = sim::checkNoiseMode(o.source_options.sim_noise); !s.isOk())
-                return usageError(s.message());
+                return usageError(kCommand, s.message());
         } else if (a == "--threads") {
             if (!value(&v) || !parseNumber(v, &o.threads) || o.threads < 1)
-                return usageError("--threads needs a positive integer");
+                return usageError(kCommand, "--threads needs a positive integer");
         } else if (a == "--quiet") {
             o.quiet = true;
         } else if (!a.empty() && a[0] == '-') {
-            return usageError("unknown option " + a);
+            return usageError(kCommand, "unknown option " + a);
         } else if (o.source.empty()) {
             o.source = a;
         } else {
-            return usageError("more than one source given: " + o.source + " and " + a);
+            return usageError(kCommand, "more than one source given: " + o.source + " and " + a);
         }
     }
-    if (o.source.empty()) return usageError("no source given");
-    if (o.out.empty()) return usageError("--out is required");
+    if (o.source.empty()) return usageError(kCommand, "no source given");
+    if (o.out.empty()) return usageError(kCommand, "--out is required");
 
     device::FusionConfig cfg;
-    if (Status s = config::load(*config_args, cfg); !s.isOk()) return failure(s);
-    if (Status s = cfg.validate(); !s.isOk()) return failure(s);
+    // A configuration that does not load is a bad command line: what was asked cannot be done.
+    if (Status s = config::load(*config_args, cfg); !s.isOk()) {
+        return usageError(kCommand, s.message());
+    }
+    if (Status s = cfg.validate(); !s.isOk()) return usageError(kCommand, s.message());
     std::optional<tbb::global_control> threads;
     if (o.threads > 0) {
         threads.emplace(tbb::global_control::max_allowed_parallelism,
@@ -311,18 +302,22 @@ int runFuse(const std::vector<std::string>& arguments) {
                                 ? o.source
                                 : "dataset:" + o.source;
     if (!o.source_options.sim_noise.empty() && uri.rfind("sim:", 0) != 0) {
-        return usageError("--noise applies to sim: sources only");
+        return usageError(kCommand, "--noise applies to sim: sources only");
+    }
+    if (Status s = checkSourceArguments(uri, o.source_options); !s.isOk()) {
+        return usageError(kCommand, s.message());
     }
     Result<std::unique_ptr<FrameSource>> opened = openFrameSource(uri, o.source_options);
-    if (!opened.isOk()) return failure(opened.status());
+    if (!opened.isOk()) return failure(kCommand, opened.status());
     std::unique_ptr<FrameSource> source = std::move(opened).value();
 
     std::error_code ec;
     std::filesystem::create_directories(o.out, ec);
-    if (ec) return failure(ioError("cannot create " + o.out.string() + ": " + ec.message()));
+    if (ec)
+        return failure(kCommand, ioError("cannot create " + o.out.string() + ": " + ec.message()));
     if (Status s = writeText(o.out / "config.toml", config::toToml(cfg, "plumb fuse (effective)"));
         !s.isOk()) {
-        return failure(s);
+        return failure(kCommand, s);
     }
     log::info("fusing {} into {}", source->description(), o.out.string());
 
@@ -420,7 +415,7 @@ int runFuse(const std::vector<std::string>& arguments) {
                 log::warn("skipping a frame: {}", frame.status().toString());
                 continue;
             }
-            return failure(frame.status());
+            return failure(kCommand, frame.status());
         }
         const size_t position = read++;
         if (position != static_cast<size_t>(std::floor(static_cast<double>(kept) * o.frame_step))) {
@@ -437,7 +432,7 @@ int runFuse(const std::vector<std::string>& arguments) {
         const auto t0 = std::chrono::steady_clock::now();
         Result<device::FrameReport> report = builder.process(*frame);
         process_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-        if (!report.isOk()) return failure(report.status());
+        if (!report.isOk()) return failure(kCommand, report.status());
         ++frames;
         lost += report->tracked ? 0 : 1;
         relocalised += report->relocalised ? 1 : 0;
@@ -456,18 +451,18 @@ int runFuse(const std::vector<std::string>& arguments) {
             log::warn("frame {}: {}", report->frame_index, report->message);
         }
         for (const Fragment& f : report->closed) {
-            if (Status s = emit(f); !s.isOk()) return failure(s);
+            if (Status s = emit(f); !s.isOk()) return failure(kCommand, s);
         }
         progress.advance();
     }
     if (std::optional<Fragment> last = builder.finish()) {
-        if (Status s = emit(*last); !s.isOk()) return failure(s);
+        if (Status s = emit(*last); !s.isOk()) return failure(kCommand, s);
     }
     progress.finish();
-    if (frames == 0) return failure(failedPrecondition("the source gave no frames"));
+    if (frames == 0) return failure(kCommand, failedPrecondition("the source gave no frames"));
 
     if (Status s = io::writeTumTrajectory(o.out / "trajectory.txt", odometry); !s.isOk()) {
-        return failure(s);
+        return failure(kCommand, s);
     }
     nlohmann::json summary;
     summary["source"] = source->description();
@@ -502,7 +497,7 @@ int runFuse(const std::vector<std::string>& arguments) {
     }
     if (!medians.empty()) summary["surface_median_m"] = stats(medians);
     if (Status s = writeText(o.out / "fragments.json", summary.dump(2) + "\n"); !s.isOk()) {
-        return failure(s);
+        return failure(kCommand, s);
     }
     std::string gt_text;
     if (!ates.empty()) {

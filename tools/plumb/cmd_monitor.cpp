@@ -37,37 +37,31 @@ constexpr const char* kUsage =
     "The monitor only listens: it never acknowledges fragments or asks for retransmissions.\n"
     "\n"
     "sources (--dir may be combined with --live or --log: the backend's output beside the wire):\n"
-    "  --dir OUT       an output directory: fragments/ (fragment store), pose_graph.json,\n"
-    "                  layout.json, trajectory.txt; watched for changes\n"
+    "  --dir OUT       an output directory (default: none): fragments/ (fragment store),\n"
+    "                  pose_graph.json, layout.json, trajectory.txt; watched for changes\n"
     "  --live          LCM heartbeats and fragments as they are sent\n"
     "  --lcm-url U     LCM URL for --live (default udpm://239.255.76.67:7667?ttl=0)\n"
-    "  --log LOG       replay an LCM log (lcm-logger format)\n"
+    "  --log LOG       replay an LCM log (lcm-logger format; default: none)\n"
     "  --speed X       replay speed: 1 real time (default), 0 as fast as possible\n"
     "\n"
     "options:\n"
     "  --port P        TCP port (default 8765; 0 picks a free one)\n"
     "  --bind A        address to listen on (default 127.0.0.1: this machine only)\n"
     "  --token T       require T on every request (?token=T or 'Authorization: Bearer T');\n"
-    "                  also read from PLUMB_MONITOR_TOKEN. Required when --bind is not loopback\n"
-    "  --config FILE   configuration (schema 'monitor', see plumb config doc monitor)\n"
-    "  --set K=V       override one configuration key\n"
+    "                  also read from PLUMB_MONITOR_TOKEN (default: none). Required when\n"
+    "                  --bind is not loopback\n"
+    "  --config FILE   configuration (schema 'monitor', see plumb config doc monitor; default:\n"
+    "                  none, every key at its default)\n"
+    "  --set K=V       override one configuration key (repeatable)\n"
+    "  -h, --help      this text\n"
     "\n"
     "The first line on stdout is 'plumb monitor: serving <url>'. Stop with Ctrl-C (SIGINT) or\n"
     "SIGTERM; exit status 0 after a clean stop, 1 when a source or the server cannot start,\n"
     "2 for a bad command line.\n";
 
-int usageError(const std::string& message) {
-    std::fprintf(stderr, "plumb monitor: %s (see plumb monitor --help)\n", message.c_str());
-    return kExitUsage;
-}
+constexpr const char* kCommand = "monitor";
 
 #if defined(PLUMB_HAVE_MONITOR)
-
-bool parseDouble(const std::string& text, double& out) {
-    char* end = nullptr;
-    out = std::strtod(text.c_str(), &end);
-    return end != text.c_str() && *end == '\0';
-}
 
 int runMonitor(const std::vector<std::string>& raw_args) {
     std::vector<std::string> args = raw_args;
@@ -78,11 +72,10 @@ int runMonitor(const std::vector<std::string>& raw_args) {
         }
     }
     auto config_args = config::extractConfigArgs(args);
-    if (!config_args.isOk()) return usageError(config_args.status().message());
+    if (!config_args.isOk()) return usageError(kCommand, config_args.status().message());
     monitor::MonitorConfig cfg;
     if (Status s = config::load(*config_args, cfg); !s.isOk()) {
-        std::fprintf(stderr, "plumb monitor: %s\n", s.message().c_str());
-        return kExitUsage;
+        return usageError(kCommand, s.message());
     }
     if (const char* env = std::getenv("PLUMB_MONITOR_TOKEN"); env != nullptr && *env != '\0') {
         cfg.server.token = env;
@@ -99,37 +92,35 @@ int runMonitor(const std::vector<std::string>& raw_args) {
         };
         std::string v;
         if (a == "--dir") {
-            if (!value(dir)) return usageError("--dir needs a directory");
+            if (!value(dir)) return usageError(kCommand, "--dir needs a directory");
         } else if (a == "--log") {
-            if (!value(log)) return usageError("--log needs a file");
+            if (!value(log)) return usageError(kCommand, "--log needs a file");
         } else if (a == "--live") {
             live = true;
         } else if (a == "--lcm-url") {
-            if (!value(cfg.lcm_url)) return usageError("--lcm-url needs a URL");
+            if (!value(cfg.lcm_url)) return usageError(kCommand, "--lcm-url needs a URL");
         } else if (a == "--speed") {
-            if (!value(v) || !parseDouble(v, cfg.replay_speed) || !(cfg.replay_speed >= 0.0)) {
-                return usageError("--speed needs a number >= 0");
+            if (!value(v) || !parseNumber(v, &cfg.replay_speed) || !(cfg.replay_speed >= 0.0)) {
+                return usageError(kCommand, "--speed needs a number >= 0");
             }
         } else if (a == "--port") {
-            double port = 0;
-            if (!value(v) || !parseDouble(v, port) || port < 0 || port > 65535 ||
-                port != static_cast<int>(port)) {
-                return usageError("--port needs an integer in [0, 65535]");
+            if (!value(v) || !parseNumber(v, &cfg.server.port) || cfg.server.port < 0 ||
+                cfg.server.port > 65535) {
+                return usageError(kCommand, "--port needs an integer in [0, 65535]");
             }
-            cfg.server.port = static_cast<int>(port);
         } else if (a == "--bind") {
-            if (!value(cfg.server.bind)) return usageError("--bind needs an address");
+            if (!value(cfg.server.bind)) return usageError(kCommand, "--bind needs an address");
         } else if (a == "--token") {
             if (!value(cfg.server.token) || cfg.server.token.empty()) {
-                return usageError("--token needs a non-empty value");
+                return usageError(kCommand, "--token needs a non-empty value");
             }
         } else {
-            return usageError("unknown argument '" + a + "'");
+            return usageError(kCommand, "unknown argument '" + a + "'");
         }
     }
-    if (live && !log.empty()) return usageError("--live and --log exclude each other");
+    if (live && !log.empty()) return usageError(kCommand, "--live and --log exclude each other");
     if (!live && log.empty() && dir.empty()) {
-        return usageError("name a source: --dir OUT, --live or --log LOG");
+        return usageError(kCommand, "name a source: --dir OUT, --live or --log LOG");
     }
     if (live && !messages::keepsTrafficOnHost(cfg.lcm_url)) {
         std::fprintf(stderr,
@@ -138,8 +129,9 @@ int runMonitor(const std::vector<std::string>& raw_args) {
                      cfg.lcm_url.c_str());
     }
     if (!monitor::isLoopbackAddress(cfg.server.bind) && cfg.server.token.empty()) {
-        return usageError("--bind " + cfg.server.bind +
-                          " exposes the monitor beyond this machine: set --token as well");
+        return usageError(kCommand,
+                          "--bind " + cfg.server.bind +
+                              " exposes the monitor beyond this machine: set --token as well");
     }
 
     // Signals go to sigwait() below: block them before any thread starts so every thread
@@ -165,26 +157,17 @@ int runMonitor(const std::vector<std::string>& raw_args) {
     std::unique_ptr<monitor::LiveSource> live_source;
     if (live) {
         auto s = monitor::LiveSource::start(cfg.lcm_url, state);
-        if (!s.isOk()) {
-            std::fprintf(stderr, "plumb monitor: %s\n", s.status().message().c_str());
-            return kExitFailure;
-        }
+        if (!s.isOk()) return failure(kCommand, s.status());
         live_source = std::move(*s);
     }
     std::unique_ptr<monitor::LogReplaySource> replay;
     if (!log.empty()) {
         auto s = monitor::LogReplaySource::start(log, cfg.replay_speed, state);
-        if (!s.isOk()) {
-            std::fprintf(stderr, "plumb monitor: %s\n", s.status().message().c_str());
-            return kExitFailure;
-        }
+        if (!s.isOk()) return failure(kCommand, s.status());
         replay = std::move(*s);
     }
     auto server = monitor::MonitorServer::start(cfg.server, state);
-    if (!server.isOk()) {
-        std::fprintf(stderr, "plumb monitor: %s\n", server.status().message().c_str());
-        return kExitFailure;
-    }
+    if (!server.isOk()) return failure(kCommand, server.status());
     std::fprintf(stdout, "plumb monitor: serving %s\n", (*server)->url().c_str());
     std::fflush(stdout);
 

@@ -2,14 +2,13 @@
 // `plumb sim`: renders a simulated handheld scan of a room into a TUM-layout dataset.
 
 #include <chrono>
-#include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <filesystem>
 #include <string>
 #include <vector>
 
 #include "drivers/dataset/intrinsics_file.hpp"
+#include "drivers/sim/scene.hpp"
 #include "drivers/sim/sim_source.hpp"
 #include "tools/plumb/command.hpp"
 
@@ -30,19 +29,21 @@ constexpr const char* kUsage =
     "  --frames N           number of frames (default 600)\n"
     "  --loop | --no-loop   closed loop back to the start (default) or no revisits\n"
     "  --trajectory FILE    TUM trajectory (camera->world) instead of the generated one\n"
+    "                       (default: a generated handheld walk round the room)\n"
     "  --noise MODE         off | redwood (default, measured distortion table) |\n"
     "                       parametric (k1/k2 distortion) | undistorted\n"
     "  --noise-model FILE   Redwood dist-model.txt (default: $PLUMB_NOISE_MODEL, then the\n"
     "                       shared data folder)\n"
     "  --k1 X, --k2 X       parametric distortion strength (default 0.02, 0)\n"
     "  --max-depth M        sensor range limit in metres (default 4.0; 0 = none)\n"
-    "  --no-missing         no grazing-angle, depth-edge or random dropout\n"
+    "  --no-missing         no grazing-angle, depth-edge or random dropout (default: dropout on)\n"
     "  --intrinsics X       camera preset (primesense, ci, ...) or intrinsics file\n"
     "                       (default primesense 640x480)\n"
     "  --seed S             seed of noise and hand shake (default 1)\n"
     "  --gt-spacing M       spacing of gt_points.ply samples in metres (default 0.01)\n"
-    "  --no-clean           do not write depth_clean/\n"
-    "  --no-gray            do not write gray/\n"
+    "  --no-clean           do not write depth_clean/ (default: written)\n"
+    "  --no-gray            do not write gray/ (default: written)\n"
+    "  -h, --help           this text\n"
     "\n"
     "colour camera (rgb/):\n"
     "  --texture MODE       textured (patterned walls with pictures, floor, furniture) |\n"
@@ -52,24 +53,12 @@ constexpr const char* kUsage =
     "  --exposure-std X     std of ln(gain) of a smooth random exposure drift (default 0 = off)\n"
     "  --exposure-period N  frames between independent drift values (default 90)\n"
     "  --exposure-jump K:F  multiply the gain by F from frame K on (repeatable; default none)\n"
-    "  --no-rgb             render no colour and write no rgb/ or rgb.txt\n";
+    "  --no-rgb             render no colour and write no rgb/ or rgb.txt (default: colour)\n"
+    "\n"
+    "exit status: 0 written, 1 the scene, trajectory or output failed (the message says which),\n"
+    "2 bad command line.\n";
 
-bool parseDouble(const std::string& text, double* out) {
-    char* end = nullptr;
-    const double v = std::strtod(text.c_str(), &end);
-    if (end == text.c_str() || *end != '\0') return false;
-    *out = v;
-    return true;
-}
-
-bool parseUnsigned(const std::string& text, uint64_t* out) {
-    if (text.empty() || text[0] == '-') return false;
-    char* end = nullptr;
-    const unsigned long long v = std::strtoull(text.c_str(), &end, 10);
-    if (end == text.c_str() || *end != '\0') return false;
-    *out = v;
-    return true;
-}
+constexpr const char* kCommand = "sim";
 
 // "K:F": frame K (non-negative integer), factor F (positive number).
 bool parseExposureJump(const std::string& text, sim::ExposureJump* jump) {
@@ -77,19 +66,13 @@ bool parseExposureJump(const std::string& text, sim::ExposureJump* jump) {
     if (colon == std::string::npos) return false;
     uint64_t frame = 0;
     double factor = 0.0;
-    if (!parseUnsigned(text.substr(0, colon), &frame) ||
-        !parseDouble(text.substr(colon + 1), &factor) || !(factor > 0.0) ||
-        !std::isfinite(factor)) {
+    if (!parseNumber(text.substr(0, colon), &frame) ||
+        !parseNumber(text.substr(colon + 1), &factor) || !(factor > 0.0)) {
         return false;
     }
     jump->frame = frame;
     jump->factor = factor;
     return true;
-}
-
-int usageError(const std::string& message) {
-    std::fprintf(stderr, "plumb sim: %s\n\n%s", message.c_str(), kUsage);
-    return kExitUsage;
 }
 
 int runSim(const std::vector<std::string>& args) {
@@ -110,122 +93,121 @@ int runSim(const std::vector<std::string>& args) {
             std::printf("%s", kUsage);
             return kExitOk;
         } else if (a == "--out") {
-            if (!value(&out_dir)) return usageError("--out needs a folder");
+            if (!value(&out_dir)) return usageError(kCommand, "--out needs a folder");
         } else if (a == "--frames") {
-            if (!value(&v) || !parseUnsigned(v, &frames) || frames == 0) {
-                return usageError("--frames needs a positive integer");
+            if (!value(&v) || !parseNumber(v, &frames) || frames == 0) {
+                return usageError(kCommand, "--frames needs a positive integer");
             }
         } else if (a == "--loop") {
             config.trajectory.loop = true;
         } else if (a == "--no-loop") {
             config.trajectory.loop = false;
         } else if (a == "--trajectory") {
-            if (!value(&config.trajectory_file)) return usageError("--trajectory needs a file");
+            if (!value(&config.trajectory_file))
+                return usageError(kCommand, "--trajectory needs a file");
         } else if (a == "--noise") {
-            if (!value(&v)) return usageError("--noise needs a mode");
+            if (!value(&v)) return usageError(kCommand, "--noise needs a mode");
             const Status s = sim::parseNoiseMode(v, &config.noise);
-            if (!s.isOk()) return usageError(s.message());
+            if (!s.isOk()) return usageError(kCommand, s.message());
         } else if (a == "--noise-model") {
-            if (!value(&config.noise_model_path)) return usageError("--noise-model needs a file");
+            if (!value(&config.noise_model_path))
+                return usageError(kCommand, "--noise-model needs a file");
         } else if (a == "--k1") {
-            if (!value(&v) || !parseDouble(v, &config.noise.k1)) {
-                return usageError("--k1 needs a number");
+            if (!value(&v) || !parseNumber(v, &config.noise.k1)) {
+                return usageError(kCommand, "--k1 needs a number");
             }
         } else if (a == "--k2") {
-            if (!value(&v) || !parseDouble(v, &config.noise.k2)) {
-                return usageError("--k2 needs a number");
+            if (!value(&v) || !parseNumber(v, &config.noise.k2)) {
+                return usageError(kCommand, "--k2 needs a number");
             }
         } else if (a == "--max-depth") {
-            if (!value(&v) || !parseDouble(v, &config.noise.max_depth_m) ||
+            if (!value(&v) || !parseNumber(v, &config.noise.max_depth_m) ||
                 config.noise.max_depth_m < 0.0) {
-                return usageError("--max-depth needs a non-negative number of metres");
+                return usageError(kCommand, "--max-depth needs a non-negative number of metres");
             }
         } else if (a == "--no-missing") {
             config.noise.missing_data = false;
         } else if (a == "--intrinsics") {
-            if (!value(&v)) return usageError("--intrinsics needs a preset name or a file");
+            if (!value(&v))
+                return usageError(kCommand, "--intrinsics needs a preset name or a file");
             auto preset = cameraPreset(v);
             if (preset.isOk()) {
                 config.camera = *preset;
             } else if (std::filesystem::exists(v)) {
                 auto file = dataset::readIntrinsicsFile(v, config.camera);
-                if (!file.isOk()) {
-                    std::fprintf(stderr, "plumb sim: %s\n", file.status().toString().c_str());
-                    return kExitFailure;
-                }
+                if (!file.isOk()) return failure(kCommand, file.status());
                 config.camera = file->camera;
             } else {
-                return usageError("--intrinsics: '" + v + "' is neither a preset nor a file");
+                return usageError(kCommand,
+                                  "--intrinsics: '" + v + "' is neither a preset nor a file");
             }
         } else if (a == "--seed") {
-            if (!value(&v) || !parseUnsigned(v, &config.seed)) {
-                return usageError("--seed needs a non-negative integer");
+            if (!value(&v) || !parseNumber(v, &config.seed)) {
+                return usageError(kCommand, "--seed needs a non-negative integer");
             }
         } else if (a == "--gt-spacing") {
-            if (!value(&v) || !parseDouble(v, &options.gt_spacing_m) ||
+            if (!value(&v) || !parseNumber(v, &options.gt_spacing_m) ||
                 !(options.gt_spacing_m >= 0.001)) {
-                return usageError("--gt-spacing needs a number of metres >= 0.001");
+                return usageError(kCommand, "--gt-spacing needs a number of metres >= 0.001");
             }
         } else if (a == "--no-clean") {
             options.write_clean = false;
         } else if (a == "--no-gray") {
             options.write_gray = false;
         } else if (a == "--texture") {
-            if (!value(&v)) return usageError("--texture needs textured or plain");
+            if (!value(&v)) return usageError(kCommand, "--texture needs textured or plain");
             config.texture = sim::parseTextureMode(v);
             if (!config.texture) {
-                return usageError("--texture: unknown mode '" + v + "' (use textured or plain)");
+                return usageError(kCommand,
+                                  "--texture: unknown mode '" + v + "' (use textured or plain)");
             }
         } else if (a == "--rgb-noise") {
-            if (!value(&v) || !parseDouble(v, &config.colour.noise_std_levels) ||
+            if (!value(&v) || !parseNumber(v, &config.colour.noise_std_levels) ||
                 !(config.colour.noise_std_levels >= 0.0)) {
-                return usageError("--rgb-noise needs a non-negative number of 8-bit levels");
+                return usageError(kCommand,
+                                  "--rgb-noise needs a non-negative number of 8-bit levels");
             }
         } else if (a == "--exposure-std") {
-            if (!value(&v) || !parseDouble(v, &config.colour.exposure_log_std) ||
+            if (!value(&v) || !parseNumber(v, &config.colour.exposure_log_std) ||
                 !(config.colour.exposure_log_std >= 0.0)) {
-                return usageError("--exposure-std needs a non-negative number");
+                return usageError(kCommand, "--exposure-std needs a non-negative number");
             }
         } else if (a == "--exposure-period") {
-            if (!value(&v) || !parseDouble(v, &config.colour.exposure_period_frames) ||
+            if (!value(&v) || !parseNumber(v, &config.colour.exposure_period_frames) ||
                 !(config.colour.exposure_period_frames > 0.0)) {
-                return usageError("--exposure-period needs a positive number of frames");
+                return usageError(kCommand, "--exposure-period needs a positive number of frames");
             }
         } else if (a == "--exposure-jump") {
             sim::ExposureJump jump;
             if (!value(&v) || !parseExposureJump(v, &jump)) {
-                return usageError("--exposure-jump needs FRAME:FACTOR (e.g. 30:0.6, factor > 0)");
+                return usageError(kCommand,
+                                  "--exposure-jump needs FRAME:FACTOR (e.g. 30:0.6, factor > 0)");
             }
             config.colour.exposure_jumps.push_back(jump);
         } else if (a == "--no-rgb") {
             config.colour.enabled = false;
             options.write_rgb = false;
         } else if (!a.empty() && a[0] == '-') {
-            return usageError("unknown option '" + a + "'");
+            return usageError(kCommand, "unknown option '" + a + "'");
         } else if (scene.empty()) {
             scene = a;
         } else {
-            return usageError("more than one scene given ('" + scene + "', '" + a + "')");
+            return usageError(kCommand, "more than one scene given ('" + scene + "', '" + a + "')");
         }
     }
-    if (scene.empty()) return usageError("no scene given");
-    if (out_dir.empty()) return usageError("--out DIR is required");
+    if (scene.empty()) return usageError(kCommand, "no scene given");
+    if (Status s = sim::checkSceneName(scene); !s.isOk()) return usageError(kCommand, s.message());
+    if (out_dir.empty()) return usageError(kCommand, "--out DIR is required");
     config.scene = scene;
     config.trajectory.num_frames = frames;
     config.trajectory.seed = config.seed;
 
     auto source = sim::SimSource::create(config);
-    if (!source.isOk()) {
-        std::fprintf(stderr, "plumb sim: %s\n", source.status().toString().c_str());
-        return kExitFailure;
-    }
+    if (!source.isOk()) return failure(kCommand, source.status());
     std::printf("plumb sim: %s\n", (*source)->description().c_str());
     const auto start = std::chrono::steady_clock::now();
     const Status written = sim::writeSimDataset(**source, out_dir, options);
-    if (!written.isOk()) {
-        std::fprintf(stderr, "plumb sim: %s\n", written.toString().c_str());
-        return kExitFailure;
-    }
+    if (!written.isOk()) return failure(kCommand, written);
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     std::printf("plumb sim: wrote %zu frames to %s in %.1f s\n", *(*source)->size(),

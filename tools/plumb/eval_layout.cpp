@@ -49,20 +49,7 @@ struct Options {
     bool json = false;
 };
 
-int usageError(const std::string& message) {
-    std::fprintf(stderr, "plumb eval layout: %s (see plumb eval layout --help)\n", message.c_str());
-    return kExitUsage;
-}
-
-std::optional<double> parseNumber(const std::string& text) {
-    double value = 0.0;
-    const char* begin = text.data();
-    const char* end = text.data() + text.size();
-    if (begin != end && *begin == '+') ++begin;
-    const auto [ptr, ec] = std::from_chars(begin, end, value);
-    if (ec != std::errc() || ptr != end || !std::isfinite(value)) return std::nullopt;
-    return value;
-}
+constexpr const char* kCommand = "eval layout";
 
 std::optional<std::string> parseArgs(const std::vector<std::string>& args, Options* options) {
     std::vector<std::string> positional;
@@ -81,9 +68,11 @@ std::optional<std::string> parseArgs(const std::vector<std::string>& args, Optio
         auto positive = [&](double* out, const char* what) -> std::optional<std::string> {
             const std::optional<std::string> text = value();
             if (!text) return flag + " needs a value (" + what + ")";
-            const std::optional<double> v = parseNumber(*text);
-            if (!v || !(*v > 0.0)) return flag + " takes " + what + " > 0, got '" + *text + "'";
-            *out = *v;
+            double v = 0.0;
+            if (!parseNumber(*text, &v) || !(v > 0.0)) {
+                return flag + " takes " + what + " > 0, got '" + *text + "'";
+            }
+            *out = v;
             return std::nullopt;
         };
         if (flag == "--json" && inline_value) return "--json takes no value";
@@ -218,24 +207,15 @@ int runEvalLayout(const std::vector<std::string>& args) {
     }
     Options options;
     if (const std::optional<std::string> error = parseArgs(args, &options)) {
-        return usageError(*error);
+        return usageError(kCommand, *error);
     }
     const Result<Layout> est = io::readLayoutJson(options.estimate);
-    if (!est.isOk()) {
-        std::fprintf(stderr, "plumb eval layout: estimate: %s\n", est.status().toString().c_str());
-        return kExitFailure;
-    }
+    if (!est.isOk()) return failure(kCommand, est.status(), "estimate");
     const Result<Layout> gt = io::readLayoutJson(options.groundtruth);
-    if (!gt.isOk()) {
-        std::fprintf(stderr, "plumb eval layout: ground truth: %s\n",
-                     gt.status().toString().c_str());
-        return kExitFailure;
-    }
+    if (!gt.isOk()) return failure(kCommand, gt.status(), "ground truth");
     const Result<eval::LayoutMetrics> metrics = eval::evaluateLayout(*est, *gt, options.config);
     if (!metrics.isOk()) {
-        std::fprintf(stderr, "plumb eval layout: %s vs %s: %s\n", options.estimate.c_str(),
-                     options.groundtruth.c_str(), metrics.status().toString().c_str());
-        return kExitFailure;
+        return failure(kCommand, metrics.status(), options.estimate + " vs " + options.groundtruth);
     }
     if (options.json) {
         std::printf("%s\n", toJson(options, *metrics).dump(2).c_str());

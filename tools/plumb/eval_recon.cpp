@@ -41,10 +41,12 @@ constexpr const char* kUsage =
     "options:\n"
     "  --transform FILE  4x4 rigid transform mapping the reconstruction into the ground-truth\n"
     "                    frame (p_gt = T p_rec): 16 numbers, row by row, separated by spaces,\n"
-    "                    commas or newlines; lines starting with '#' are ignored\n"
+    "                    commas or newlines; lines starting with '#' are ignored (default:\n"
+    "                    identity, unless --gt-pose)\n"
     "  --gt-pose FILE    ground-truth trajectory (TUM, or Redwood .log by extension); the\n"
     "                    reconstruction is in the frame of the first camera and is mapped with\n"
-    "                    the ground-truth pose of the earliest frame (P_gt = T_gt_0 P_rec)\n"
+    "                    the ground-truth pose of the earliest frame (P_gt = T_gt_0 P_rec;\n"
+    "                    default: none)\n"
     "  --threshold M     distance for the accuracy fraction and completeness, metres\n"
     "                    (default 0.02)\n"
     "  --gt-spacing M    surface sample spacing for a ground-truth mesh, metres (default 0.005)\n"
@@ -65,25 +67,7 @@ struct Options {
     bool json = false;
 };
 
-int usageError(const std::string& message) {
-    std::fprintf(stderr, "plumb eval recon: %s (see plumb eval recon --help)\n", message.c_str());
-    return kExitUsage;
-}
-
-int dataError(const std::string& message) {
-    std::fprintf(stderr, "plumb eval recon: %s\n", message.c_str());
-    return kExitFailure;
-}
-
-std::optional<double> parseNumber(const std::string& text) {
-    double value = 0.0;
-    const char* begin = text.data();
-    const char* end = text.data() + text.size();
-    if (begin != end && *begin == '+') ++begin;
-    const auto [ptr, ec] = std::from_chars(begin, end, value);
-    if (ec != std::errc() || ptr != end || !std::isfinite(value)) return std::nullopt;
-    return value;
-}
+constexpr const char* kCommand = "eval recon";
 
 std::optional<std::string> parseArgs(const std::vector<std::string>& args, Options* options) {
     std::vector<std::string> positional;
@@ -102,9 +86,11 @@ std::optional<std::string> parseArgs(const std::vector<std::string>& args, Optio
         auto positive = [&](double* out, const char* what) -> std::optional<std::string> {
             const std::optional<std::string> text = value();
             if (!text) return flag + " needs a value (" + what + ")";
-            const std::optional<double> v = parseNumber(*text);
-            if (!v || !(*v > 0.0)) return flag + " takes " + what + " > 0, got '" + *text + "'";
-            *out = *v;
+            double v = 0.0;
+            if (!parseNumber(*text, &v) || !(v > 0.0)) {
+                return flag + " takes " + what + " > 0, got '" + *text + "'";
+            }
+            *out = v;
             return std::nullopt;
         };
         if (flag == "--json" && inline_value) return "--json takes no value";
@@ -162,9 +148,11 @@ Result<Eigen::Isometry3d> readMatrixFile(const std::string& path) {
         std::replace(line.begin(), line.end(), ',', ' ');
         std::istringstream words(line);
         for (std::string w; words >> w;) {
-            const std::optional<double> v = parseNumber(w);
-            if (!v) return corrupt(fmt::format("{}:{}: '{}' is not a number", path, line_no, w));
-            values.push_back(*v);
+            double v = 0.0;
+            if (!parseNumber(w, &v)) {
+                return corrupt(fmt::format("{}:{}: '{}' is not a number", path, line_no, w));
+            }
+            values.push_back(v);
         }
     }
     if (values.size() != 16) {
@@ -223,40 +211,39 @@ int runEvalRecon(const std::vector<std::string>& args) {
     }
     Options options;
     if (const std::optional<std::string> error = parseArgs(args, &options)) {
-        return usageError(*error);
+        return usageError(kCommand, *error);
     }
 
     Eigen::Isometry3d T_gt_rec = Eigen::Isometry3d::Identity();
     std::string transform_source = "identity";
     if (options.transform_file) {
         auto T = readMatrixFile(*options.transform_file);
-        if (!T.isOk()) return dataError("transform: " + T.status().toString());
+        if (!T.isOk()) return failure(kCommand, T.status(), "transform");
         T_gt_rec = *T;
         transform_source = "matrix from " + *options.transform_file;
     } else if (options.gt_pose_file) {
         auto T = readFirstPose(*options.gt_pose_file);
-        if (!T.isOk()) return dataError("ground-truth pose: " + T.status().toString());
+        if (!T.isOk()) return failure(kCommand, T.status(), "ground-truth pose");
         T_gt_rec = *T;
         transform_source = "ground-truth pose of the first frame in " + *options.gt_pose_file;
     }
 
     auto rec = io::readTriangleMesh(options.reconstruction);
-    if (!rec.isOk()) return dataError("reconstruction: " + rec.status().toString());
+    if (!rec.isOk()) return failure(kCommand, rec.status(), "reconstruction");
     if (rec->vertices.empty()) {
-        return dataError(fmt::format("reconstruction: {}: no points", options.reconstruction));
+        return failure(kCommand, corrupt(options.reconstruction + ": no points"), "reconstruction");
     }
     auto gt = io::readTriangleMesh(options.groundtruth);
-    if (!gt.isOk()) return dataError("ground truth: " + gt.status().toString());
+    if (!gt.isOk()) return failure(kCommand, gt.status(), "ground truth");
     if (gt->vertices.empty()) {
-        return dataError(fmt::format("ground truth: {}: no points", options.groundtruth));
+        return failure(kCommand, corrupt(options.groundtruth + ": no points"), "ground truth");
     }
     std::vector<Eigen::Vector3f> gt_points;
     const bool gt_sampled = !gt->triangles.empty();
     if (gt_sampled) {
         auto samples = eval::sampleMeshSurface(gt->vertices, gt->triangles, options.gt_spacing_m);
         if (!samples.isOk()) {
-            return dataError(fmt::format("ground truth: {}: {}", options.groundtruth,
-                                         samples.status().toString()));
+            return failure(kCommand, samples.status(), "ground truth: " + options.groundtruth);
         }
         gt_points = std::move(*samples);
     } else {
@@ -267,8 +254,8 @@ int runEvalRecon(const std::vector<std::string>& args) {
     const Result<eval::ReconMetrics> metrics =
         eval::evaluateReconstruction(rec_in_gt.vertices, gt_points, options.config);
     if (!metrics.isOk()) {
-        return dataError(fmt::format("{} vs {}: {}", options.reconstruction, options.groundtruth,
-                                     metrics.status().toString()));
+        return failure(kCommand, metrics.status(),
+                       options.reconstruction + " vs " + options.groundtruth);
     }
     const eval::ReconMetrics& m = *metrics;
     if (options.json) {

@@ -39,7 +39,8 @@ constexpr const char* kUsage =
     "                   (default 0)\n"
     "  --no-align       measure ATE in the given frames, without the rigid alignment\n"
     "  --delta N        RPE over motions of N frames (integer >= 1; default 1)\n"
-    "  --delta-s S      RPE over motions of S seconds instead of frames (as evaluate_rpe.py)\n"
+    "  --delta-s S      RPE over motions of S seconds instead of frames (as evaluate_rpe.py;\n"
+    "                   default: frames, --delta)\n"
     "  --format F       file format of both inputs: tum or log (default: by extension)\n"
     "  --json           print one JSON object (metres, radians) instead of text (cm, degrees)\n"
     "  -h, --help       this text\n"
@@ -57,19 +58,7 @@ struct Options {
     bool json = false;
 };
 
-int usageError(const std::string& message) {
-    std::fprintf(stderr, "plumb eval traj: %s (see plumb eval traj --help)\n", message.c_str());
-    return kExitUsage;
-}
-
-/// Parses a whole string as a finite double.
-std::optional<double> parseNumber(const std::string& text) {
-    double value = 0.0;
-    const char* end = text.data() + text.size();
-    const auto [ptr, ec] = std::from_chars(text.data(), end, value);
-    if (ec != std::errc() || ptr != end || !std::isfinite(value)) return std::nullopt;
-    return value;
-}
+constexpr const char* kCommand = "eval traj";
 
 Format formatOf(const Options& options, const std::string& path) {
     if (options.format) return *options.format;
@@ -101,9 +90,7 @@ std::optional<std::string> parseArgs(const std::vector<std::string>& args, Optio
         auto number = [&](double* out, const char* what) -> std::optional<std::string> {
             const std::optional<std::string> text = value();
             if (!text) return flag + " needs a value (" + what + ")";
-            const std::optional<double> v = parseNumber(*text);
-            if (!v) return flag + " takes " + what + ", got '" + *text + "'";
-            *out = *v;
+            if (!parseNumber(*text, out)) return flag + " takes " + what + ", got '" + *text + "'";
             return std::nullopt;
         };
         const bool takes_no_value = flag == "--no-align" || flag == "--json";
@@ -239,26 +226,19 @@ int runEvalTraj(const std::vector<std::string>& args) {
     }
     Options options;
     if (const std::optional<std::string> error = parseArgs(args, &options)) {
-        return usageError(*error);
+        return usageError(kCommand, *error);
     }
     const Result<io::Trajectory> est =
         readTrajectory(options.estimate, formatOf(options, options.estimate));
-    if (!est.isOk()) {
-        std::fprintf(stderr, "plumb eval traj: estimate: %s\n", est.status().toString().c_str());
-        return kExitFailure;
-    }
+    if (!est.isOk()) return failure(kCommand, est.status(), "estimate");
     const Result<io::Trajectory> gt =
         readTrajectory(options.groundtruth, formatOf(options, options.groundtruth));
-    if (!gt.isOk()) {
-        std::fprintf(stderr, "plumb eval traj: ground truth: %s\n", gt.status().toString().c_str());
-        return kExitFailure;
-    }
+    if (!gt.isOk()) return failure(kCommand, gt.status(), "ground truth");
     const Result<eval::TrajectoryEvaluation> evaluation =
         eval::evaluateTrajectories(*est, *gt, options.config);
     if (!evaluation.isOk()) {
-        std::fprintf(stderr, "plumb eval traj: %s vs %s: %s\n", options.estimate.c_str(),
-                     options.groundtruth.c_str(), evaluation.status().toString().c_str());
-        return kExitFailure;
+        return failure(kCommand, evaluation.status(),
+                       options.estimate + " vs " + options.groundtruth);
     }
     if (options.json) {
         std::printf("%s\n", toJson(options, *evaluation).dump(2).c_str());

@@ -1,0 +1,275 @@
+// SPDX-License-Identifier: Apache-2.0
+// Runs the built `plumb` program (PLUMB_EXE) as a user would and checks what every command has in
+// common (issue 30): a bad command line or configuration exits 2 with a one-line hint before any
+// work, help is complete and exits 0, --log-level works before and after the command, and a
+// damaged image gets plumb's message only (no raw "libpng error" line).
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cctype>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "tests/testing/run_program.hpp"
+#include "tests/testing/shared_data.hpp"
+
+namespace plumb {
+namespace {
+
+namespace fs = std::filesystem;
+
+using testing::ProcessRun;
+using testing::slurp;
+
+/// Runs `plumb <words> <args>`; `words` are unquoted ("fuse", "--log-level error fuse").
+ProcessRun plumb(const fs::path& log_dir, const std::string& words,
+                 const std::vector<std::string>& args = {}) {
+    return testing::runProgram(std::string("'") + PLUMB_EXE + "' " + words, log_dir, args);
+}
+
+bool contains(const std::string& text, const std::string& part) {
+    return text.find(part) != std::string::npos;
+}
+
+size_t lineCount(const std::string& text) {
+    return static_cast<size_t>(std::count(text.begin(), text.end(), '\n'));
+}
+
+/// A small, shared-data-free simulated scan for `plumb fuse`.
+std::vector<std::string> smallFuse(const fs::path& out) {
+    return {"sim:living_room", "--frames",   "4",     "--intrinsics", "ci",
+            "--noise",         "parametric", "--out", out.string()};
+}
+
+/// True when this build has the backend commands (reconstruct, replay).
+bool hasBackend(const fs::path& log_dir) {
+    return contains(plumb(log_dir, "--help").out, "  reconstruct ");
+}
+
+/// Expects exit 2 and exactly one stderr line naming `what`, with the command's help hint,
+/// and that nothing was written to `out`.
+void expectUsageError(const ProcessRun& run, const std::string& command, const std::string& what,
+                      const fs::path& out) {
+    EXPECT_EQ(run.exit_code, 2) << run.err;
+    EXPECT_TRUE(contains(run.err, what)) << run.err;
+    EXPECT_TRUE(contains(run.err, "(see plumb " + command + " --help)")) << run.err;
+    EXPECT_EQ(lineCount(run.err), 1u) << "a one-line hint, not the help:\n" << run.err;
+    EXPECT_FALSE(fs::exists(out)) << "the command line is checked before any work";
+}
+
+TEST(PlumbCli, BadConfigurationIntrinsicsOrSceneExitTwoBeforeAnyWork) {
+    const fs::path logs = testing::freshTempDir("plumb_cli_bad");
+    const fs::path out = logs / "out";
+    std::vector<std::string> args = smallFuse(out);
+    args.insert(args.end(), {"--set", "nosuchkey=1"});
+    expectUsageError(plumb(logs, "fuse", args), "fuse", "unknown key 'nosuchkey'", out);
+
+    args = smallFuse(out);
+    args.insert(args.end(), {"--set", "tsdf.voxel_size_m=abc"});
+    expectUsageError(plumb(logs, "fuse", args), "fuse", "'abc'", out);
+
+    const fs::path bad_file = logs / "bad.toml";
+    std::ofstream(bad_file) << "no_such_key = 1\n";
+    args = smallFuse(out);
+    args.insert(args.end(), {"--config", bad_file.string()});
+    expectUsageError(plumb(logs, "fuse", args), "fuse", "bad.toml:1", out);
+
+    args = smallFuse(out);
+    args[4] = "no-such-camera";  // --intrinsics
+    expectUsageError(plumb(logs, "fuse", args), "fuse", "no-such-camera", out);
+
+    args = smallFuse(out);
+    args[0] = "sim:no_such_room";
+    expectUsageError(plumb(logs, "fuse", args), "fuse", "no built-in scene 'no_such_room'", out);
+
+    expectUsageError(plumb(logs, "sim", {"no_such_room", "--out", out.string()}), "sim",
+                     "no built-in scene 'no_such_room'", out);
+    expectUsageError(
+        plumb(logs, "sim",
+              {"living_room", "--intrinsics", "no-such-camera", "--out", out.string()}),
+        "sim", "no-such-camera", out);
+    expectUsageError(plumb(logs, "sim", {"living_room", "--frames", "0", "--out", out.string()}),
+                     "sim", "--frames", out);
+    expectUsageError(plumb(logs, "demo", {"--scene", "no_such_room", "--out", out.string()}),
+                     "demo", "no built-in scene 'no_such_room'", out);
+    expectUsageError(plumb(logs, "replay"), "replay", "LCM log", out);
+    expectUsageError(plumb(logs, "eval traj", {"--bogus"}), "eval traj", "--bogus", out);
+
+    if (hasBackend(logs)) {  // replay checks its configuration before reading the log
+        expectUsageError(
+            plumb(logs, "replay",
+                  {(logs / "scan.lcmlog").string(), "--out", out.string(), "--set", "nosuchkey=1"}),
+            "replay", "unknown key 'nosuchkey'", out);
+    }
+
+    const ProcessRun level = plumb(logs, "--log-level loud fuse", smallFuse(out));
+    EXPECT_EQ(level.exit_code, 2) << level.err;
+    EXPECT_TRUE(contains(level.err, "--log-level")) << level.err;
+}
+
+/// The option blocks of a help text: a line "  -x ..." or "  --xyz ..." and its deeper-indented
+/// continuation lines.
+std::vector<std::string> optionBlocks(const std::string& help) {
+    std::vector<std::string> blocks;
+    size_t start = 0;
+    while (start < help.size()) {
+        size_t end = help.find('\n', start);
+        if (end == std::string::npos) end = help.size();
+        const std::string line = help.substr(start, end - start);
+        start = end + 1;
+        if (line.rfind("  -", 0) == 0) {
+            blocks.push_back(line);
+        } else if (!blocks.empty() && line.rfind("    ", 0) == 0) {
+            blocks.back() += "\n" + line;
+        } else {
+            blocks.emplace_back();  // ends the block
+        }
+    }
+    blocks.erase(std::remove(blocks.begin(), blocks.end(), std::string()), blocks.end());
+    return blocks;
+}
+
+/// True when the option of `block` takes a value ("--out DIR", "--k1 X, --k2 X", "--exposure-jump
+/// K:F"): the word after the flag is written in capitals.
+bool takesValue(const std::string& block) {
+    const size_t flag_end = block.find(' ', 2);
+    if (flag_end == std::string::npos || flag_end + 1 >= block.size()) return false;
+    const char c = block[flag_end + 1];
+    return std::isupper(static_cast<unsigned char>(c)) != 0;
+}
+
+TEST(PlumbCli, HelpIsCompleteExitsZeroAndStatesEveryDefault) {
+    const fs::path logs = testing::freshTempDir("plumb_cli_help");
+    const ProcessRun top = plumb(logs, "--help");
+    EXPECT_EQ(top.exit_code, 0) << top.err;
+    for (const char* part : {"--version", "--log-level", "--help", "exit status", "fuse", "sim",
+                             "replay", "eval traj", "demo", "monitor", "config"}) {
+        EXPECT_TRUE(contains(top.out, part)) << part << " missing from plumb --help";
+    }
+    const ProcessRun version = plumb(logs, "--version");
+    EXPECT_EQ(version.exit_code, 0);
+    EXPECT_EQ(version.out.rfind("plumb ", 0), 0u) << version.out;
+
+    const ProcessRun eval = plumb(logs, "eval --help");
+    EXPECT_EQ(eval.exit_code, 0) << eval.err;
+    for (const char* part : {"usage: plumb eval", "eval traj", "eval recon", "eval layout"}) {
+        EXPECT_TRUE(contains(eval.out, part)) << part << " missing from plumb eval --help";
+    }
+    EXPECT_EQ(plumb(logs, "eval").exit_code, 2);
+
+    const ProcessRun replay = plumb(logs, "replay --help");
+    EXPECT_EQ(replay.exit_code, 0) << replay.err;
+    for (const char* part :
+         {"usage: plumb replay LOG", "--out", "--fragments", "--no-finalise", "--gt", "--key-file",
+          "--key-id", "--config", "--set", "--log-level", "exit status: 0", "2 bad command"}) {
+        EXPECT_TRUE(contains(replay.out, part)) << part << " missing from plumb replay --help";
+    }
+
+    // Every option that takes a value says what it is when not given.
+    for (const char* command :
+         {"fuse", "sim", "demo", "monitor", "replay", "eval traj", "eval recon", "eval layout"}) {
+        const ProcessRun help = plumb(logs, std::string(command) + " --help");
+        ASSERT_EQ(help.exit_code, 0) << command << ": " << help.err;
+        EXPECT_TRUE(contains(help.out, "exit status")) << command;
+        const std::vector<std::string> blocks = optionBlocks(help.out);
+        EXPECT_GE(blocks.size(), 3u) << command;
+        for (const std::string& block : blocks) {
+            if (!takesValue(block)) continue;
+            EXPECT_TRUE(contains(block, "default") || contains(block, "required") ||
+                        contains(block, "repeatable"))
+                << "plumb " << command << " --help states no default for:\n"
+                << block;
+        }
+    }
+}
+
+TEST(PlumbCli, LogLevelBeforeOrAfterTheCommandSilencesInfoLines) {
+    const fs::path logs = testing::freshTempDir("plumb_cli_log_level");
+    const ProcessRun normal = plumb(logs, "fuse", smallFuse(logs / "normal"));
+    ASSERT_EQ(normal.exit_code, 0) << normal.err;
+    EXPECT_TRUE(contains(normal.err, "plumb fuse info: ")) << normal.err;
+
+    const ProcessRun before = plumb(logs, "--log-level error fuse", smallFuse(logs / "before"));
+    ASSERT_EQ(before.exit_code, 0) << before.err;
+    EXPECT_EQ(before.err, "") << "no info lines, no progress";
+
+    std::vector<std::string> args = smallFuse(logs / "after");
+    args.insert(args.end(), {"--log-level", "error"});
+    const ProcessRun after = plumb(logs, "fuse", args);
+    ASSERT_EQ(after.exit_code, 0) << after.err;
+    EXPECT_EQ(after.err, "");
+
+    args = smallFuse(logs / "inline");
+    args.push_back("--log-level=warn");
+    const ProcessRun inline_form = plumb(logs, "fuse", args);
+    ASSERT_EQ(inline_form.exit_code, 0) << inline_form.err;
+    EXPECT_FALSE(contains(inline_form.err, " info: ")) << inline_form.err;
+    // The run itself is the same whatever is logged.
+    EXPECT_EQ(slurp(logs / "normal/trajectory.txt"), slurp(logs / "after/trajectory.txt"));
+
+    // The same for a command with its own logger and a whole pipeline behind it (in builds with
+    // the backend).
+    if (hasBackend(logs)) {
+        const ProcessRun reconstruct =
+            plumb(logs, "reconstruct",
+                  {"sim:living_room", "--frames", "40", "--intrinsics", "ci", "--noise",
+                   "parametric", "--out", (logs / "reconstruct").string(), "--log-level", "error"});
+        ASSERT_EQ(reconstruct.exit_code, 0) << reconstruct.err;
+        EXPECT_EQ(reconstruct.err, "");
+    }
+
+    // After a command that logs nothing, too.
+    const ProcessRun sim_help = plumb(logs, "sim --help --log-level debug");
+    EXPECT_EQ(sim_help.exit_code, 0) << sim_help.err;
+}
+
+TEST(PlumbCli, LogLevelReachesTheDemosDeviceAndBackend) {
+    const fs::path logs = testing::freshTempDir("plumb_cli_demo_log_level");
+    if (!contains(plumb(logs, "--help").out, "  demo ") || !hasBackend(logs)) {
+        GTEST_SKIP() << "this build has no demo";
+    }
+    const ProcessRun run =
+        plumb(logs, "--log-level error demo",
+              {"--frames", "60", "--noise", "parametric", "--out", (logs / "demo").string()});
+    ASSERT_EQ(run.exit_code, 0) << run.err;
+    EXPECT_EQ(run.err, "") << "plumb-device and plumb-backend log at plumb's level";
+    EXPECT_TRUE(contains(run.out, "plumb demo: done")) << run.out;
+    EXPECT_TRUE(fs::exists(logs / "demo/metrics.json"));
+}
+
+/// Flips one byte inside the data of the first IDAT chunk of the PNG at `path`.
+void damageIdat(const fs::path& path) {
+    std::string bytes = slurp(path);
+    const size_t idat = bytes.find("IDAT");
+    ASSERT_NE(idat, std::string::npos) << path;
+    ASSERT_LT(idat + 14, bytes.size());
+    bytes[idat + 14] = static_cast<char>(bytes[idat + 14] ^ 0x5a);
+    std::ofstream(path, std::ios::binary | std::ios::trunc) << bytes;
+}
+
+TEST(PlumbCli, DamagedPngGetsPlumbsMessageWithoutARawLibpngLine) {
+    const fs::path logs = testing::freshTempDir("plumb_cli_png");
+    const fs::path scan = logs / "scan";
+    const ProcessRun sim = plumb(logs, "sim",
+                                 {"living_room", "--frames", "4", "--intrinsics", "ci", "--noise",
+                                  "off", "--no-gray", "--no-clean", "--out", scan.string()});
+    ASSERT_EQ(sim.exit_code, 0) << sim.err;
+    const fs::path truncated = scan / "depth/00001.png";
+    fs::resize_file(truncated, fs::file_size(truncated) / 2);
+    damageIdat(scan / "depth/00002.png");
+
+    const ProcessRun run =
+        plumb(logs, "fuse", {scan.string(), "--quiet", "--out", (logs / "out").string()});
+    EXPECT_EQ(run.exit_code, 0) << run.err;  // damaged frames are skipped, with a warning each
+    EXPECT_FALSE(contains(run.err, "libpng")) << run.err;
+    EXPECT_TRUE(contains(run.err, "00001.png: cannot decode PNG")) << run.err;
+    // libpng's own words are in plumb's message.
+    EXPECT_TRUE(contains(run.err, "00002.png: cannot decode PNG (truncated or damaged, "))
+        << run.err;
+    EXPECT_TRUE(contains(run.err, "IDAT: ")) << run.err;  // libpng names the damaged chunk
+}
+
+}  // namespace
+}  // namespace plumb
