@@ -75,8 +75,8 @@ TEST(PlumbCalibrateCli, BadInputGetsASpecificErrorAndExitCode) {
              Case{{"sim:living_room", "--out", out, "--frames", "0"}, 2, "--frames needs"},
              Case{{"sim:living_room", "--out", out, "--iterations", "x"}, 2, "--iterations needs"},
              Case{{"sim:living_room", "--out", out, "--bogus"}, 2, "unknown option --bogus"},
-             Case{{"sim:living_room", "--out", out, "--set", "relaxation=3"}, 1, "relaxation"},
-             Case{{"sim:no_such_room", "--out", out}, 1, "no_such_room"},
+             Case{{"sim:living_room", "--out", out, "--set", "relaxation=3"}, 2, "relaxation"},
+             Case{{"sim:no_such_room", "--out", out}, 2, "no_such_room"},
              Case{{"/nonexistent/dataset", "--out", out}, 1, "/nonexistent/dataset"},
          }) {
         const ProcessRun run = plumbCalibrate(dir, c.args);

@@ -6,7 +6,6 @@
 #include <fmt/format.h>
 #include <tbb/global_control.h>
 
-#include <charconv>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -71,33 +70,20 @@ constexpr const char* kUsage =
     "  --seed S           seed of the simulator (default 1)\n"
     "  --noise MODE       simulator noise: redwood (default), off, parametric, undistorted\n"
     "  --threads N        worker threads (default: all); results do not depend on it\n"
-    "  --config FILE      configuration file (see `plumb config doc calibrate`)\n"
+    "  --config FILE      configuration file (default: none, every key at its default; see\n"
+    "                     `plumb config doc calibrate`)\n"
     "  --set KEY=VALUE    override one configuration key, e.g. min_samples=50\n"
     "  --quiet            no per-iteration output\n"
     "  -h, --help         this text\n"
     "\n"
     "exit status: 0 done, 1 the input failed (the message says which), 2 bad command line.\n";
 
-int usageError(const std::string& message) {
-    std::cerr << "plumb calibrate: " << message << "\n(see plumb calibrate --help)\n";
-    return kExitUsage;
-}
-
-int failure(const Status& status) {
-    std::cerr << "plumb calibrate: " << status.toString() << "\n";
-    return kExitFailure;
-}
-
-template <typename T>
-bool parseNumber(const std::string& text, T* value) {
-    const auto [ptr, ec] = std::from_chars(text.data(), text.data() + text.size(), *value);
-    return ec == std::errc() && ptr == text.data() + text.size();
-}
+constexpr const char* kCommand = "calibrate";
 
 int runCalibrate(const std::vector<std::string>& arguments) {
     std::vector<std::string> args = arguments;
     Result<config::ConfigArgs> config_args = config::extractConfigArgs(args);
-    if (!config_args.isOk()) return usageError(config_args.status().message());
+    if (!config_args.isOk()) return usageError(kCommand, config_args.status().message());
     std::string source_uri;
     std::filesystem::path out;
     SourceOptions source_options;
@@ -122,59 +108,63 @@ int runCalibrate(const std::vector<std::string>& arguments) {
             std::cout << kUsage;
             return kExitOk;
         } else if (a == "--out") {
-            if (!value(&v) || v.empty()) return usageError("--out needs a file");
+            if (!value(&v) || v.empty()) return usageError(kCommand, "--out needs a file");
             out = v;
         } else if (a == "--frames") {
             if (!value(&v) || !parseNumber(v, &source_options.max_frames) ||
                 source_options.max_frames == 0)
-                return usageError("--frames needs a positive integer");
+                return usageError(kCommand, "--frames needs a positive integer");
         } else if (a == "--poses") {
-            if (!value(&v) || v.empty()) return usageError("--poses needs a trajectory file");
+            if (!value(&v) || v.empty())
+                return usageError(kCommand, "--poses needs a trajectory file");
             poses_path = v;
         } else if (a == "--refine-poses") {
             refine_poses = true;
         } else if (a == "--reference") {
-            if (!value(&v) || v.empty()) return usageError("--reference needs a table file");
+            if (!value(&v) || v.empty())
+                return usageError(kCommand, "--reference needs a table file");
             reference_path = v;
         } else if (a == "--iterations") {
             int k = 0;
             if (!value(&v) || !parseNumber(v, &k) || k < 1)
-                return usageError("--iterations needs a positive integer");
+                return usageError(kCommand, "--iterations needs a positive integer");
             iterations = k;
         } else if (a == "--intrinsics") {
             if (!value(&source_options.intrinsics))
-                return usageError("--intrinsics needs a preset or a file");
+                return usageError(kCommand, "--intrinsics needs a preset or a file");
         } else if (a == "--depth-scale") {
             if (!value(&v) || !parseNumber(v, &source_options.depth_scale) ||
                 !(source_options.depth_scale > 0))
-                return usageError("--depth-scale needs a positive number");
+                return usageError(kCommand, "--depth-scale needs a positive number");
         } else if (a == "--seed") {
             if (!value(&v) || !parseNumber(v, &source_options.seed))
-                return usageError("--seed needs a non-negative integer");
+                return usageError(kCommand, "--seed needs a non-negative integer");
         } else if (a == "--noise") {
-            if (!value(&source_options.sim_noise)) return usageError("--noise needs a mode");
+            if (!value(&source_options.sim_noise))
+                return usageError(kCommand, "--noise needs a mode");
             if (Status s = sim::checkNoiseMode(source_options.sim_noise); !s.isOk())
-                return usageError(s.message());
+                return usageError(kCommand, s.message());
         } else if (a == "--threads") {
             if (!value(&v) || !parseNumber(v, &threads) || threads < 1)
-                return usageError("--threads needs a positive integer");
+                return usageError(kCommand, "--threads needs a positive integer");
         } else if (a == "--quiet") {
             quiet = true;
         } else if (!a.empty() && a[0] == '-') {
-            return usageError("unknown option " + a);
+            return usageError(kCommand, "unknown option " + a);
         } else if (source_uri.empty()) {
             source_uri = a;
         } else {
-            return usageError("more than one source given: " + source_uri + " and " + a);
+            return usageError(kCommand, "more than one source given: " + source_uri + " and " + a);
         }
     }
-    if (source_uri.empty()) return usageError("no source given");
-    if (out.empty()) return usageError("--out is required");
+    if (source_uri.empty()) return usageError(kCommand, "no source given");
+    if (out.empty()) return usageError(kCommand, "--out is required");
 
     calibration::SelfCalibrationConfig cfg;
-    if (Status s = config::load(*config_args, cfg); !s.isOk()) return failure(s);
+    if (Status s = config::load(*config_args, cfg); !s.isOk())
+        return usageError(kCommand, s.message());
     if (iterations) cfg.max_iterations = *iterations;
-    if (Status s = calibration::validate(cfg); !s.isOk()) return failure(s);
+    if (Status s = calibration::validate(cfg); !s.isOk()) return usageError(kCommand, s.message());
     std::optional<tbb::global_control> thread_limit;
     if (threads > 0) {
         thread_limit.emplace(tbb::global_control::max_allowed_parallelism,
@@ -186,22 +176,24 @@ int runCalibrate(const std::vector<std::string>& arguments) {
             ? source_uri
             : "dataset:" + source_uri;
     if (!source_options.sim_noise.empty() && uri.rfind("sim:", 0) != 0) {
-        return usageError("--noise applies to sim: sources only");
+        return usageError(kCommand, "--noise applies to sim: sources only");
     }
+    if (Status s = checkSourceArguments(uri, source_options); !s.isOk())
+        return usageError(kCommand, s.message());
     std::optional<PoseLookup> pose_file;
     if (poses_path) {
         Result<PoseLookup> p = PoseLookup::read(*poses_path);
-        if (!p.isOk()) return failure(p.status());
+        if (!p.isOk()) return failure(kCommand, p.status());
         pose_file = std::move(*p);
     }
     std::optional<sim::DistortionTable> reference;
     if (reference_path) {
         Result<sim::DistortionTable> t = sim::DistortionTable::load(*reference_path);
-        if (!t.isOk()) return failure(t.status());
+        if (!t.isOk()) return failure(kCommand, t.status());
         reference = std::move(*t);
     }
     Result<std::unique_ptr<FrameSource>> opened = openFrameSource(uri, source_options);
-    if (!opened.isOk()) return failure(opened.status());
+    if (!opened.isOk()) return failure(kCommand, opened.status());
     std::unique_ptr<FrameSource> source = std::move(opened).value();
     const PinholeCamera camera = source->camera();
 
@@ -212,7 +204,7 @@ int runCalibrate(const std::vector<std::string>& arguments) {
         Result<Frame> frame = source->next();
         if (!frame.isOk()) {
             if (frame.status().code() == StatusCode::kOutOfRange) break;
-            return failure(frame.status());
+            return failure(kCommand, frame.status());
         }
         if (pose_file) {
             const std::optional<Eigen::Isometry3d> pose = pose_file->find(*frame);
@@ -225,19 +217,23 @@ int runCalibrate(const std::vector<std::string>& arguments) {
             continue;
         }
         if (!frame->T_W_C_gt) {
-            return failure(invalidArgument(fmt::format(
-                "frame {} ({}) has no ground-truth pose: plumb calibrate needs a source with "
-                "ground truth (sim:SCENE, or a dataset with groundtruth.txt)",
-                frame->index, frame->name)));
+            return failure(
+                kCommand,
+                invalidArgument(fmt::format(
+                    "frame {} ({}) has no ground-truth pose: plumb calibrate needs a source with "
+                    "ground truth (sim:SCENE, or a dataset with groundtruth.txt)",
+                    frame->index, frame->name)));
         }
         depth.push_back(std::move(frame->depth));
         T_W_C.push_back(*frame->T_W_C_gt);
     }
     if (depth.empty()) {
-        return failure(invalidArgument(
-            pose_file ? fmt::format("none of the source's frames has a pose in {} ({} poses)",
-                                    poses_path->string(), pose_file->size())
-                      : std::string("the source delivered no frames")));
+        return failure(
+            kCommand,
+            invalidArgument(
+                pose_file ? fmt::format("none of the source's frames has a pose in {} ({} poses)",
+                                        poses_path->string(), pose_file->size())
+                          : std::string("the source delivered no frames")));
     }
     if (!quiet) {
         std::printf("calibrating from %zu frames of %s (%dx%d), poses from %s\n", depth.size(),
@@ -275,8 +271,8 @@ int runCalibrate(const std::vector<std::string>& arguments) {
         refine ? icpFrameAligner(CalibrationAlignerConfig{}, &unaligned) : nullptr;
     Result<calibration::SelfCalibrationResult> result =
         calibration::selfCalibrate(depth, camera, T_W_C, cfg, nullptr, report, aligner);
-    if (!result.isOk()) return failure(result.status());
-    if (Status s = result->table.save(out); !s.isOk()) return failure(s);
+    if (!result.isOk()) return failure(kCommand, result.status());
+    if (Status s = result->table.save(out); !s.isOk()) return failure(kCommand, s);
     if (!quiet && refine) {
         std::printf(
             "poses refined against every iteration's model; %zu alignments failed (the "
@@ -291,7 +287,7 @@ int runCalibrate(const std::vector<std::string>& arguments) {
     if (reference) {
         Result<calibration::TableComparison> c = calibration::compareTables(
             result->table, result->iterations.back().estimate, *reference);
-        if (!c.isOk()) return failure(c.status());
+        if (!c.isOk()) return failure(kCommand, c.status());
         std::printf("against %s (learned factors divided by %.5f):\n",
                     reference_path->string().c_str(), c->scale);
         for (int bin = 0; bin < sim::DistortionTable::kBins; ++bin) {

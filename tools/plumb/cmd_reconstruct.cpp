@@ -6,7 +6,6 @@
 #include <fmt/format.h>
 #include <tbb/global_control.h>
 
-#include <charconv>
 #include <chrono>
 #include <filesystem>
 #include <iostream>
@@ -116,7 +115,8 @@ constexpr const char* kUsage =
     "                     gt_points.ply, layout.json; default: the dataset folder)\n"
     "  --no-gt            do not evaluate against ground truth\n"
     "  --threads N        worker threads (default: all); results do not depend on it\n"
-    "  --config FILE      configuration file (see `plumb config doc reconstruct`)\n"
+    "  --config FILE      configuration file (default: none, every key at its default; see\n"
+    "                     `plumb config doc reconstruct`)\n"
     "  --set KEY=VALUE    override one configuration key (repeatable)\n"
     "  --quiet            no progress output\n"
     "  -h, --help         this text\n"
@@ -124,21 +124,7 @@ constexpr const char* kUsage =
     "exit status: 0 done, 1 the input or a stage failed (the message says which), 2 bad\n"
     "command line.\n";
 
-int usageError(const std::string& message) {
-    std::cerr << "plumb reconstruct: " << message << "\n(see plumb reconstruct --help)\n";
-    return kExitUsage;
-}
-
-int failure(const Status& status) {
-    std::cerr << "plumb reconstruct: " << status.toString() << "\n";
-    return kExitFailure;
-}
-
-template <typename T>
-bool parseNumber(const std::string& text, T* value) {
-    const auto [ptr, ec] = std::from_chars(text.data(), text.data() + text.size(), *value);
-    return ec == std::errc() && ptr == text.data() + text.size();
-}
+constexpr const char* kCommand = "reconstruct";
 
 struct Options {
     std::string source;
@@ -254,7 +240,6 @@ Result<backend::PipelineResult> selfCalibratedRun(const std::string& uri, const 
                                                   const backend::PipelineInput& base) {
     const auto start = std::chrono::steady_clock::now();
     const SelfCalibrateConfig& sc = cfg.self_calibration;
-    if (Status s = calibration::validate(sc.estimate); !s.isOk()) return s;
     SourceOptions raw_options = o.source_options;
     raw_options.depth_calibration = "none";
     const std::filesystem::path raw_dir = o.out / "self_calibration" / "raw";
@@ -346,7 +331,7 @@ Result<backend::PipelineResult> selfCalibratedRun(const std::string& uri, const 
 int runReconstruct(const std::vector<std::string>& arguments) {
     std::vector<std::string> args = arguments;
     Result<config::ConfigArgs> config_args = config::extractConfigArgs(args);
-    if (!config_args.isOk()) return usageError(config_args.status().message());
+    if (!config_args.isOk()) return usageError(kCommand, config_args.status().message());
     Options o;
     for (size_t i = 0; i < args.size(); ++i) {
         const std::string& a = args[i];
@@ -360,7 +345,7 @@ int runReconstruct(const std::vector<std::string>& arguments) {
             std::cout << kUsage;
             return kExitOk;
         } else if (a == "--out") {
-            if (!value(&v)) return usageError("--out needs a folder");
+            if (!value(&v)) return usageError(kCommand, "--out needs a folder");
             o.out = v;
         } else if (a == "--no-layout") {
             o.no_layout = true;
@@ -369,57 +354,59 @@ int runReconstruct(const std::vector<std::string>& arguments) {
         } else if (a == "--frames") {
             if (!value(&v) || !parseNumber(v, &o.source_options.max_frames) ||
                 o.source_options.max_frames == 0)
-                return usageError("--frames needs a positive integer");
+                return usageError(kCommand, "--frames needs a positive integer");
         } else if (a == "--intrinsics") {
             if (!value(&o.source_options.intrinsics))
-                return usageError("--intrinsics needs a preset or a file");
+                return usageError(kCommand, "--intrinsics needs a preset or a file");
         } else if (a == "--depth-scale") {
             if (!value(&v) || !parseNumber(v, &o.source_options.depth_scale) ||
                 !(o.source_options.depth_scale > 0))
-                return usageError("--depth-scale needs a positive number");
+                return usageError(kCommand, "--depth-scale needs a positive number");
         } else if (a == "--seed") {
             if (!value(&v) || !parseNumber(v, &o.source_options.seed))
-                return usageError("--seed needs a non-negative integer");
+                return usageError(kCommand, "--seed needs a non-negative integer");
         } else if (a == "--depth-calibration") {
             if (!value(&o.source_options.depth_calibration))
-                return usageError("--depth-calibration needs a value");
+                return usageError(kCommand, "--depth-calibration needs a value");
             if (Status s = checkDepthCalibration(o.source_options.depth_calibration); !s.isOk())
-                return usageError(s.message());
+                return usageError(kCommand, s.message());
             o.depth_calibration_given = true;
         } else if (a == "--self-calibrate") {
             o.self_calibrate = true;
         } else if (a == "--no-colour") {
             o.source_options.colour = false;
         } else if (a == "--noise") {
-            if (!value(&o.source_options.sim_noise)) return usageError("--noise needs a mode");
+            if (!value(&o.source_options.sim_noise))
+                return usageError(kCommand, "--noise needs a mode");
             if (Status s = sim::checkNoiseMode(o.source_options.sim_noise); !s.isOk())
-                return usageError(s.message());
+                return usageError(kCommand, s.message());
         } else if (a == "--gt") {
-            if (!value(&v)) return usageError("--gt needs a folder");
+            if (!value(&v)) return usageError(kCommand, "--gt needs a folder");
             o.gt_dir = v;
         } else if (a == "--no-gt") {
             o.no_gt = true;
         } else if (a == "--threads") {
             if (!value(&v) || !parseNumber(v, &o.threads) || o.threads < 1)
-                return usageError("--threads needs a positive integer");
+                return usageError(kCommand, "--threads needs a positive integer");
         } else if (a == "--quiet") {
             o.quiet = true;
         } else if (!a.empty() && a[0] == '-') {
-            return usageError("unknown option " + a);
+            return usageError(kCommand, "unknown option " + a);
         } else if (o.source.empty()) {
             o.source = a;
         } else {
-            return usageError("more than one source given: " + o.source + " and " + a);
+            return usageError(kCommand, "more than one source given: " + o.source + " and " + a);
         }
     }
-    if (o.source.empty()) return usageError("no source given");
-    if (o.out.empty()) return usageError("--out is required");
+    if (o.source.empty()) return usageError(kCommand, "no source given");
+    if (o.out.empty()) return usageError(kCommand, "--out is required");
     if (o.self_calibrate && o.depth_calibration_given)
         return usageError(
-            "--self-calibrate learns the depth calibration: drop --depth-calibration");
+            kCommand, "--self-calibrate learns the depth calibration: drop --depth-calibration");
 
     ReconstructConfig cfg;
-    if (Status s = config::load(*config_args, cfg); !s.isOk()) return failure(s);
+    if (Status s = config::load(*config_args, cfg); !s.isOk())
+        return usageError(kCommand, s.message());
     if (o.no_layout) cfg.pipeline.use_layout = false;
     if (o.no_baseline) cfg.pipeline.compare_baseline = false;
     std::optional<tbb::global_control> threads;
@@ -430,12 +417,17 @@ int runReconstruct(const std::vector<std::string>& arguments) {
 
     const std::string uri = normaliseUri(o.source);
     if (!o.source_options.sim_noise.empty() && uri.rfind("sim:", 0) != 0) {
-        return usageError("--noise applies to sim: sources only");
+        return usageError(kCommand, "--noise applies to sim: sources only");
     }
+    if (Status s = checkSourceArguments(uri, o.source_options); !s.isOk())
+        return usageError(kCommand, s.message());
+    if (Status s = calibration::validate(cfg.self_calibration.estimate);
+        o.self_calibrate && !s.isOk())
+        return usageError(kCommand, s.message());
     SourceOptions first_options = o.source_options;
     if (o.self_calibrate) first_options.depth_calibration = "none";
     Result<std::unique_ptr<FrameSource>> source = openFrameSource(uri, first_options);
-    if (!source.isOk()) return failure(source.status());
+    if (!source.isOk()) return failure(kCommand, source.status());
     log::info("reconstructing {} into {}{}", (*source)->description(), o.out.string(),
               o.self_calibrate ? ", self-calibrating the depth" : "");
 
@@ -445,13 +437,13 @@ int runReconstruct(const std::vector<std::string>& arguments) {
     if (!o.no_gt) {
         if (const auto* sim = dynamic_cast<const sim::SimSource*>(&(*source)->underlying())) {
             Result<backend::GroundTruth> gt = simGroundTruth(*sim);
-            if (!gt.isOk()) return failure(gt.status());
+            if (!gt.isOk()) return failure(kCommand, gt.status());
             base.ground_truth = std::move(*gt);
         } else {
             const std::filesystem::path dir =
                 o.gt_dir ? *o.gt_dir : std::filesystem::path(uri.substr(uri.find(':') + 1));
             Result<backend::GroundTruth> gt = backend::loadGroundTruth(dir);
-            if (!gt.isOk()) return failure(gt.status());
+            if (!gt.isOk()) return failure(kCommand, gt.status());
             base.ground_truth = std::move(*gt);
         }
     }
@@ -462,7 +454,7 @@ int runReconstruct(const std::vector<std::string>& arguments) {
         o.self_calibrate
             ? selfCalibratedRun(uri, o, cfg, base)
             : reconstructOnce(uri, o.source_options, cfg, cfg.pipeline, base, o.out, o.quiet);
-    if (!result.isOk()) return failure(result.status());
+    if (!result.isOk()) return failure(kCommand, result.status());
     if (o.self_calibrate) {
         const nlohmann::json& sc = result->metrics["self_calibration"];
         const nlohmann::json before = sc.value("before", nlohmann::json::object());
