@@ -310,7 +310,8 @@ Result<io::Trajectory> generateTrajectory(const Scene& scene, const TrajectoryCo
         T.translation() = Eigen::Vector3d(xy.x() + shake_pos[0](t), xy.y() + shake_pos[1](t),
                                           z + shake_pos[2](t));
         const Eigen::Vector3d rot(shake_rot[0](t), shake_rot[1](t), shake_rot[2](t));
-        T.linear() = cameraRotation(yaw, pitch, 0.0) * lie::expSO3(rot);
+        const double roll = cfg.roll_sway_deg * kDeg * std::sin(2 * kPi * t / 8.0);
+        T.linear() = cameraRotation(yaw, pitch, roll) * lie::expSO3(rot);
         out.push_back({t, T});
     }
     return out;

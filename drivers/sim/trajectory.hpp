@@ -51,6 +51,10 @@ struct TrajectoryConfig {
     /// Mean pitch (negative = down) and the amplitude of its slow sway, degrees.
     double pitch_deg = -8.0;
     double pitch_sway_deg = 10.0;
+    /// Amplitude of a slow roll about the optical axis (period 8 s), degrees; 0 keeps the camera
+    /// level. A camera turned about its axis sees the image-fixed depth distortion along
+    /// changing directions of the room (what self-calibration needs to tell it from the path).
+    double roll_sway_deg = 0.0;
     /// Hand-shake amplitudes (per axis, sum of three sinusoids at 0.5-2 Hz): position, metres;
     /// rotation, degrees.
     double shake_position_m = 0.003;

@@ -122,6 +122,31 @@ TEST(SimTrajectory, SeededAndDeterministic) {
     EXPECT_LT(diff_ac, 0.02);  // on the same path (shake of a few millimetres)
 }
 
+TEST(SimTrajectory, RollSwayTurnsTheCameraAboutItsAxisAndLeavesThePathAlone) {
+    const Scene scene = *builtinScene("living_room");
+    TrajectoryConfig config;
+    config.num_frames = 300;
+    const io::Trajectory level = *generateTrajectory(scene, config);
+    config.roll_sway_deg = 40.0;
+    const io::Trajectory rolled = *generateTrajectory(scene, config);
+    ASSERT_EQ(level.size(), rolled.size());
+    double max_roll_deg = 0.0, max_axis_change = 0.0, max_position_change = 0.0;
+    for (size_t k = 0; k < level.size(); ++k) {
+        const Eigen::Matrix3d& A = level[k].T_W_C.linear();
+        const Eigen::Matrix3d& B = rolled[k].T_W_C.linear();
+        // The image x axis of the rolled camera, seen in the level camera's image plane.
+        const Eigen::Vector3d x = A.transpose() * B.col(0);
+        max_roll_deg = std::max(max_roll_deg, std::abs(std::atan2(x.y(), x.x())) * 180.0 / M_PI);
+        max_axis_change = std::max(max_axis_change, (A.col(2) - B.col(2)).norm());
+        max_position_change =
+            std::max(max_position_change,
+                     (level[k].T_W_C.translation() - rolled[k].T_W_C.translation()).norm());
+    }
+    EXPECT_NEAR(max_roll_deg, 40.0, 1.0);  // a 10 s scan passes the sway's extremes
+    EXPECT_LT(max_axis_change, 0.02);      // the optical axis stays (up to the hand shake)
+    EXPECT_EQ(max_position_change, 0.0);   // and so does the path
+}
+
 TEST(SimTrajectory, CameraAxesFollowConventions) {
     // yaw 0, pitch 0: optical axis +x, image right -y, image down -z (world z up).
     const Eigen::Matrix3d R = cameraRotation(0.0, 0.0, 0.0);

@@ -2,6 +2,7 @@
 // `plumb sim`: renders a simulated handheld scan of a room into a TUM-layout dataset.
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <string>
@@ -28,6 +29,8 @@ constexpr const char* kUsage =
     "  --out DIR            output folder (required)\n"
     "  --frames N           number of frames (default 600)\n"
     "  --loop | --no-loop   closed loop back to the start (default) or no revisits\n"
+    "  --roll-sway DEG      the camera rolls about its optical axis by up to DEG degrees\n"
+    "                       (period 8 s; default 0: level)\n"
     "  --trajectory FILE    TUM trajectory (camera->world) instead of the generated one\n"
     "                       (default: a generated handheld walk round the room)\n"
     "  --noise MODE         off | redwood (default, measured distortion table) |\n"
@@ -102,6 +105,10 @@ int runSim(const std::vector<std::string>& args) {
             config.trajectory.loop = true;
         } else if (a == "--no-loop") {
             config.trajectory.loop = false;
+        } else if (a == "--roll-sway") {
+            if (!value(&v) || !parseNumber(v, &config.trajectory.roll_sway_deg) ||
+                std::abs(config.trajectory.roll_sway_deg) > 90.0)
+                return usageError(kCommand, "--roll-sway needs degrees in [-90, 90]");
         } else if (a == "--trajectory") {
             if (!value(&config.trajectory_file))
                 return usageError(kCommand, "--trajectory needs a file");
