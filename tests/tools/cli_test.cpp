@@ -140,6 +140,41 @@ bool takesValue(const std::string& block) {
     return std::isupper(static_cast<unsigned char>(c)) != 0;
 }
 
+TEST(PlumbCli, ReconstructChecksItsOutputFolderBeforeAnyWork) {
+    const fs::path dir = testing::freshTempDir("plumb_cli_reconstruct_out");
+    if (!hasBackend(dir)) GTEST_SKIP() << "built without the backend";
+    const fs::path file = dir / "a_file";
+    std::ofstream(file) << "not a folder\n";
+    for (const fs::path& out : {file, file / "below_a_file"}) {
+        const ProcessRun run = plumb(
+            dir, "reconstruct",
+            {"sim:living_room", "--intrinsics", "ci", "--frames", "20", "--out", out.string()});
+        EXPECT_EQ(run.exit_code, 2) << run.err;
+        EXPECT_TRUE(contains(run.err, "--out " + out.string())) << run.err;
+        EXPECT_FALSE(contains(run.err, "fragments fused")) << "checked before tracking:\n"
+                                                           << run.err;
+    }
+    EXPECT_EQ(slurp(file), "not a folder\n");
+}
+
+TEST(PlumbCli, ReconstructFrameStepFusesEveryXthFrameLikeFuse) {
+    const fs::path dir = testing::freshTempDir("plumb_cli_reconstruct_step");
+    if (!hasBackend(dir)) GTEST_SKIP() << "built without the backend";
+    const fs::path out = dir / "out";
+    const ProcessRun run =
+        plumb(dir, "reconstruct",
+              {"sim:living_room", "--intrinsics", "ci", "--frames", "60", "--frame-step", "2.5",
+               "--no-baseline", "--no-gt", "--quiet", "--out", out.string()});
+    ASSERT_EQ(run.exit_code, 0) << run.err;
+    // Frames floor(2.5 j) < 60: j = 0..23. metrics.json counts the frames of the fragments.
+    const std::string metrics = slurp(out / "metrics.json");
+    EXPECT_TRUE(contains(metrics, "\"frames\": 24")) << metrics.substr(0, 400);
+    const ProcessRun bad = plumb(dir, "reconstruct",
+                                 {"sim:living_room", "--frame-step", "0.5", "--out", out.string()});
+    EXPECT_EQ(bad.exit_code, 2);
+    EXPECT_TRUE(contains(bad.err, "--frame-step needs a number >= 1")) << bad.err;
+}
+
 TEST(PlumbCli, HelpIsCompleteExitsZeroAndStatesEveryDefault) {
     const fs::path logs = testing::freshTempDir("plumb_cli_help");
     const ProcessRun top = plumb(logs, "--help");

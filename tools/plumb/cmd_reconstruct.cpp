@@ -7,7 +7,9 @@
 #include <tbb/global_control.h>
 
 #include <chrono>
+#include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -95,6 +97,9 @@ constexpr const char* kUsage =
     "  --no-layout        the Choi-style baseline only (registration without layout)\n"
     "  --no-baseline      do not also compute the baseline for comparison\n"
     "  --frames N         use the first N frames only\n"
+    "  --frame-step X     fuse only frames floor(j X), j = 0, 1, ... (X >= 1, may be\n"
+    "                     fractional), as a device keeping up with 1/X of the sensor rate\n"
+    "                     (default 1)\n"
     "  --intrinsics X     camera preset or intrinsics file (default: detected)\n"
     "  --depth-scale S    depth units per metre (default: the dataset's)\n"
     "  --seed S           seed of the simulator (default 1)\n"
@@ -136,6 +141,8 @@ struct Options {
     bool no_gt = false;
     bool self_calibrate = false;
     bool depth_calibration_given = false;
+    /// Fuse source frame floor(j * frame_step) for j = 0, 1, ... only.
+    double frame_step = 1.0;
     int threads = 0;
     bool quiet = false;
 };
@@ -162,7 +169,7 @@ Result<backend::GroundTruth> simGroundTruth(const sim::SimSource& sim) {
 /// Runs the device's tracking and fusion over a whole source. Empty fragments (a tracking loss
 /// on the first frame of a fragment) are dropped and the rest renumbered 0..n-1.
 Result<std::vector<Fragment>> fuseSource(FrameSource& source, const device::FusionConfig& config,
-                                         bool quiet) {
+                                         double frame_step, bool quiet) {
     device::FragmentBuilder builder(source.camera(), config);
     std::vector<Fragment> fragments;
     ProgressOptions po;
@@ -170,12 +177,19 @@ Result<std::vector<Fragment>> fuseSource(FrameSource& source, const device::Fusi
     po.unit = "frames";
     Progress progress("tracking and fusing", source.size().value_or(0), po);
     size_t lost = 0;
+    size_t read = 0, fused = 0;  // source frames read, frames fused (--frame-step)
     for (;;) {
         Result<Frame> frame = source.next();
         if (!frame.isOk()) {
             if (frame.status().code() == StatusCode::kOutOfRange) break;
             return frame.status();
         }
+        const size_t position = read++;
+        if (position != static_cast<size_t>(std::floor(static_cast<double>(fused) * frame_step))) {
+            progress.advance();
+            continue;  // dropped, as a device that keeps up with 1 / frame_step of the rate
+        }
+        ++fused;
         Result<device::FrameReport> report = builder.process(*frame);
         if (!report.isOk()) return report.status();
         if (!report->tracked) ++lost;
@@ -199,27 +213,45 @@ Result<std::vector<Fragment>> fuseSource(FrameSource& source, const device::Fusi
     return kept;
 }
 
+/// Creates `out` (when missing) and checks that a file can be written into it, before any work.
+Status prepareOutputFolder(const std::filesystem::path& out) {
+    std::error_code ec;
+    if (std::filesystem::exists(out, ec) && !std::filesystem::is_directory(out, ec)) {
+        return invalidArgument(fmt::format("--out {}: exists and is not a folder", out.string()));
+    }
+    std::filesystem::create_directories(out, ec);
+    if (ec) return ioError(fmt::format("--out {}: cannot create: {}", out.string(), ec.message()));
+    const std::filesystem::path probe = out / ".plumb-write-test";
+    {
+        std::ofstream f(probe);
+        if (!(f << "plumb\n")) {
+            return ioError(fmt::format("--out {}: cannot write into it", out.string()));
+        }
+    }
+    std::filesystem::remove(probe, ec);
+    return Status::ok();
+}
+
 Status prefixed(const Status& status, const std::string& stage) {
     return Status(status.code(), stage + ": " + status.message());
 }
 
 /// Fusion of the source read with `source_options` into fragments, then the backend into `out`.
-Result<backend::PipelineResult> reconstructOnce(const std::string& uri,
-                                                const SourceOptions& source_options,
-                                                const ReconstructConfig& cfg,
-                                                const backend::PipelineConfig& pipeline,
-                                                backend::PipelineInput input,
-                                                const std::filesystem::path& out, bool quiet) {
+Result<backend::PipelineResult> reconstructOnce(
+    const std::string& uri, const SourceOptions& source_options, const ReconstructConfig& cfg,
+    const backend::PipelineConfig& pipeline, backend::PipelineInput input,
+    const std::filesystem::path& out, const Options& options) {
     Result<std::unique_ptr<FrameSource>> source = openFrameSource(uri, source_options);
     if (!source.isOk()) return source.status();
-    Result<std::vector<Fragment>> fragments = fuseSource(**source, cfg.fusion, quiet);
+    Result<std::vector<Fragment>> fragments =
+        fuseSource(**source, cfg.fusion, options.frame_step, options.quiet);
     if (!fragments.isOk()) return fragments.status();
     input.fragments = std::move(*fragments);
     log::info("{} fragments fused", input.fragments.size());
     input.open_raw_frames = [uri, source_options]() {
         return openFrameSource(uri, source_options);
     };
-    return backend::runPipeline(input, pipeline, out, !quiet);
+    return backend::runPipeline(input, pipeline, out, !options.quiet);
 }
 
 /// The accuracy figures of a run's main variant, for the self-calibration's before/after.
@@ -247,7 +279,7 @@ Result<backend::PipelineResult> selfCalibratedRun(const std::string& uri, const 
     backend::PipelineConfig first = cfg.pipeline;
     first.compare_baseline = false;
     Result<backend::PipelineResult> before =
-        reconstructOnce(uri, raw_options, cfg, first, base, raw_dir, o.quiet);
+        reconstructOnce(uri, raw_options, cfg, first, base, raw_dir, o);
     if (!before.isOk()) return prefixed(before.status(), "self-calibration, raw reconstruction");
     const double raw_seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -323,7 +355,7 @@ Result<backend::PipelineResult> selfCalibratedRun(const std::string& uri, const 
              raw_seconds}};
     SourceOptions calibrated = o.source_options;
     calibrated.depth_calibration = table_path.string();
-    return reconstructOnce(uri, calibrated, cfg, cfg.pipeline, std::move(input), o.out, o.quiet);
+    return reconstructOnce(uri, calibrated, cfg, cfg.pipeline, std::move(input), o.out, o);
 }
 
 }  // namespace
@@ -371,6 +403,9 @@ int runReconstruct(const std::vector<std::string>& arguments) {
             if (Status s = checkDepthCalibration(o.source_options.depth_calibration); !s.isOk())
                 return usageError(kCommand, s.message());
             o.depth_calibration_given = true;
+        } else if (a == "--frame-step") {
+            if (!value(&v) || !parseNumber(v, &o.frame_step) || !(o.frame_step >= 1.0))
+                return usageError(kCommand, "--frame-step needs a number >= 1");
         } else if (a == "--self-calibrate") {
             o.self_calibrate = true;
         } else if (a == "--no-colour") {
@@ -424,6 +459,7 @@ int runReconstruct(const std::vector<std::string>& arguments) {
     if (Status s = calibration::validate(cfg.self_calibration.estimate);
         o.self_calibrate && !s.isOk())
         return usageError(kCommand, s.message());
+    if (Status s = prepareOutputFolder(o.out); !s.isOk()) return usageError(kCommand, s.message());
     SourceOptions first_options = o.source_options;
     if (o.self_calibrate) first_options.depth_calibration = "none";
     Result<std::unique_ptr<FrameSource>> source = openFrameSource(uri, first_options);
@@ -453,7 +489,7 @@ int runReconstruct(const std::vector<std::string>& arguments) {
     Result<backend::PipelineResult> result =
         o.self_calibrate
             ? selfCalibratedRun(uri, o, cfg, base)
-            : reconstructOnce(uri, o.source_options, cfg, cfg.pipeline, base, o.out, o.quiet);
+            : reconstructOnce(uri, o.source_options, cfg, cfg.pipeline, base, o.out, o);
     if (!result.isOk()) return failure(kCommand, result.status());
     if (o.self_calibrate) {
         const nlohmann::json& sc = result->metrics["self_calibration"];
