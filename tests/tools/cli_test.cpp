@@ -4,14 +4,17 @@
 // work, help is complete and exits 0, --log-level works before and after the command, and a
 // damaged image gets plumb's message only (no raw "libpng error" line).
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
+#include <Eigen/Core>
 #include <algorithm>
 #include <cctype>
 #include <fstream>
 #include <string>
 #include <vector>
 
+#include "common/io/trajectory.hpp"
 #include "tests/testing/run_program.hpp"
 #include "tests/testing/shared_data.hpp"
 
@@ -173,6 +176,40 @@ TEST(PlumbCli, ReconstructFrameStepFusesEveryXthFrameLikeFuse) {
                                  {"sim:living_room", "--frame-step", "0.5", "--out", out.string()});
     EXPECT_EQ(bad.exit_code, 2);
     EXPECT_TRUE(contains(bad.err, "--frame-step needs a number >= 1")) << bad.err;
+}
+
+TEST(PlumbCli, ReconstructScoresThePosesADatasetReadsWithItsFrames) {
+    const fs::path dir = testing::freshTempDir("plumb_cli_reconstruct_7scenes");
+    if (!hasBackend(dir)) GTEST_SKIP() << "built without the backend";
+    // A 7-Scenes folder (a .pose.txt per frame, no trajectory file) made from a simulated scan.
+    const fs::path sim = dir / "sim", scenes = dir / "seven_scenes";
+    const ProcessRun made = plumb(dir, "sim",
+                                  {"living_room", "--intrinsics", "ci", "--frames", "40",
+                                   "--no-rgb", "--no-gray", "--out", sim.string()});
+    ASSERT_EQ(made.exit_code, 0) << made.err;
+    Result<io::Trajectory> truth = io::readTumTrajectory(sim / "groundtruth.txt");
+    ASSERT_TRUE(truth.isOk()) << truth.status().toString();
+    ASSERT_EQ(truth->size(), 40u);
+    fs::create_directories(scenes);
+    for (size_t k = 0; k < truth->size(); ++k) {
+        const std::string stem = fmt::format("frame-{:06d}", k);
+        fs::copy_file(sim / "depth" / fmt::format("{:05d}.png", k), scenes / (stem + ".depth.png"));
+        const Eigen::Matrix4d T = (*truth)[k].T_W_C.matrix();
+        std::ofstream pose(scenes / (stem + ".pose.txt"));
+        for (int r = 0; r < 4; ++r) {
+            pose << fmt::format("{:.17g} {:.17g} {:.17g} {:.17g}\n", T(r, 0), T(r, 1), T(r, 2),
+                                T(r, 3));
+        }
+    }
+    const fs::path out = dir / "out";
+    const ProcessRun run = plumb(
+        dir, "reconstruct",
+        {scenes.string(), "--intrinsics", "ci", "--no-baseline", "--quiet", "--out", out.string()});
+    ASSERT_EQ(run.exit_code, 0) << run.err;
+    EXPECT_FALSE(contains(run.out, "no ground truth to measure against")) << run.out;
+    EXPECT_TRUE(contains(run.out, "ATE RMSE")) << run.out;
+    const std::string metrics = slurp(out / "metrics.json");
+    EXPECT_TRUE(contains(metrics, "the poses read with 40 frames")) << metrics.substr(0, 600);
 }
 
 TEST(PlumbCli, HelpIsCompleteExitsZeroAndStatesEveryDefault) {

@@ -22,6 +22,7 @@
 #include "common/config/registry.hpp"
 #include "common/core/logging.hpp"
 #include "common/core/progress.hpp"
+#include "common/io/trajectory.hpp"
 #include "common/layout/layout.hpp"
 #include "device/fusion/fragment_builder.hpp"
 #include "device/fusion/fusion_config.hpp"
@@ -169,7 +170,8 @@ Result<backend::GroundTruth> simGroundTruth(const sim::SimSource& sim) {
 /// Runs the device's tracking and fusion over a whole source. Empty fragments (a tracking loss
 /// on the first frame of a fragment) are dropped and the rest renumbered 0..n-1.
 Result<std::vector<Fragment>> fuseSource(FrameSource& source, const device::FusionConfig& config,
-                                         double frame_step, bool quiet) {
+                                         double frame_step, bool quiet,
+                                         io::Trajectory* poses_read) {
     device::FragmentBuilder builder(source.camera(), config);
     std::vector<Fragment> fragments;
     ProgressOptions po;
@@ -184,6 +186,7 @@ Result<std::vector<Fragment>> fuseSource(FrameSource& source, const device::Fusi
             if (frame.status().code() == StatusCode::kOutOfRange) break;
             return frame.status();
         }
+        if (frame->T_W_C_gt) poses_read->push_back({frame->timestamp_s, *frame->T_W_C_gt});
         const size_t position = read++;
         if (position != static_cast<size_t>(std::floor(static_cast<double>(fused) * frame_step))) {
             progress.advance();
@@ -243,9 +246,18 @@ Result<backend::PipelineResult> reconstructOnce(
     const std::filesystem::path& out, const Options& options) {
     Result<std::unique_ptr<FrameSource>> source = openFrameSource(uri, source_options);
     if (!source.isOk()) return source.status();
+    io::Trajectory poses_read;
     Result<std::vector<Fragment>> fragments =
-        fuseSource(**source, cfg.fusion, options.frame_step, options.quiet);
+        fuseSource(**source, cfg.fusion, options.frame_step, options.quiet, &poses_read);
     if (!fragments.isOk()) return fragments.status();
+    // Poses the source reads with its frames (7-Scenes' per-frame files, a dataset's
+    // groundtruth.txt) are scored when the folder has no trajectory file of its own.
+    if (!options.no_gt && !input.ground_truth.trajectory && !poses_read.empty()) {
+        std::string& d = input.ground_truth.description;
+        const std::string what = fmt::format("the poses read with {} frames", poses_read.size());
+        d = (d.empty() || d == "none") ? what : d + "; " + what;
+        input.ground_truth.trajectory = std::move(poses_read);
+    }
     input.fragments = std::move(*fragments);
     log::info("{} fragments fused", input.fragments.size());
     input.open_raw_frames = [uri, source_options]() {
