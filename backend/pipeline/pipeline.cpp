@@ -65,10 +65,6 @@ Status writeText(const fs::path& path, const std::string& text) {
     return Status::ok();
 }
 
-Status prefixed(const Status& status, const std::string& stage) {
-    return Status(status.code(), stage + ": " + status.message());
-}
-
 /// The pose-graph edges that survived, as the priors E_pair of the global registration.
 std::vector<global::PairPrior> pairPriors(const posegraph::PoseGraph& graph) {
     std::vector<global::PairPrior> priors;

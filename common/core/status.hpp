@@ -59,6 +59,11 @@ inline Status failedPrecondition(std::string m) {
 }
 inline Status unavailable(std::string m) { return {StatusCode::kUnavailable, std::move(m)}; }
 
+/// The same error with "<context>: " before its message (the stage or input it concerns).
+inline Status prefixed(const Status& status, const std::string& context) {
+    return {status.code(), context + ": " + status.message()};
+}
+
 /// A value or the Status that explains why there is none.
 template <typename T>
 class [[nodiscard]] Result {

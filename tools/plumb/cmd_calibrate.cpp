@@ -200,21 +200,18 @@ int runCalibrate(const std::vector<std::string>& arguments) {
     std::vector<DepthImage> depth;
     std::vector<Eigen::Isometry3d> T_W_C;
     size_t without_pose = 0;
-    for (;;) {
+    if (pose_file) {
+        Result<PosedDepth> posed = readPosedDepth(*source, *pose_file);
+        if (!posed.isOk()) return failure(kCommand, posed.status());
+        depth = std::move(posed->depth);
+        T_W_C = std::move(posed->T_W_C);
+        without_pose = posed->without_pose;
+    }
+    while (!pose_file) {
         Result<Frame> frame = source->next();
         if (!frame.isOk()) {
             if (frame.status().code() == StatusCode::kOutOfRange) break;
             return failure(kCommand, frame.status());
-        }
-        if (pose_file) {
-            const std::optional<Eigen::Isometry3d> pose = pose_file->find(*frame);
-            if (!pose) {
-                ++without_pose;
-                continue;
-            }
-            depth.push_back(std::move(frame->depth));
-            T_W_C.push_back(*pose);
-            continue;
         }
         if (!frame->T_W_C_gt) {
             return failure(

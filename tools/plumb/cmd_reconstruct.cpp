@@ -235,20 +235,15 @@ Status prepareOutputFolder(const std::filesystem::path& out) {
     return Status::ok();
 }
 
-Status prefixed(const Status& status, const std::string& stage) {
-    return Status(status.code(), stage + ": " + status.message());
-}
-
-/// Fusion of the source read with `source_options` into fragments, then the backend into `out`.
+/// Fusion of `source` (opened from `uri` with `source_options`) into fragments, then the backend
+/// into `out`.
 Result<backend::PipelineResult> reconstructOnce(
-    const std::string& uri, const SourceOptions& source_options, const ReconstructConfig& cfg,
-    const backend::PipelineConfig& pipeline, backend::PipelineInput input,
-    const std::filesystem::path& out, const Options& options) {
-    Result<std::unique_ptr<FrameSource>> source = openFrameSource(uri, source_options);
-    if (!source.isOk()) return source.status();
+    FrameSource& source, const std::string& uri, const SourceOptions& source_options,
+    const ReconstructConfig& cfg, const backend::PipelineConfig& pipeline,
+    backend::PipelineInput input, const std::filesystem::path& out, const Options& options) {
     io::Trajectory poses_read;
     Result<std::vector<Fragment>> fragments =
-        fuseSource(**source, cfg.fusion, options.frame_step, options.quiet, &poses_read);
+        fuseSource(source, cfg.fusion, options.frame_step, options.quiet, &poses_read);
     if (!fragments.isOk()) return fragments.status();
     // Poses the source reads with its frames (7-Scenes' per-frame files, a dataset's
     // groundtruth.txt) are scored when the folder has no trajectory file of its own.
@@ -277,10 +272,11 @@ nlohmann::json mainFigures(const backend::PipelineResult& r) {
     return out;
 }
 
-/// `--self-calibrate`: a reconstruction from the raw depth, the table estimated against it at
-/// its poses, and the reconstruction with the learned table into o.out.
-Result<backend::PipelineResult> selfCalibratedRun(const std::string& uri, const Options& o,
-                                                  const ReconstructConfig& cfg,
+/// `--self-calibrate`: a reconstruction from the raw depth (`raw_source`, opened without depth
+/// calibration), the table estimated against it at its poses, and the reconstruction with the
+/// learned table into o.out.
+Result<backend::PipelineResult> selfCalibratedRun(FrameSource& raw_source, const std::string& uri,
+                                                  const Options& o, const ReconstructConfig& cfg,
                                                   const backend::PipelineInput& base) {
     const auto start = std::chrono::steady_clock::now();
     const SelfCalibrateConfig& sc = cfg.self_calibration;
@@ -291,7 +287,7 @@ Result<backend::PipelineResult> selfCalibratedRun(const std::string& uri, const 
     backend::PipelineConfig first = cfg.pipeline;
     first.compare_baseline = false;
     Result<backend::PipelineResult> before =
-        reconstructOnce(uri, raw_options, cfg, first, base, raw_dir, o);
+        reconstructOnce(raw_source, uri, raw_options, cfg, first, base, raw_dir, o);
     if (!before.isOk()) return prefixed(before.status(), "self-calibration, raw reconstruction");
     const double raw_seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -302,20 +298,10 @@ Result<backend::PipelineResult> selfCalibratedRun(const std::string& uri, const 
     raw_options.colour = false;
     Result<std::unique_ptr<FrameSource>> source = openFrameSource(uri, raw_options);
     if (!source.isOk()) return source.status();
-    std::vector<DepthImage> depth;
-    std::vector<Eigen::Isometry3d> T_W_C;
-    for (int64_t k = 0;; ++k) {
-        Result<Frame> frame = (*source)->next();
-        if (!frame.isOk()) {
-            if (frame.status().code() == StatusCode::kOutOfRange) break;
-            return frame.status();
-        }
-        if (k % sc.frame_step != 0) continue;
-        const std::optional<Eigen::Isometry3d> pose = poses->find(*frame);
-        if (!pose) continue;  // not tracked
-        depth.push_back(std::move(frame->depth));
-        T_W_C.push_back(*pose);
-    }
+    Result<PosedDepth> posed = readPosedDepth(**source, *poses, sc.frame_step);
+    if (!posed.isOk()) return posed.status();
+    const std::vector<DepthImage>& depth = posed->depth;  // frames not tracked have no pose
+    const std::vector<Eigen::Isometry3d>& T_W_C = posed->T_W_C;
     log::info("self-calibration 2/3: estimating the depth distortion table from {} frames",
               depth.size());
     nlohmann::json iterations = nlohmann::json::array();
@@ -367,7 +353,10 @@ Result<backend::PipelineResult> selfCalibratedRun(const std::string& uri, const 
              raw_seconds}};
     SourceOptions calibrated = o.source_options;
     calibrated.depth_calibration = table_path.string();
-    return reconstructOnce(uri, calibrated, cfg, cfg.pipeline, std::move(input), o.out, o);
+    Result<std::unique_ptr<FrameSource>> calibrated_source = openFrameSource(uri, calibrated);
+    if (!calibrated_source.isOk()) return calibrated_source.status();
+    return reconstructOnce(**calibrated_source, uri, calibrated, cfg, cfg.pipeline,
+                           std::move(input), o.out, o);
 }
 
 }  // namespace
@@ -496,12 +485,11 @@ int runReconstruct(const std::vector<std::string>& arguments) {
         }
     }
     base.config_toml = config::toToml(cfg, "plumb reconstruct: effective configuration");
-    source->reset();  // reconstructOnce opens the source again
 
     Result<backend::PipelineResult> result =
         o.self_calibrate
-            ? selfCalibratedRun(uri, o, cfg, base)
-            : reconstructOnce(uri, o.source_options, cfg, cfg.pipeline, base, o.out, o);
+            ? selfCalibratedRun(**source, uri, o, cfg, base)
+            : reconstructOnce(**source, uri, o.source_options, cfg, cfg.pipeline, base, o.out, o);
     if (!result.isOk()) return failure(kCommand, result.status());
     if (o.self_calibrate) {
         const nlohmann::json& sc = result->metrics["self_calibration"];

@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <map>
 #include <optional>
+#include <vector>
 
 #include "common/core/status.hpp"
 #include "common/io/trajectory.hpp"
@@ -48,5 +49,16 @@ class PoseLookup {
     Key key_;
     std::map<double, Eigen::Isometry3d> poses_;
 };
+
+/// The depth of every frame_step-th frame of `source` that has a pose in `poses`, with the pose.
+struct PosedDepth {
+    std::vector<DepthImage> depth;
+    std::vector<Eigen::Isometry3d> T_W_C;
+    size_t without_pose = 0;  ///< frames taken whose pose the trajectory lacks (skipped)
+};
+
+/// Reads `source` to its end; a frame error other than the end of the stream is returned.
+Result<PosedDepth> readPosedDepth(FrameSource& source, const PoseLookup& poses,
+                                  int64_t frame_step = 1);
 
 }  // namespace plumb::tools
