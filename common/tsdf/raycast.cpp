@@ -143,6 +143,31 @@ void normalsFromNeighbours(const Eigen::Vector3f& o, const RaycastConfig& config
     });
 }
 
+/// Cell normals smoothed: each hit's normal becomes the normalised sum of the cell gradients of
+/// the hits in its 3x3 neighbourhood whose depth is within max_normal_depth_jump_m of its own
+/// (the same surface), facing the camera as before.
+void smoothCellNormals(const RaycastConfig& config, RaycastResult* out) {
+    const PointImage gradients = out->normals_V;
+    const DepthImage& depth = out->depth;
+    const int w = depth.width(), h = depth.height();
+    const float jump = config.max_normal_depth_jump_m;
+    parallelFor(config.num_threads, h, [&](int v) {
+        for (int u = 0; u < w; ++u) {
+            const float z = depth(u, v);
+            if (!(z > 0.0f)) continue;
+            Eigen::Vector3f sum = Eigen::Vector3f::Zero();
+            for (int y = std::max(0, v - 1); y <= std::min(h - 1, v + 1); ++y) {
+                for (int x = std::max(0, u - 1); x <= std::min(w - 1, u + 1); ++x) {
+                    const float zn = depth(x, y);
+                    if (zn > 0.0f && std::abs(zn - z) <= jump) sum += gradients(x, y);
+                }
+            }
+            const float len = sum.norm();
+            if (len > 0.0f) out->normals_V(u, v) = sum / len;
+        }
+    });
+}
+
 /// Nearest valid depth of `hint` under ray (u, v) of a camera `scale` times coarser, widened by
 /// `radius` hint pixels on every side; infinity when there is none.
 float nearestHint(const DepthImage& hint, int u, int v, int scale, int radius) {
@@ -237,8 +262,12 @@ RaycastResult raycast(const TsdfVolume& volume, const PinholeCamera& camera,
                         float ta = t_prev, fa = f_prev, tb = t, fb = f;
                         float ts = ta + (tb - ta) * fa / (fa - fb);
                         float fs = 0.0f;
-                        if (volume.sample(o + ts * r, w_min, &cache, &fs) == Sample::kObserved &&
-                            fs != 0.0f) {
+                        Eigen::Vector3f grad;
+                        const bool cell_normal = config.normals == RaycastNormals::kCell;
+                        const Sample refined = volume.sample(o + ts * r, w_min, &cache, &fs,
+                                                             cell_normal ? &grad : nullptr);
+                        if (cell_normal && refined != Sample::kObserved) return March::kHit;
+                        if (refined == Sample::kObserved && fs != 0.0f) {
                             if (fs > 0.0f) {
                                 ta = ts;
                                 fa = fs;
@@ -249,11 +278,10 @@ RaycastResult raycast(const TsdfVolume& volume, const PinholeCamera& camera,
                             ts = ta + (tb - ta) * fa / (fa - fb);
                         }
                         const Eigen::Vector3f hit = o + ts * r;
-                        Eigen::Vector3f grad;
-                        if (config.normals_from_neighbours) {
+                        if (config.normals == RaycastNormals::kNeighbours) {
                             out.points_V(u, v) = hit;  // normal from the neighbours, below
                             out.depth(u, v) = ts;
-                        } else if (volume.gradient(hit, w_min, &cache, &grad) &&
+                        } else if ((cell_normal || volume.gradient(hit, w_min, &cache, &grad)) &&
                                    grad.squaredNorm() > 0.0f) {
                             out.points_V(u, v) = hit;
                             out.normals_V(u, v) = grad.normalized();
@@ -308,7 +336,8 @@ RaycastResult raycast(const TsdfVolume& volume, const PinholeCamera& camera,
             march(t_begin, /*hinted=*/false);
         }
     });
-    if (config.normals_from_neighbours) normalsFromNeighbours(o, config, &out);
+    if (config.normals == RaycastNormals::kNeighbours) normalsFromNeighbours(o, config, &out);
+    if (config.normals == RaycastNormals::kCell) smoothCellNormals(config, &out);
     return out;
 }
 

@@ -45,6 +45,22 @@ inline bool neighbourNormal(const PointImage& points, const Image<float>& depth,
     return true;
 }
 
+/// The normal a raycast gives each hit.
+enum class RaycastNormals {
+    /// The TSDF gradient at the hit by central differences one voxel apart (KinectFusion §3.4):
+    /// 32 more voxels a hit.
+    kGradient,
+    /// The gradient of the trilinear interpolant in the cell of the last sample at the crossing,
+    /// from the 8 voxels that sample read (no further voxels), summed over the hits of the 3x3
+    /// pixels around whose depth is within max_normal_depth_jump_m (one cell's differences span
+    /// one voxel, the central ones two: alone they are about twice as noisy).
+    kCell,
+    /// The cross product of the neighbouring hits, (P(u+1) - P(u-1)) x (P(v+1) - P(v-1)), as for
+    /// the measured frames: the neighbours span two pixels. Hits on the image border or next to
+    /// a depth jump (max_normal_depth_jump_m) get no normal and are dropped.
+    kNeighbours,
+};
+
 struct RaycastConfig {
     /// Marching starts at this z-depth in the camera frame, metres.
     float min_depth_m = 0.1f;
@@ -66,17 +82,11 @@ struct RaycastConfig {
     int hint_hole_radius_px = 2;
     /// Voxels with a smaller weight count as unobserved.
     float min_weight = 1.0f;
-    /// Normals from the cross product of the neighbouring hits, (P(u+1) - P(u-1)) x
-    /// (P(v+1) - P(v-1)), as for the measured frames, instead of the TSDF gradient at the hit
-    /// (KinectFusion §3.4). The neighbours span two pixels where the gradient's central
-    /// differences span two voxels; on the simulated and recorded scans this tracks at least as
-    /// well (50-frame drift on living_room 1.3-1.6 mm instead of 2.6-2.8 mm) and tracking costs
-    /// a sixth less. Hits on the image border or next to a depth jump then get no normal and
-    /// are dropped. Off by default: over a whole 600-frame living_room loop the end-to-end
-    /// result came out worse with it (--no-layout ATE 3.6 cm against 2.3 cm).
-    bool normals_from_neighbours = false;
-    /// With normals_from_neighbours: a hit has no normal when a neighbour's depth differs by more
-    /// than this, metres (the frames' preprocess.max_normal_depth_jump_m).
+    /// Where the hits' normals come from (RaycastNormals).
+    RaycastNormals normals = RaycastNormals::kGradient;
+    /// With RaycastNormals::kNeighbours (kCell): a neighbour whose depth differs by more than
+    /// this, metres, is across a depth edge: no normal (not summed). The frames'
+    /// preprocess.max_normal_depth_jump_m.
     float max_normal_depth_jump_m = 0.05f;
     /// Worker threads (0 = TBB default). Results do not depend on it.
     int num_threads = 0;

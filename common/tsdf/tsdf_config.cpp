@@ -1,7 +1,18 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "common/tsdf/tsdf_config.hpp"
 
+#include <array>
+
 namespace plumb::tsdf {
+namespace {
+
+constexpr std::array<config::EnumName<RaycastNormals>, 3> kRaycastNormalNames{{
+    {RaycastNormals::kGradient, "gradient"},
+    {RaycastNormals::kCell, "cell"},
+    {RaycastNormals::kNeighbours, "neighbours"},
+}};
+
+}  // namespace
 
 void describe(config::Schema& s, TsdfConfig& c) {
     s.field("voxel_size_m", c.voxel_size_m, "voxel edge length (KinFu: 3 m / 512)", "m")
@@ -56,11 +67,16 @@ void describe(config::Schema& s, RaycastConfig& c) {
         .min(-1);
     s.field("min_weight", c.min_weight, "voxels with a smaller weight count as unobserved")
         .greaterThan(0.0);
-    s.field("normals_from_neighbours", c.normals_from_neighbours,
-            "normals from the cross product of the neighbouring hits (as for the frames) instead "
-            "of the TSDF gradient; border hits and hits next to a depth jump are dropped");
+    s.field("normals", c.normals,
+            "the hits' normals: gradient (central differences of the TSDF, 32 more voxels a "
+            "hit), cell (the trilinear interpolant's gradient from the 8 voxels of the last "
+            "sample, summed over the 3x3 neighbouring hits: no more voxels), neighbours (the cross "
+            "product of the neighbouring hits, "
+            "as for the frames; border hits and hits next to a depth jump are dropped)",
+            kRaycastNormalNames);
     s.field("max_normal_depth_jump_m", c.max_normal_depth_jump_m,
-            "with normals_from_neighbours: no normal where a neighbour's depth differs by more",
+            "with normals = neighbours or cell: a neighbour across a depth edge; no normal where a "
+            "neighbour's depth differs by more",
             "m")
         .positive();
     s.field("num_threads", c.num_threads, "worker threads (0 = all); results do not depend on it")

@@ -424,7 +424,7 @@ struct CacheFind {
 
 template <typename Find>
 Sample interpolateWith(const Eigen::Vector3f& p, float voxel_size, float min_weight, Find&& find,
-                       float* tsdf) {
+                       float* tsdf, Eigen::Vector3f* grad = nullptr) {
     const Eigen::Vector3f q = p / voxel_size;
     const Eigen::Vector3f f = q.array().floor();
     const Eigen::Vector3i g = f.cast<int>();
@@ -469,6 +469,16 @@ Sample interpolateWith(const Eigen::Vector3f& p, float voxel_size, float min_wei
     const float c0 = c00 + a.y() * (c10 - c00);
     const float c1 = c01 + a.y() * (c11 - c01);
     *tsdf = c0 + a.z() * (c1 - c0);
+    if (grad != nullptr) {
+        // The trilinear interpolant's own derivatives at p: along x the bilinear blend of the
+        // four x-edges' differences, along y that of the two y-differences of the x-blends,
+        // along z the difference of the two xy-blends.
+        const float inv_h = 1.0f / voxel_size;
+        const float dx0 = (c[1] - c[0]) + a.y() * ((c[3] - c[2]) - (c[1] - c[0]));
+        const float dx1 = (c[5] - c[4]) + a.y() * ((c[7] - c[6]) - (c[5] - c[4]));
+        const float dy = (c10 - c00) + a.z() * ((c11 - c01) - (c10 - c00));
+        *grad = Eigen::Vector3f(dx0 + a.z() * (dx1 - dx0), dy, c1 - c0) * inv_h;
+    }
     return Sample::kObserved;
 }
 
@@ -582,6 +592,11 @@ bool TsdfVolume::interpolate(const Eigen::Vector3f& p, float min_weight, float* 
 Sample TsdfVolume::sample(const Eigen::Vector3f& p, float min_weight, BlockCache* cache,
                           float* tsdf) const {
     return interpolateWith(p, config_.voxel_size_m, min_weight, CacheFind{cache}, tsdf);
+}
+
+Sample TsdfVolume::sample(const Eigen::Vector3f& p, float min_weight, BlockCache* cache,
+                          float* tsdf, Eigen::Vector3f* grad) const {
+    return interpolateWith(p, config_.voxel_size_m, min_weight, CacheFind{cache}, tsdf, grad);
 }
 
 bool TsdfVolume::gradient(const Eigen::Vector3f& p, float min_weight, Eigen::Vector3f* grad) const {

@@ -171,6 +171,10 @@ class TsdfVolume {
     /// The same, with the block lookups going through a thread's `cache` of this volume, and
     /// telling apart a missing block at p from other unobserved voxels of p's cell.
     Sample sample(const Eigen::Vector3f& p, float min_weight, BlockCache* cache, float* tsdf) const;
+    /// The same, also giving the gradient of the trilinear interpolant at p (units 1/m) from the
+    /// same 8 voxels: within one cell, the exact derivative of the sampled field.
+    Sample sample(const Eigen::Vector3f& p, float min_weight, BlockCache* cache, float* tsdf,
+                  Eigen::Vector3f* grad) const;
 
     /// Gradient of the trilinear TSDF at p by central differences one voxel apart (units 1/m),
     /// from one gather of the 32 voxels the six shifted cells read.

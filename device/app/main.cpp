@@ -267,9 +267,14 @@ int main(int argc, char** argv) {
         return 1;
     }
     const device::DeviceRunReport& r = *report;
-    log::info("frames: {} captured, {} processed, {} dropped; fragments: {} cut, {} acknowledged",
-              r.frames_captured, r.frames_processed, r.frames_dropped, r.fragments_cut,
-              r.fragments_acked);
+    const int64_t offered = r.frames_processed + r.frames_dropped;
+    log::info(
+        "frames: {} captured, {} processed ({:.0f} %), {} dropped; fragments: {} cut, {} "
+        "acknowledged",
+        r.frames_captured, r.frames_processed,
+        offered > 0 ? 100.0 * static_cast<double>(r.frames_processed) / static_cast<double>(offered)
+                    : 100.0,
+        r.frames_dropped, r.fragments_cut, r.fragments_acked);
     if (recorder != nullptr) {
         log::info("recorded {} frame(s) to {}", recorder->recorded(), record_dir);
     }

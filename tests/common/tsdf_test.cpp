@@ -260,8 +260,9 @@ TEST(TsdfVolume, ColourFollowsTheSurfaceAndLeavesTheTsdfUnchanged) {
                      .isOk());
 }
 
-TEST(TsdfVolume, TiltedPlaneSurfaceAndRaycastAreUnbiased) {
-    const PinholeCamera cam = smallCamera();
+// A tilted plane fused from 10 views of `cam`: the surface and the raycast from a further view
+// are unbiased, and the raycast's normals of each kind in `kinds` follow the plane.
+void checkTiltedPlane(const PinholeCamera& cam, const std::vector<RaycastNormals>& kinds) {
     const Plane plane{Eigen::Vector3d(0.3, -0.25, -1.0).normalized(), 1.4};
     TsdfConfig config = testConfig(3.0f / 512.0f);
     TsdfVolume volume(config);
@@ -278,12 +279,13 @@ TEST(TsdfVolume, TiltedPlaneSurfaceAndRaycastAreUnbiased) {
     const Stats s =
         distanceStats(surface, [&](const Eigen::Vector3d& p) { return plane.n.dot(p) + plane.d; });
     EXPECT_LT(s.mean, 0.25 * volume.voxelSize());
-    ::testing::Test::RecordProperty("tilted_plane_mean_mm", std::to_string(s.mean * 1e3));
 
     const Eigen::Isometry3d T_W_C = jitter(5);
-    for (const bool from_neighbours : {true, false}) {  // neighbouring hits, TSDF gradient
+    for (const RaycastNormals normals : kinds) {
+        const std::string kind = std::to_string(static_cast<int>(normals)) + " at " +
+                                 std::to_string(cam.width) + "x" + std::to_string(cam.height);
         RaycastConfig rc;
-        rc.normals_from_neighbours = from_neighbours;
+        rc.normals = normals;
         const RaycastResult ray = raycast(volume, cam, T_W_C, rc);
         double bias = 0.0, normal_err = 0.0;
         int valid = 0;
@@ -296,11 +298,26 @@ TEST(TsdfVolume, TiltedPlaneSurfaceAndRaycastAreUnbiased) {
                 ++valid;
             }
         }
-        ASSERT_GT(valid, cam.width * cam.height * 8 / 10) << from_neighbours;
-        EXPECT_LT(std::abs(bias / valid), 0.0005) << from_neighbours;
-        // Radians; the projective TSDF tilts gradients slightly.
-        EXPECT_LT(normal_err / valid, 0.03) << from_neighbours;
+        ASSERT_GT(valid, cam.width * cam.height * 8 / 10) << kind;
+        EXPECT_LT(std::abs(bias / valid), 0.0005) << kind;
+        // Radians; the projective TSDF tilts gradients slightly (at 640x480: gradient 0.007,
+        // cell 0.010, neighbours 0.011).
+        EXPECT_LT(normal_err / valid, 0.03) << kind;
     }
+}
+
+TEST(TsdfVolume, TiltedPlaneSurfaceAndRaycastAreUnbiased) {
+    // 160x120: a pixel covers 1.8 voxels at 1.4 m, and the projective distance is constant
+    // across a pixel's footprint, so one cell's gradient leans towards the ray (0.05 rad); the
+    // gradient's central differences and the neighbouring hits span more.
+    checkTiltedPlane(smallCamera(), {RaycastNormals::kNeighbours, RaycastNormals::kGradient});
+}
+
+TEST(TsdfVolume, CellNormalsFollowATiltedPlaneWhenPixelsAreFinerThanVoxels) {
+    // 640x480: a pixel covers half a voxel at 1.4 m (the device's camera and voxel).
+    checkTiltedPlane(
+        cameraPreset("primesense").value(),
+        {RaycastNormals::kNeighbours, RaycastNormals::kGradient, RaycastNormals::kCell});
 }
 
 TEST(TsdfVolume, SphereSurfacePointsAndNormals) {
@@ -344,7 +361,8 @@ std::optional<float> trilinearByVoxels(const TsdfVolume& volume, const Eigen::Ve
 TEST(TsdfVolume, InterpolationAndGradientReadTheRightVoxelsAcrossBlockFaces) {
     // Random points around an integrated sphere, many in cells that straddle block faces: the
     // interpolation equals the formula over the cell's 8 voxels bit for bit, with and without a
-    // block cache, and the gradient is the central difference of that interpolation.
+    // block cache, the gradient is the central difference of that interpolation and the cell
+    // gradient its derivative inside the cell.
     const PinholeCamera cam = smallCamera();
     const Sphere sphere{Eigen::Vector3d(0.05, -0.02, 1.2), 0.3};
     TsdfVolume volume(testConfig());
@@ -369,6 +387,23 @@ TEST(TsdfVolume, InterpolationAndGradientReadTheRightVoxelsAcrossBlockFaces) {
         straddling += (g.x() & 7) == 7 ? 1 : 0;  // the cell's x pairs span two blocks
         ASSERT_EQ(plain, *expected);
         ASSERT_EQ(cached, *expected);
+        // The cell gradient: the same value, and the derivative of the trilinear formula inside
+        // p's cell, which along one axis is linear: the difference across the cell is exact.
+        float with_grad = 0.0f;
+        Eigen::Vector3f cell_grad;
+        ASSERT_EQ(volume.sample(p, 1.0f, &cache, &with_grad, &cell_grad), Sample::kObserved);
+        ASSERT_EQ(with_grad, *expected);
+        for (int axis = 0; axis < 3; ++axis) {
+            Eigen::Vector3f lo = p, hi = p;
+            lo[axis] = (static_cast<float>(g[axis]) + 0.01f) * h;
+            hi[axis] = (static_cast<float>(g[axis]) + 0.99f) * h;
+            const std::optional<float> f_lo = trilinearByVoxels(volume, lo, 1.0f);
+            const std::optional<float> f_hi = trilinearByVoxels(volume, hi, 1.0f);
+            ASSERT_TRUE(f_lo && f_hi);
+            const float slope = (*f_hi - *f_lo) / (hi[axis] - lo[axis]);
+            ASSERT_NEAR(cell_grad[axis], slope, 1e-3f * std::max(1.0f, std::abs(slope)))
+                << "axis " << axis << " p " << p.transpose();
+        }
         Eigen::Vector3f grad, grad_cached, central;
         bool all = true;
         for (int axis = 0; axis < 3 && all; ++axis) {

@@ -168,6 +168,7 @@ TEST(MonitorState, JsonHasFragmentsEdgesLayoutDevice) {
     d.session_id = 7;
     d.fps = 29.5;
     d.tracking = messages::TrackingState::kLost;
+    d.frames_processed = 12;
     d.frames_dropped = 4;
     d.spool_fragments = 2;
     state.setDevice(d, 1000, 12);
@@ -179,6 +180,7 @@ TEST(MonitorState, JsonHasFragmentsEdgesLayoutDevice) {
     EXPECT_EQ(j["device"]["tracking"], "lost");
     EXPECT_DOUBLE_EQ(j["device"]["fps"].get<double>(), 29.5);
     EXPECT_EQ(j["device"]["frames_dropped"], 4);
+    EXPECT_DOUBLE_EQ(j["device"]["processed_fraction"].get<double>(), 0.75);  // 12 of 16
     EXPECT_EQ(j["device"]["spool_fragments"], 2);
     EXPECT_EQ(j["layout"]["room_polygon_V"].size(), 4u);
     EXPECT_EQ(j["layout"]["walls_V"].size(), 4u);

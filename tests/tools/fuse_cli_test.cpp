@@ -5,6 +5,7 @@
 // tracked with translations the depth leaves free are counted per frame and per fragment.
 
 #include <gtest/gtest.h>
+#include <algorithm>
 
 #include <nlohmann/json.hpp>
 #include <string>
@@ -39,6 +40,15 @@ TEST(PlumbFuseCli, FrameStepFusesFramesFloorOfJTimesStepAndTracksThem) {
     EXPECT_EQ(summary.at("frames").get<int>(), 10);  // floor(2.5 j) < 23: j = 0..9
     EXPECT_DOUBLE_EQ(summary.at("frame_step").get<double>(), 2.5);
     EXPECT_EQ(summary.at("frames_tracking_failed").get<int>(), 0);
+    EXPECT_EQ(summary.at("frames_read").get<int>(), 23);
+    EXPECT_DOUBLE_EQ(summary.at("processed_fraction").get<double>(), 10.0 / 23.0);
+    // The simulator's 30 Hz, from the timestamps of frames 0 and 22; what a live device as fast
+    // as this run keeps of them follows from the measured time a frame.
+    const nlohmann::json& live = summary.at("live");
+    EXPECT_NEAR(live.at("sensor_hz").get<double>(), 30.0, 1e-6);
+    const double period_ms = 1e3 / 30.0;
+    EXPECT_NEAR(live.at("keeps_fraction").get<double>(),
+                std::min(1.0, period_ms / summary.at("ms_per_frame").get<double>()), 1e-9);
 
     const nlohmann::json fragment = nlohmann::json::parse(slurp(out / "fragment_000.json"));
     std::vector<int64_t> indices;

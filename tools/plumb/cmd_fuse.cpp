@@ -19,6 +19,7 @@
 #include <numeric>
 #include <optional>
 #include <string>
+#include <thread>
 #include <unordered_map>
 #include <vector>
 
@@ -58,7 +59,10 @@ constexpr const char* kUsage =
     "                      pose relative to the previous one, rotation first; absent for a\n"
     "                      segment's first fragment), errors against ground truth\n"
     "  fragments.json      summary: source, timing, per-fragment figures, frames_photometric\n"
-    "                      (tracked RGB-D), frames_depth_only and depth_only_reasons\n"
+    "                      (tracked RGB-D), frames_depth_only and depth_only_reasons,\n"
+    "                      processed_fraction (frames fused of those read: --frame-step),\n"
+    "                      live (sensor_hz from the timestamps, keeps_fraction: the share of\n"
+    "                      the camera's frames a live device as fast as this run would process)\n"
     "  trajectory.txt      odometry (TUM, camera->world = T_W_F * T_F_C of tracked frames)\n"
     "  config.toml         the effective configuration\n"
     "With ground truth (simulator, TUM/ICL-NUIM groundtruth.txt) each fragment gets its ATE\n"
@@ -334,6 +338,8 @@ int runFuse(const std::vector<std::string>& arguments) {
     std::vector<double> ates, drifts_m, drifts_deg, medians;
     size_t frames = 0, lost = 0, relocalised = 0, segments_started = 0, budget = 0;
     double process_s = 0.0;
+    // (source position, timestamp) of the first and last frame fused: the sensor's frame period.
+    std::optional<std::pair<size_t, double>> first_stamp, last_stamp;
     ProgressOptions po;
     if (o.quiet) po.mode = ProgressOptions::Mode::kQuiet;
     po.unit = "frames";
@@ -423,6 +429,8 @@ int runFuse(const std::vector<std::string>& arguments) {
             continue;  // dropped, as a device that has no time for it
         }
         ++kept;
+        if (!first_stamp) first_stamp = std::make_pair(position, frame->timestamp_s);
+        last_stamp = std::make_pair(position, frame->timestamp_s);
         if (frame->index >= 0) {
             if (truth.T_W_C.size() <= static_cast<size_t>(frame->index)) {
                 truth.T_W_C.resize(static_cast<size_t>(frame->index) + 1);
@@ -480,7 +488,29 @@ int runFuse(const std::vector<std::string>& arguments) {
     summary["relocalisations"] = relocalised;
     summary["new_segments"] = segments_started;
     summary["block_budget_closures"] = budget;
-    summary["ms_per_frame"] = 1e3 * process_s / static_cast<double>(frames);
+    const double ms_per_frame = 1e3 * process_s / static_cast<double>(frames);
+    summary["ms_per_frame"] = ms_per_frame;
+    summary["frames_read"] = read;
+    summary["processed_fraction"] =
+        static_cast<double>(frames) / static_cast<double>(std::max<size_t>(read, 1));
+    // What a live device as fast as this run would keep of the camera's frames (it drops the
+    // frames it has no time for): all while a frame takes at most the sensor's frame period.
+    std::string realtime_text;
+    if (first_stamp && last_stamp && last_stamp->first > first_stamp->first &&
+        last_stamp->second > first_stamp->second) {
+        const double period_ms = 1e3 * (last_stamp->second - first_stamp->second) /
+                                 static_cast<double>(last_stamp->first - first_stamp->first);
+        const double keeps = std::min(1.0, period_ms / std::max(ms_per_frame, 1e-9));
+        summary["live"] = {
+            {"sensor_hz", 1e3 / period_ms},
+            {"keeps_fraction", keeps},
+            {"threads", o.threads > 0 ? static_cast<int>(o.threads)
+                                      : static_cast<int>(std::thread::hardware_concurrency())}};
+        realtime_text = fmt::format(
+            " (a live device this fast keeps {:.0f} % of a {:.0f} Hz "
+            "camera's frames)",
+            100.0 * keeps, 1e3 / period_ms);
+    }
     summary["fragments"] = fragment_list;
     auto stats = [](const std::vector<double>& v) {
         nlohmann::json s;
@@ -523,8 +553,8 @@ int runFuse(const std::vector<std::string>& arguments) {
         gt_text += fmt::format("; colour: {} frames tracked RGB-D, {} by depth only{}",
                                frames_photometric, frames_depth_only, kinds);
     }
-    log::info("{} frames -> {} fragments in {}, {:.1f} ms/frame{}", frames, fragment_list.size(),
-              o.out.string(), 1e3 * process_s / static_cast<double>(frames), gt_text);
+    log::info("{} frames -> {} fragments in {}, {:.1f} ms/frame{}{}", frames, fragment_list.size(),
+              o.out.string(), ms_per_frame, realtime_text, gt_text);
     return kExitOk;
 }
 

@@ -53,7 +53,7 @@
     box.append(dl([
       ["tracking", d.tracking, trackCls],
       ["fps", d.fps.toFixed(1)],
-      ["frames", d.frames_processed + " processed"],
+      ["frames", d.frames_processed + " processed (" + (100 * d.processed_fraction).toFixed(0) + " % of the camera's)", d.processed_fraction < 0.95 ? "badge warn" : ""],
       ["dropped", String(d.frames_dropped), d.frames_dropped > 0 ? "badge warn" : ""],
       ["fragments", d.fragments_cut + " cut, " + d.fragments_acked + " acked"],
       ["spool", d.spool_fragments + " fragments, " + fmtBytes(d.spool_bytes)],
