@@ -228,13 +228,33 @@ RaycastResult raycast(const TsdfVolume& volume, const PinholeCamera& camera,
             const float t_begin = std::max(config.min_depth_m, z_lo - voxel_dt);
             const float t_end = std::min(config.max_depth_m, z_hi + voxel_dt);
 
+            const bool cell_normal = config.normals == RaycastNormals::kCell;
+            // Records a hit at ray parameter ts; `grad` is the cell gradient near it (kCell).
+            const auto record = [&](float ts, const Eigen::Vector3f& grad) {
+                const Eigen::Vector3f hit = o + ts * r;
+                Eigen::Vector3f g = grad;
+                if (config.normals == RaycastNormals::kNeighbours) {
+                    out.points_V(u, v) = hit;  // normal from the neighbours, below
+                    out.depth(u, v) = ts;
+                } else if ((cell_normal || volume.gradient(hit, w_min, &cache, &g)) &&
+                           g.squaredNorm() > 0.0f) {
+                    out.points_V(u, v) = hit;
+                    out.normals_V(u, v) = g.normalized();
+                    out.depth(u, v) = ts;
+                }
+            };
             const auto march = [&](float t, bool hinted) {
                 float t_prev = 0.0f, f_prev = 0.0f;
                 bool prev_valid = false;
+                bool aimed = false;  // this sample is where the last one predicted the surface
                 while (t < t_end) {
                     const Eigen::Vector3f p = o + t * r;
                     float f = 0.0f;
-                    const Sample s = volume.sample(p, w_min, &cache, &f);
+                    Eigen::Vector3f grad = Eigen::Vector3f::Zero();
+                    const bool secant = config.secant_hits && aimed && prev_valid;
+                    const Sample s = volume.sample(p, w_min, &cache, &f,
+                                                   secant && cell_normal ? &grad : nullptr);
+                    aimed = false;
                     const bool allocated = s != Sample::kUnallocated;
                     const bool observed = s == Sample::kObserved;
                     if (hinted) {
@@ -257,13 +277,18 @@ RaycastResult raycast(const TsdfVolume& volume, const PinholeCamera& camera,
                         prev_valid = false;
                         continue;
                     }
+                    if (secant && f < f_prev && std::abs(f) * mu < 0.5f * vs) {
+                        // The sample aimed at the surface landed within half a voxel of it: the
+                        // secant through it and the last one is the crossing (exact where the
+                        // field is linear along the ray, as on planes).
+                        record(t - f * (t - t_prev) / (f - f_prev), grad);
+                        return March::kHit;
+                    }
                     if (prev_valid && f_prev > 0.0f && f < 0.0f) {
                         // + to - crossing: linear interpolation, then one secant refinement.
                         float ta = t_prev, fa = f_prev, tb = t, fb = f;
                         float ts = ta + (tb - ta) * fa / (fa - fb);
                         float fs = 0.0f;
-                        Eigen::Vector3f grad;
-                        const bool cell_normal = config.normals == RaycastNormals::kCell;
                         const Sample refined = volume.sample(o + ts * r, w_min, &cache, &fs,
                                                              cell_normal ? &grad : nullptr);
                         if (cell_normal && refined != Sample::kObserved) return March::kHit;
@@ -277,16 +302,7 @@ RaycastResult raycast(const TsdfVolume& volume, const PinholeCamera& camera,
                             }
                             ts = ta + (tb - ta) * fa / (fa - fb);
                         }
-                        const Eigen::Vector3f hit = o + ts * r;
-                        if (config.normals == RaycastNormals::kNeighbours) {
-                            out.points_V(u, v) = hit;  // normal from the neighbours, below
-                            out.depth(u, v) = ts;
-                        } else if ((cell_normal || volume.gradient(hit, w_min, &cache, &grad)) &&
-                                   grad.squaredNorm() > 0.0f) {
-                            out.points_V(u, v) = hit;
-                            out.normals_V(u, v) = grad.normalized();
-                            out.depth(u, v) = ts;
-                        }
+                        record(ts, grad);
                         return March::kHit;
                     }
                     t_prev = t;
@@ -296,10 +312,15 @@ RaycastResult raycast(const TsdfVolume& volume, const PinholeCamera& camera,
                     // views, within two voxels) aim half a voxel past the crossing it predicts:
                     // the next sample then mostly brackets it. Elsewhere the conservative step.
                     const float predicted = f * mu;
-                    t +=
-                        f > 0.0f && predicted < 2.0f * vs
-                            ? predicted + 0.5f * voxel_dt
-                            : std::max(voxel_dt, config.step_fraction * mu * std::abs(f) * inv_len);
+                    if (f > 0.0f && predicted < 2.0f * vs) {
+                        // With secant hits aim at the crossing itself (at least a tenth of a
+                        // voxel on, so that the march always advances).
+                        t += config.secant_hits ? std::max(predicted, 0.1f * voxel_dt)
+                                                : predicted + 0.5f * voxel_dt;
+                        aimed = true;
+                    } else {
+                        t += std::max(voxel_dt, config.step_fraction * mu * std::abs(f) * inv_len);
+                    }
                 }
                 return March::kMiss;
             };

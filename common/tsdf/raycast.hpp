@@ -80,6 +80,11 @@ struct RaycastConfig {
     /// saw nothing around it; nor, from nearly the same pose, will the frame being tracked).
     /// Negative: such rays march in full, from the nearest block.
     int hint_hole_radius_px = 2;
+    /// A sample that the last one aimed at the surface (F mu within two voxels) and that lands
+    /// within half a voxel of it gives the hit by one secant step through the two, without
+    /// bracketing the crossing first and refining it: two samples a ray from a hinted start
+    /// instead of four. Exact where the field is linear along the ray.
+    bool secant_hits = false;
     /// Voxels with a smaller weight count as unobserved.
     float min_weight = 1.0f;
     /// Where the hits' normals come from (RaycastNormals).

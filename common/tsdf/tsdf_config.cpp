@@ -65,6 +65,10 @@ void describe(config::Schema& s, RaycastConfig& c) {
             "full)",
             "px")
         .min(-1);
+    s.field("secant_hits", c.secant_hits,
+            "a sample aimed at the surface by the last one that lands within half a voxel of it "
+            "gives the hit by one secant step through the two (two samples a hinted ray instead "
+            "of four)");
     s.field("min_weight", c.min_weight, "voxels with a smaller weight count as unobserved")
         .greaterThan(0.0);
     s.field("normals", c.normals,

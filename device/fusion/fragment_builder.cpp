@@ -17,9 +17,11 @@ double msSince(Clock::time_point t0) {
 }  // namespace
 
 Status FusionConfig::validate() const {
-    if (raycast_interval < 1) {
-        return invalidArgument("fusion: raycast_interval must be >= 1, got " +
-                               std::to_string(raycast_interval));
+    if (raycast_interval < 1 || raycast_interval_rgbd < 1) {
+        return invalidArgument(
+            "fusion: raycast_interval and raycast_interval_rgbd must be >= 1, "
+            "got " +
+            std::to_string(raycast_interval) + " and " + std::to_string(raycast_interval_rgbd));
     }
     if (frames_per_fragment < 1) {
         return invalidArgument("fusion: frames_per_fragment must be >= 1, got " +
@@ -170,7 +172,10 @@ Result<FrameReport> FragmentBuilder::processImpl(const Frame& frame) {
     // Model X: the open fragment's volume (X = M), or the previous one during a handover.
     const tsdf::TsdfVolume& model_volume = handover_ ? previous_volume_ : volume_;
     const Eigen::Isometry3d T_X_M = handover_ ? T_P_M_ : Eigen::Isometry3d::Identity();
-    if (model_.empty() || model_uses_ >= config_.raycast_interval) {
+    const int interval = config_.tracking.enabled && !intensity.empty()
+                             ? config_.raycast_interval_rgbd
+                             : config_.raycast_interval;
+    if (model_.empty() || model_uses_ >= interval) {
         const Clock::time_point t_raycast = Clock::now();
         T_X_P_ = T_X_M * T_M_last_;
         model_ = predictModel(model_volume, pyramid, T_X_P_, config_.raycast, config_.model_level,

@@ -147,8 +147,12 @@ void describe(config::Schema& s, FusionConfig& c) {
             "front of it) instead of from the nearest block");
     s.field("raycast_interval", c.raycast_interval,
             "frames tracked against one model raycast (1 = cast for every frame; 2 = the "
-            "prediction cast after a frame is integrated also tracks the frame after next)",
+            "prediction cast after a frame is integrated also tracks the frame after next), for "
+            "frames tracked by depth alone",
             "frames")
+        .min(1);
+    s.field("raycast_interval_rgbd", c.raycast_interval_rgbd,
+            "the same for frames tracked with colour (the photometric term)", "frames")
         .min(1);
     s.section("raycast", c.raycast, "model prediction (raycast) for tracking");
     s.section("surface", c.surface, "oriented surface points of a closed fragment");
