@@ -37,6 +37,13 @@ struct DeviceStatus {
     int64_t memory_bytes = 0;
 };
 
+/// Share of the frames offered to the device's pipeline that it processed, processed /
+/// (processed + dropped); 1 while none was offered.
+inline double processedFraction(int64_t processed, int64_t dropped) {
+    const int64_t offered = processed + dropped;
+    return offered > 0 ? static_cast<double>(processed) / static_cast<double>(offered) : 1.0;
+}
+
 plumb::device_status_t toMessage(const DeviceStatus& status, int64_t utime, int64_t seq);
 /// Corrupt for negative counters, non-finite or negative fps, unknown tracking state.
 Result<DeviceStatus> fromMessage(const plumb::device_status_t& msg);

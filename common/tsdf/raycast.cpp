@@ -185,6 +185,185 @@ float nearestHint(const DepthImage& hint, int u, int v, int scale, int radius) {
     return d;
 }
 
+/// Where a march ended: a front-face hit, nothing before t_end, or a hinted start that is not in
+/// observed free space.
+enum class March { kHit, kMiss, kBadStart };
+
+/// The ray of pixel (u, v) in the volume frame, o + t r with unit z in the camera frame: the
+/// parameter t is the camera z-depth.
+struct Ray {
+    int u = 0, v = 0;
+    Eigen::Vector3f r;
+    float inv_len = 0.0f;   ///< 1 / |r|
+    float voxel_dt = 0.0f;  ///< a voxel in units of t
+    float t_end = 0.0f;     ///< the march stops here
+};
+
+/// Marches rays from the camera centre o through a volume (§2.4) and writes their hits into a
+/// RaycastResult; const, so the rows' threads share one.
+class RayMarcher {
+  public:
+    RayMarcher(const TsdfVolume& volume, const RaycastConfig& config, const Eigen::Vector3f& o,
+               RaycastResult* out)
+        : volume_(volume),
+          config_(config),
+          o_(o),
+          out_(out),
+          vs_(volume.voxelSize()),
+          bs_(volume.blockSize()),
+          mu_(volume.config().truncation_m),
+          cell_normal_(config.normals == RaycastNormals::kCell) {}
+
+    float voxelSize() const { return vs_; }
+    float truncation() const { return mu_; }
+    const RaycastConfig& config() const { return config_; }
+
+    /// Marches `ray` from t to its end; a hinted start must lie in observed free space (F > 0).
+    March march(const Ray& ray, float t, bool hinted, BlockCache* cache) const {
+        const Eigen::Vector3f& r = ray.r;
+        float t_prev = 0.0f, f_prev = 0.0f;
+        bool prev_valid = false;
+        bool aimed = false;  // this sample is where the last one predicted the surface
+        while (t < ray.t_end) {
+            const Eigen::Vector3f p = o_ + t * r;
+            float f = 0.0f;
+            Eigen::Vector3f grad = Eigen::Vector3f::Zero();
+            const bool secant = config_.secant_hits && aimed && prev_valid;
+            const Sample s = volume_.sample(p, config_.min_weight, cache, &f,
+                                            secant && cell_normal_ ? &grad : nullptr);
+            aimed = false;
+            const bool allocated = s != Sample::kUnallocated;
+            const bool observed = s == Sample::kObserved;
+            if (hinted) {
+                if (!observed || !(f > 0.0f)) return March::kBadStart;
+                hinted = false;
+            }
+            if (!allocated) {
+                // Unallocated: jump to where the ray leaves this block.
+                t = std::max(blockExit(o_, r, p, bs_) + 1e-3f * ray.voxel_dt,
+                             t + 1e-3f * ray.voxel_dt);
+                prev_valid = false;
+                continue;
+            }
+            if (!observed) {
+                // Unobserved voxels (behind surfaces or never in view): an observed band is at
+                // least 2 mu thick along the viewing rays that made it, so mu / 2 steps cannot
+                // jump over one.
+                t += std::max(ray.voxel_dt, 0.5f * mu_ * ray.inv_len);
+                prev_valid = false;
+                continue;
+            }
+            if (secant && f < f_prev && std::abs(f) * mu_ < 0.5f * vs_) {
+                // The sample aimed at the surface landed within half a voxel of it: the secant
+                // through it and the last one is the crossing (exact where the field is linear
+                // along the ray, as on planes).
+                record(ray, t - f * (t - t_prev) / (f - f_prev), grad, cache);
+                return March::kHit;
+            }
+            if (prev_valid && f_prev > 0.0f && f < 0.0f) {
+                refineCrossing(ray, t_prev, f_prev, t, f, cache);
+                return March::kHit;
+            }
+            t_prev = t;
+            f_prev = f;
+            prev_valid = true;
+            // Near a surface in front (F mu, the projective distance of the fused views, within
+            // two voxels) aim half a voxel past the crossing it predicts: the next sample then
+            // mostly brackets it. Elsewhere the conservative step.
+            const float predicted = f * mu_;
+            if (f > 0.0f && predicted < 2.0f * vs_) {
+                // With secant hits aim at the crossing itself (at least a tenth of a voxel on,
+                // so that the march always advances).
+                t += config_.secant_hits ? std::max(predicted, 0.1f * ray.voxel_dt)
+                                         : predicted + 0.5f * ray.voxel_dt;
+                aimed = true;
+            } else {
+                t +=
+                    std::max(ray.voxel_dt, config_.step_fraction * mu_ * std::abs(f) * ray.inv_len);
+            }
+        }
+        return March::kMiss;
+    }
+
+  private:
+    /// A + to - crossing between samples (ta, fa) and (tb, fb): linear interpolation, then one
+    /// secant refinement; records the hit.
+    void refineCrossing(const Ray& ray, float ta, float fa, float tb, float fb,
+                        BlockCache* cache) const {
+        float ts = ta + (tb - ta) * fa / (fa - fb);
+        float fs = 0.0f;
+        Eigen::Vector3f grad = Eigen::Vector3f::Zero();
+        const Sample refined = volume_.sample(o_ + ts * ray.r, config_.min_weight, cache, &fs,
+                                              cell_normal_ ? &grad : nullptr);
+        if (cell_normal_ && refined != Sample::kObserved) return;
+        if (refined == Sample::kObserved && fs != 0.0f) {
+            if (fs > 0.0f) {
+                ta = ts;
+                fa = fs;
+            } else {
+                tb = ts;
+                fb = fs;
+            }
+            ts = ta + (tb - ta) * fa / (fa - fb);
+        }
+        record(ray, ts, grad, cache);
+    }
+
+    /// Records a hit at ray parameter ts; `grad` is the cell gradient near it (kCell).
+    void record(const Ray& ray, float ts, const Eigen::Vector3f& grad, BlockCache* cache) const {
+        const Eigen::Vector3f hit = o_ + ts * ray.r;
+        Eigen::Vector3f g = grad;
+        if (config_.normals == RaycastNormals::kNeighbours) {
+            out_->points_V(ray.u, ray.v) = hit;  // normal from the neighbours, afterwards
+            out_->depth(ray.u, ray.v) = ts;
+        } else if ((cell_normal_ || volume_.gradient(hit, config_.min_weight, cache, &g)) &&
+                   g.squaredNorm() > 0.0f) {
+            out_->points_V(ray.u, ray.v) = hit;
+            out_->normals_V(ray.u, ray.v) = g.normalized();
+            out_->depth(ray.u, ray.v) = ts;
+        }
+    }
+
+    const TsdfVolume& volume_;
+    const RaycastConfig& config_;
+    const Eigen::Vector3f o_;
+    RaycastResult* out_;
+    const float vs_, bs_, mu_;
+    const bool cell_normal_;
+};
+
+/// Marches `ray` from the depth this camera saw where the model was last fused (`hint`, `scale`
+/// times finer than the camera): its zero crossing lies near it, and the space in front was just
+/// carved free (z units, as the projective SDF; the nearest valid depth of the s x s hint pixels
+/// under a coarser ray). True when the ray is done: marched from a hinted start, or not to be cast
+/// at all; false when it must march in full from t_begin.
+bool marchFromHint(const RayMarcher& marcher, const Ray& ray, float t_begin, const DepthImage& hint,
+                   int scale, BlockCache* cache) {
+    const RaycastConfig& config = marcher.config();
+    const float vs = marcher.voxelSize(), mu = marcher.truncation();
+    float d = nearestHint(hint, ray.u, ray.v, scale, 0);
+    if (std::isfinite(d)) {
+        // March from close in front of it: mostly the crossing is one or two samples away.
+        // Where the model surface lies nearer than that (noise in the hint) that start is not
+        // free space, so march from one truncation and one voxel in front, and if that is not
+        // free space either, the whole ray.
+        const float t_near = d - config.hint_near_voxels * vs;
+        if (config.hint_near_voxels > 0.0f && t_near > t_begin && t_near < ray.t_end &&
+            marcher.march(ray, t_near, /*hinted=*/true, cache) != March::kBadStart) {
+            return true;
+        }
+    } else if (config.hint_hole_radius_px >= 0) {
+        // A hole in the hint: the nearest depth around it (a depth edge, a dropout) starts the
+        // march; where the hinted frame saw nothing at all around the ray, neither will the
+        // frame being tracked, and the ray is not cast.
+        d = nearestHint(hint, ray.u, ray.v, scale, config.hint_hole_radius_px);
+        if (!std::isfinite(d)) return true;
+    }
+    const float t_hint = d - (mu + vs);
+    return std::isfinite(t_hint) && t_hint > t_begin && t_hint < ray.t_end &&
+           marcher.march(ray, t_hint, /*hinted=*/true, cache) != March::kBadStart;
+}
+
 }  // namespace
 
 RaycastResult raycast(const TsdfVolume& volume, const PinholeCamera& camera,
@@ -197,9 +376,6 @@ RaycastResult raycast(const TsdfVolume& volume, const PinholeCamera& camera,
     const Eigen::Matrix3f R = T_V_C.linear().cast<float>();
     const Eigen::Vector3f o = T_V_C.translation().cast<float>();
     const float vs = volume.voxelSize();
-    const float bs = volume.blockSize();
-    const float mu = volume.config().truncation_m;
-    const float w_min = config.min_weight;
     const RangeImage ranges = blockRanges(volume, camera, T_V_C, config);
     // The hint may be finer than the camera by an integer factor (a raycast at a coarser
     // pyramid level): ray (u, v) reads hint pixel (s u, s v).
@@ -212,149 +388,26 @@ RaycastResult raycast(const TsdfVolume& volume, const PinholeCamera& camera,
             << ", not a multiple of the camera's " << camera.width << "x" << camera.height;
     }
 
-    /// Where a march ended: a front-face hit, nothing before t_end, or a hinted start that is
-    /// not in observed free space.
-    enum class March { kHit, kMiss, kBadStart };
-
+    const RayMarcher marcher(volume, config, o, &out);
     parallelFor(config.num_threads, camera.height, [&](int v) {
         BlockCache cache(volume);  // neighbouring rays mostly read the same blocks
         for (int u = 0; u < camera.width; ++u) {
             // Ray with unit z in the camera frame: the parameter t is the camera z-depth.
-            const Eigen::Vector3f r = R * camera.ray(u, v).cast<float>();
-            const float inv_len = 1.0f / r.norm();
-            const float voxel_dt = vs * inv_len;
+            Ray ray;
+            ray.u = u;
+            ray.v = v;
+            ray.r = R * camera.ray(u, v).cast<float>();
+            ray.inv_len = 1.0f / ray.r.norm();
+            ray.voxel_dt = vs * ray.inv_len;
             float z_lo = 0.0f, z_hi = 0.0f;
             if (!ranges.bounds(u, v, &z_lo, &z_hi)) continue;  // no block along this ray
-            const float t_begin = std::max(config.min_depth_m, z_lo - voxel_dt);
-            const float t_end = std::min(config.max_depth_m, z_hi + voxel_dt);
-
-            const bool cell_normal = config.normals == RaycastNormals::kCell;
-            // Records a hit at ray parameter ts; `grad` is the cell gradient near it (kCell).
-            const auto record = [&](float ts, const Eigen::Vector3f& grad) {
-                const Eigen::Vector3f hit = o + ts * r;
-                Eigen::Vector3f g = grad;
-                if (config.normals == RaycastNormals::kNeighbours) {
-                    out.points_V(u, v) = hit;  // normal from the neighbours, below
-                    out.depth(u, v) = ts;
-                } else if ((cell_normal || volume.gradient(hit, w_min, &cache, &g)) &&
-                           g.squaredNorm() > 0.0f) {
-                    out.points_V(u, v) = hit;
-                    out.normals_V(u, v) = g.normalized();
-                    out.depth(u, v) = ts;
-                }
-            };
-            const auto march = [&](float t, bool hinted) {
-                float t_prev = 0.0f, f_prev = 0.0f;
-                bool prev_valid = false;
-                bool aimed = false;  // this sample is where the last one predicted the surface
-                while (t < t_end) {
-                    const Eigen::Vector3f p = o + t * r;
-                    float f = 0.0f;
-                    Eigen::Vector3f grad = Eigen::Vector3f::Zero();
-                    const bool secant = config.secant_hits && aimed && prev_valid;
-                    const Sample s = volume.sample(p, w_min, &cache, &f,
-                                                   secant && cell_normal ? &grad : nullptr);
-                    aimed = false;
-                    const bool allocated = s != Sample::kUnallocated;
-                    const bool observed = s == Sample::kObserved;
-                    if (hinted) {
-                        // The hinted start must lie in observed free space (F > 0).
-                        if (!observed || !(f > 0.0f)) return March::kBadStart;
-                        hinted = false;
-                    }
-                    if (!allocated) {
-                        // Unallocated: jump to where the ray leaves this block.
-                        t = std::max(blockExit(o, r, p, bs) + 1e-3f * voxel_dt,
-                                     t + 1e-3f * voxel_dt);
-                        prev_valid = false;
-                        continue;
-                    }
-                    if (!observed) {
-                        // Unobserved voxels (behind surfaces or never in view): an observed
-                        // band is at least 2 mu thick along the viewing rays that made it, so
-                        // mu / 2 steps cannot jump over one.
-                        t += std::max(voxel_dt, 0.5f * mu * inv_len);
-                        prev_valid = false;
-                        continue;
-                    }
-                    if (secant && f < f_prev && std::abs(f) * mu < 0.5f * vs) {
-                        // The sample aimed at the surface landed within half a voxel of it: the
-                        // secant through it and the last one is the crossing (exact where the
-                        // field is linear along the ray, as on planes).
-                        record(t - f * (t - t_prev) / (f - f_prev), grad);
-                        return March::kHit;
-                    }
-                    if (prev_valid && f_prev > 0.0f && f < 0.0f) {
-                        // + to - crossing: linear interpolation, then one secant refinement.
-                        float ta = t_prev, fa = f_prev, tb = t, fb = f;
-                        float ts = ta + (tb - ta) * fa / (fa - fb);
-                        float fs = 0.0f;
-                        const Sample refined = volume.sample(o + ts * r, w_min, &cache, &fs,
-                                                             cell_normal ? &grad : nullptr);
-                        if (cell_normal && refined != Sample::kObserved) return March::kHit;
-                        if (refined == Sample::kObserved && fs != 0.0f) {
-                            if (fs > 0.0f) {
-                                ta = ts;
-                                fa = fs;
-                            } else {
-                                tb = ts;
-                                fb = fs;
-                            }
-                            ts = ta + (tb - ta) * fa / (fa - fb);
-                        }
-                        record(ts, grad);
-                        return March::kHit;
-                    }
-                    t_prev = t;
-                    f_prev = f;
-                    prev_valid = true;
-                    // Near a surface in front (F mu, the projective distance of the fused
-                    // views, within two voxels) aim half a voxel past the crossing it predicts:
-                    // the next sample then mostly brackets it. Elsewhere the conservative step.
-                    const float predicted = f * mu;
-                    if (f > 0.0f && predicted < 2.0f * vs) {
-                        // With secant hits aim at the crossing itself (at least a tenth of a
-                        // voxel on, so that the march always advances).
-                        t += config.secant_hits ? std::max(predicted, 0.1f * voxel_dt)
-                                                : predicted + 0.5f * voxel_dt;
-                        aimed = true;
-                    } else {
-                        t += std::max(voxel_dt, config.step_fraction * mu * std::abs(f) * inv_len);
-                    }
-                }
-                return March::kMiss;
-            };
-
-            if (hint_scale > 0) {
-                // The depth this camera saw where the model was last fused: its zero crossing
-                // lies near it, and the space in front was just carved free (z units, as the
-                // projective SDF; the nearest valid depth of the s x s hint pixels under a
-                // coarser ray).
-                float d = nearestHint(*start_hint, u, v, hint_scale, 0);
-                if (std::isfinite(d)) {
-                    // March from close in front of it: mostly the crossing is one or two
-                    // samples away. Where the model surface lies nearer than that (noise in the
-                    // hint) that start is not free space, so march from one truncation and one
-                    // voxel in front, and if that is not free space either, the whole ray.
-                    const float t_near = d - config.hint_near_voxels * vs;
-                    if (config.hint_near_voxels > 0.0f && t_near > t_begin && t_near < t_end &&
-                        march(t_near, /*hinted=*/true) != March::kBadStart) {
-                        continue;
-                    }
-                } else if (config.hint_hole_radius_px >= 0) {
-                    // A hole in the hint: the nearest depth around it (a depth edge, a dropout)
-                    // starts the march; where the hinted frame saw nothing at all around the
-                    // ray, neither will the frame being tracked, and the ray is not cast.
-                    d = nearestHint(*start_hint, u, v, hint_scale, config.hint_hole_radius_px);
-                    if (!std::isfinite(d)) continue;
-                }
-                const float t_hint = d - (mu + vs);
-                if (std::isfinite(t_hint) && t_hint > t_begin && t_hint < t_end &&
-                    march(t_hint, /*hinted=*/true) != March::kBadStart) {
-                    continue;
-                }
+            const float t_begin = std::max(config.min_depth_m, z_lo - ray.voxel_dt);
+            ray.t_end = std::min(config.max_depth_m, z_hi + ray.voxel_dt);
+            if (hint_scale > 0 &&
+                marchFromHint(marcher, ray, t_begin, *start_hint, hint_scale, &cache)) {
+                continue;
             }
-            march(t_begin, /*hinted=*/false);
+            marcher.march(ray, t_begin, /*hinted=*/false, &cache);
         }
     });
     if (config.normals == RaycastNormals::kNeighbours) normalsFromNeighbours(o, config, &out);

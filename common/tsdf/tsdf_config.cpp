@@ -75,12 +75,12 @@ void describe(config::Schema& s, RaycastConfig& c) {
             "the hits' normals: gradient (central differences of the TSDF, 32 more voxels a "
             "hit), cell (the trilinear interpolant's gradient from the 8 voxels of the last "
             "sample, summed over the 3x3 neighbouring hits: no more voxels), neighbours (the cross "
-            "product of the neighbouring hits, "
-            "as for the frames; border hits and hits next to a depth jump are dropped)",
+            "product of the neighbouring hits, as for the frames; border hits and hits next to a "
+            "depth jump are dropped)",
             kRaycastNormalNames);
     s.field("max_normal_depth_jump_m", c.max_normal_depth_jump_m,
-            "with normals = neighbours or cell: a neighbour across a depth edge; no normal where a "
-            "neighbour's depth differs by more",
+            "with normals = neighbours or cell: a neighbour whose depth differs by more is across "
+            "a depth edge (neighbours: the hit gets no normal; cell: it is not summed)",
             "m")
         .positive();
     s.field("num_threads", c.num_threads, "worker threads (0 = all); results do not depend on it")

@@ -17,6 +17,7 @@
 #include "drivers/sim/sim_source.hpp"
 #include "drivers/source.hpp"
 #include "drivers/usb/usb_devices.hpp"
+#include "messages/conversions.hpp"
 #include "messages/lcm_link.hpp"
 
 namespace {
@@ -90,22 +91,23 @@ bool parseInt64(const std::string& text, int64_t* out) {
     return true;
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-    using namespace plumb;
-    std::vector<std::string> args(argv + 1, argv + argc);
-    auto config_args = config::extractConfigArgs(args);
-    if (!config_args.isOk()) return usageError(config_args.status().message());
-
+/// The command line of plumb-device (every option but --config/--set).
+struct DeviceArgs {
     std::string source_uri, spool_dir, dump_dir, record_dir, intrinsics, sim_noise,
         depth_calibration;
-    messages::LinkOptions link_options;
-    int64_t frames = 0, session_id = 0, key_id = 1;
+    plumb::messages::LinkOptions link_options;
+    int64_t frames = 0, session_id = 0;
     bool realtime = false;
     bool colour = true;
     std::optional<double> wait_for_camera_s;
-    log::Level level = log::Level::kInfo;
+    plumb::log::Level level = plumb::log::Level::kInfo;
+};
+
+/// Parses `args` into `out`. Returns the exit status when the program is done (help, the device
+/// list: 0; a usage error: 2), nothing when it should run.
+std::optional<int> parseArguments(const std::vector<std::string>& args, DeviceArgs* out) {
+    using namespace plumb;
+    int64_t key_id = 1;
     for (size_t i = 0; i < args.size(); ++i) {
         const std::string& a = args[i];
         auto value = [&](std::string* v) {
@@ -121,87 +123,140 @@ int main(int argc, char** argv) {
             std::fputs(formatDeviceList(listDepthDevices()).c_str(), stdout);
             return 0;
         } else if (a == "--source") {
-            if (!value(&source_uri)) return usageError("--source needs a value");
+            if (!value(&out->source_uri)) return usageError("--source needs a value");
         } else if (a == "--frames") {
-            if (!value(&v) || !parseInt64(v, &frames) || frames < 0)
+            if (!value(&v) || !parseInt64(v, &out->frames) || out->frames < 0)
                 return usageError("--frames needs a count >= 0");
         } else if (a == "--intrinsics") {
-            if (!value(&intrinsics)) return usageError("--intrinsics needs a value");
+            if (!value(&out->intrinsics)) return usageError("--intrinsics needs a value");
         } else if (a == "--noise") {
-            if (!value(&sim_noise)) return usageError("--noise needs a mode");
-            if (Status s = sim::checkNoiseMode(sim_noise); !s.isOk())
+            if (!value(&out->sim_noise)) return usageError("--noise needs a mode");
+            if (Status s = sim::checkNoiseMode(out->sim_noise); !s.isOk())
                 return usageError(s.message());
         } else if (a == "--depth-calibration") {
-            if (!value(&depth_calibration)) return usageError("--depth-calibration needs a value");
-            if (Status s = checkDepthCalibration(depth_calibration); !s.isOk())
+            if (!value(&out->depth_calibration))
+                return usageError("--depth-calibration needs a value");
+            if (Status s = checkDepthCalibration(out->depth_calibration); !s.isOk())
                 return usageError(s.message());
         } else if (a == "--realtime") {
-            realtime = true;
+            out->realtime = true;
         } else if (a == "--no-colour") {
-            colour = false;
+            out->colour = false;
         } else if (a == "--wait-for-camera") {
             double seconds = 0.0;
             if (!value(&v) || !parseSeconds(v, &seconds))
                 return usageError("--wait-for-camera needs seconds >= 0 or 'forever'");
-            wait_for_camera_s = seconds;
+            out->wait_for_camera_s = seconds;
         } else if (a == "--lcm-url") {
-            if (!value(&link_options.url)) return usageError("--lcm-url needs a value");
+            if (!value(&out->link_options.url)) return usageError("--lcm-url needs a value");
         } else if (a == "--allow-remote") {
-            link_options.allow_remote = true;
+            out->link_options.allow_remote = true;
         } else if (a == "--key-file") {
             if (!value(&v)) return usageError("--key-file needs a value");
-            link_options.key_file = v;
+            out->link_options.key_file = v;
         } else if (a == "--key-id") {
             if (!value(&v) || !parseInt64(v, &key_id) || key_id < 0 || key_id > INT32_MAX)
                 return usageError("--key-id needs a non-negative 32-bit integer");
-            link_options.key_id = static_cast<int32_t>(key_id);
+            out->link_options.key_id = static_cast<int32_t>(key_id);
         } else if (a == "--spool-dir") {
-            if (!value(&spool_dir)) return usageError("--spool-dir needs a value");
+            if (!value(&out->spool_dir)) return usageError("--spool-dir needs a value");
         } else if (a == "--dump-dir") {
-            if (!value(&dump_dir)) return usageError("--dump-dir needs a value");
+            if (!value(&out->dump_dir)) return usageError("--dump-dir needs a value");
         } else if (a == "--record") {
-            if (!value(&record_dir)) return usageError("--record needs a folder");
-            if (Status st = RecordingSource::checkFolder(record_dir); !st.isOk())
+            if (!value(&out->record_dir)) return usageError("--record needs a folder");
+            if (Status st = RecordingSource::checkFolder(out->record_dir); !st.isOk())
                 return usageError(st.message());
         } else if (a == "--session-id") {
-            if (!value(&v) || !parseInt64(v, &session_id) || session_id <= 0)
+            if (!value(&v) || !parseInt64(v, &out->session_id) || out->session_id <= 0)
                 return usageError("--session-id needs a positive integer");
         } else if (a == "--log-level") {
-            if (!value(&v) || !log::parseLevel(v, &level))
+            if (!value(&v) || !log::parseLevel(v, &out->level))
                 return usageError("--log-level needs trace|debug|info|warn|error|off");
         } else {
             return usageError("unknown argument '" + a + "'");
         }
     }
-    if (source_uri.empty()) return usageError("--source is required");
-    if (!sim_noise.empty() && source_uri.rfind("sim:", 0) != 0) {
+    if (out->source_uri.empty()) return usageError("--source is required");
+    if (!out->sim_noise.empty() && out->source_uri.rfind("sim:", 0) != 0) {
         return usageError("--noise applies to sim: sources only");
     }
-    log::setupLogging("plumb-device", level);
+    return std::nullopt;
+}
+
+/// Logs what the run did and returns plumb-device's exit status: 1 when the source failed or
+/// fragments stayed unacknowledged, else 0.
+int summarise(const plumb::device::DeviceRunReport& r, const DeviceArgs& a,
+              const plumb::RecordingSource* recorder, const plumb::messages::LcmLink& link) {
+    using namespace plumb;
+    log::info(
+        "frames: {} captured, {} processed ({:.0f} %), {} dropped; fragments: {} cut, {} "
+        "acknowledged",
+        r.frames_captured, r.frames_processed,
+        100.0 * messages::processedFraction(r.frames_processed, r.frames_dropped), r.frames_dropped,
+        r.fragments_cut, r.fragments_acked);
+    if (recorder != nullptr) {
+        log::info("recorded {} frame(s) to {}", recorder->recorded(), a.record_dir);
+    }
+    if (link.authenticated() && link.authStats().rejected() > 0) {
+        log::warn("rejected {} unauthenticated message(s)", link.authStats().rejected());
+    }
+    int code = 0;
+    if (r.source_error) {
+        log::error("the source failed: {}", r.source_message);
+        code = 1;
+    }
+    if (!r.unacknowledged.empty()) {
+        if (a.spool_dir.empty()) {
+            log::error(
+                "{} fragment(s) were not acknowledged by a backend and are lost with this "
+                "process (run with --spool-dir to keep them)",
+                r.unacknowledged.size());
+        } else {
+            log::error(
+                "{} fragment(s) were not acknowledged by a backend; they stay in {} and "
+                "are sent first by the next run",
+                r.unacknowledged.size(), a.spool_dir);
+        }
+        code = 1;
+    }
+    return code;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    using namespace plumb;
+    std::vector<std::string> args(argv + 1, argv + argc);
+    auto config_args = config::extractConfigArgs(args);
+    if (!config_args.isOk()) return usageError(config_args.status().message());
+    DeviceArgs a;
+    if (const std::optional<int> exit_code = parseArguments(args, &a)) return *exit_code;
+    const std::string& source_uri = a.source_uri;
+    log::setupLogging("plumb-device", a.level);
 
     device::DeviceRunOptions options;
     if (Status s = config::load(*config_args, options.config); !s.isOk()) {
         std::fprintf(stderr, "plumb-device: %s\n", s.toString().c_str());
         return 2;
     }
-    if (!intrinsics.empty()) options.config.capture.intrinsics = intrinsics;
-    if (realtime) options.config.capture.realtime = true;
-    if (wait_for_camera_s) options.config.capture.wait_for_camera_s = *wait_for_camera_s;
+    if (!a.intrinsics.empty()) options.config.capture.intrinsics = a.intrinsics;
+    if (a.realtime) options.config.capture.realtime = true;
+    if (a.wait_for_camera_s) options.config.capture.wait_for_camera_s = *a.wait_for_camera_s;
     options.config_toml = config::toToml(options.config, "plumb-device configuration (effective)");
-    options.spool_dir = spool_dir;
-    options.dump_dir = dump_dir;
-    options.session_id = session_id > 0 ? session_id
-                                        : std::chrono::duration_cast<std::chrono::microseconds>(
-                                              std::chrono::system_clock::now().time_since_epoch())
-                                              .count();
+    options.spool_dir = a.spool_dir;
+    options.dump_dir = a.dump_dir;
+    options.session_id = a.session_id > 0 ? a.session_id
+                                          : std::chrono::duration_cast<std::chrono::microseconds>(
+                                                std::chrono::system_clock::now().time_since_epoch())
+                                                .count();
 
     SourceOptions source_options;
     source_options.intrinsics = options.config.capture.intrinsics;
-    source_options.max_frames = static_cast<size_t>(frames);
+    source_options.max_frames = static_cast<size_t>(a.frames);
     source_options.seed = options.config.capture.seed;
-    source_options.sim_noise = sim_noise;
-    source_options.depth_calibration = depth_calibration;
-    source_options.colour = colour;
+    source_options.sim_noise = a.sim_noise;
+    source_options.depth_calibration = a.depth_calibration;
+    source_options.colour = a.colour;
     struct sigaction sa {};
     sa.sa_handler = onSignal;
     sigemptyset(&sa.sa_mask);
@@ -241,8 +296,8 @@ int main(int argc, char** argv) {
     }
     source = std::move(opened).value();
     RecordingSource* recorder = nullptr;
-    if (!record_dir.empty()) {
-        auto recording = RecordingSource::create(std::move(source), record_dir);
+    if (!a.record_dir.empty()) {
+        auto recording = RecordingSource::create(std::move(source), a.record_dir);
         if (!recording.isOk()) {
             log::error("cannot record: {}", recording.status().toString());
             return 1;
@@ -251,7 +306,7 @@ int main(int argc, char** argv) {
         source = std::move(recording).value();
     }
     arrivals.attach(source.get());
-    auto link = messages::LcmLink::open(link_options);
+    auto link = messages::LcmLink::open(a.link_options);
     if (!link.isOk()) {
         log::error("{}", link.status().toString());
         return 1;
@@ -266,39 +321,5 @@ int main(int argc, char** argv) {
         log::error("{}", report.status().toString());
         return 1;
     }
-    const device::DeviceRunReport& r = *report;
-    const int64_t offered = r.frames_processed + r.frames_dropped;
-    log::info(
-        "frames: {} captured, {} processed ({:.0f} %), {} dropped; fragments: {} cut, {} "
-        "acknowledged",
-        r.frames_captured, r.frames_processed,
-        offered > 0 ? 100.0 * static_cast<double>(r.frames_processed) / static_cast<double>(offered)
-                    : 100.0,
-        r.frames_dropped, r.fragments_cut, r.fragments_acked);
-    if (recorder != nullptr) {
-        log::info("recorded {} frame(s) to {}", recorder->recorded(), record_dir);
-    }
-    if (l.authenticated() && l.authStats().rejected() > 0) {
-        log::warn("rejected {} unauthenticated message(s)", l.authStats().rejected());
-    }
-    int code = 0;
-    if (r.source_error) {
-        log::error("the source failed: {}", r.source_message);
-        code = 1;
-    }
-    if (!r.unacknowledged.empty()) {
-        if (spool_dir.empty()) {
-            log::error(
-                "{} fragment(s) were not acknowledged by a backend and are lost with this "
-                "process (run with --spool-dir to keep them)",
-                r.unacknowledged.size());
-        } else {
-            log::error(
-                "{} fragment(s) were not acknowledged by a backend; they stay in {} and "
-                "are sent first by the next run",
-                r.unacknowledged.size(), spool_dir);
-        }
-        code = 1;
-    }
-    return code;
+    return summarise(*report, a, recorder, l);
 }

@@ -19,8 +19,7 @@ double msSince(Clock::time_point t0) {
 Status FusionConfig::validate() const {
     if (raycast_interval < 1 || raycast_interval_rgbd < 1) {
         return invalidArgument(
-            "fusion: raycast_interval and raycast_interval_rgbd must be >= 1, "
-            "got " +
+            "fusion: raycast_interval and raycast_interval_rgbd must be >= 1, got " +
             std::to_string(raycast_interval) + " and " + std::to_string(raycast_interval_rgbd));
     }
     if (frames_per_fragment < 1) {
@@ -172,9 +171,8 @@ Result<FrameReport> FragmentBuilder::processImpl(const Frame& frame) {
     // Model X: the open fragment's volume (X = M), or the previous one during a handover.
     const tsdf::TsdfVolume& model_volume = handover_ ? previous_volume_ : volume_;
     const Eigen::Isometry3d T_X_M = handover_ ? T_P_M_ : Eigen::Isometry3d::Identity();
-    const int interval = config_.tracking.enabled && !intensity.empty()
-                             ? config_.raycast_interval_rgbd
-                             : config_.raycast_interval;
+    const int interval =
+        intensity.empty() ? config_.raycast_interval : config_.raycast_interval_rgbd;
     if (model_.empty() || model_uses_ >= interval) {
         const Clock::time_point t_raycast = Clock::now();
         T_X_P_ = T_X_M * T_M_last_;

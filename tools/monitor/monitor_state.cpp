@@ -401,10 +401,7 @@ json MonitorState::buildJsonLocked() const {
                        {"frames_processed", d.frames_processed},
                        {"frames_dropped", d.frames_dropped},
                        {"processed_fraction",
-                        d.frames_processed + d.frames_dropped > 0
-                            ? static_cast<double>(d.frames_processed) /
-                                  static_cast<double>(d.frames_processed + d.frames_dropped)
-                            : 1.0},
+                        messages::processedFraction(d.frames_processed, d.frames_dropped)},
                        {"fragments_cut", d.fragments_cut},
                        {"fragments_acked", d.fragments_acked},
                        {"spool_fragments", d.spool_fragments},

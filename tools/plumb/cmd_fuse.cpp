@@ -504,12 +504,11 @@ int runFuse(const std::vector<std::string>& arguments) {
         summary["live"] = {
             {"sensor_hz", 1e3 / period_ms},
             {"keeps_fraction", keeps},
-            {"threads", o.threads > 0 ? static_cast<int>(o.threads)
-                                      : static_cast<int>(std::thread::hardware_concurrency())}};
-        realtime_text = fmt::format(
-            " (a live device this fast keeps {:.0f} % of a {:.0f} Hz "
-            "camera's frames)",
-            100.0 * keeps, 1e3 / period_ms);
+            {"threads",
+             o.threads > 0 ? o.threads : static_cast<int>(std::thread::hardware_concurrency())}};
+        realtime_text =
+            fmt::format(" (a live device this fast keeps {:.0f} % of a {:.0f} Hz camera's frames)",
+                        100.0 * keeps, 1e3 / period_ms);
     }
     summary["fragments"] = fragment_list;
     auto stats = [](const std::vector<double>& v) {
