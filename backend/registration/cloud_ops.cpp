@@ -21,6 +21,10 @@ bool KdTree3::nearest(const Eigen::Vector3f& q, float max_dist_sq, uint32_t* ind
     float d = 0.0f;
     nanoflann::KNNResultSet<float, uint32_t, size_t> result(1);
     result.init(&idx, &d);
+    // Starting the search at the radius prunes every branch beyond it: most queries of a
+    // partial overlap have no neighbour within it, and an unbounded search would walk the tree
+    // far for a point it then discards (same neighbour when there is one).
+    d = std::nextafter(max_dist_sq, std::numeric_limits<float>::infinity());
     tree_->findNeighbors(result, q.data(), nanoflann::SearchParams());
     if (result.size() == 0 || d > max_dist_sq) return false;
     *index = idx;

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Eigenvalues>
+#include <limits>
 #include <numbers>
 #include <random>
 #include <set>
@@ -308,6 +309,45 @@ TEST(PairRegistration, FitRigidIsExact) {
         p.push_back(T * q.back());
     }
     EXPECT_LT((fitRigid(p, q).matrix() - T.matrix()).norm(), 1e-10);
+}
+
+TEST(PairRegistration, NearestWithinARadiusIsTheBruteForceNearest) {
+    // Points on a coarse lattice (many equidistant neighbours) plus jitter, queries inside and
+    // far outside the cloud: the bounded search must find the brute-force nearest whenever one
+    // lies within the radius, and nothing otherwise.
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<float> jitter(-0.002f, 0.002f);
+    PointCloud cloud;
+    for (int x = 0; x < 20; ++x)
+        for (int y = 0; y < 20; ++y)
+            for (int z = 0; z < 3; ++z)
+                cloud.points.emplace_back(0.05f * x + jitter(rng), 0.05f * y + jitter(rng),
+                                          0.05f * z + jitter(rng));
+    const IndexedCloud indexed{PointCloud(cloud)};
+    std::uniform_real_distribution<float> where(-0.5f, 1.5f);
+    int found = 0, missed = 0;
+    for (int k = 0; k < 4000; ++k) {
+        const Eigen::Vector3f q(where(rng), where(rng), 0.3f * where(rng));
+        for (const float radius : {0.01f, 0.03f, 0.2f}) {
+            const float r2 = radius * radius;
+            float best = std::numeric_limits<float>::infinity();
+            for (const Eigen::Vector3f& p : cloud.points)
+                best = std::min(best, (p - q).squaredNorm());
+            uint32_t index = 0;
+            float d2 = -1.0f;
+            const bool hit = indexed.nearest(q, r2, &index, &d2);
+            ASSERT_EQ(hit, best <= r2) << "query " << q.transpose() << " radius " << radius;
+            if (!hit) {
+                ++missed;
+                continue;
+            }
+            ++found;
+            EXPECT_FLOAT_EQ(d2, best);
+            EXPECT_FLOAT_EQ((cloud.points[index] - q).squaredNorm(), best);
+        }
+    }
+    EXPECT_GT(found, 1000);
+    EXPECT_GT(missed, 1000);
 }
 
 }  // namespace
