@@ -156,6 +156,16 @@ bool GlobalCloud::nearest(const Eigen::Vector3d& query, uint32_t* index,
     return true;
 }
 
+bool GlobalCloud::nearestWithin(const Eigen::Vector3d& query, double max_distance_sq,
+                                uint32_t* index, double* distance_sq) const {
+    if (points_.empty() || !tree_) return false;
+    nanoflann::KNNResultSet<double, uint32_t, size_t> result(1);
+    result.init(index, distance_sq);
+    *distance_sq = max_distance_sq;  // the search keeps only points closer than this
+    tree_->index.findNeighbors(result, query.data(), nanoflann::SearchParams());
+    return result.size() == 1 && *distance_sq < max_distance_sq;
+}
+
 Result<std::vector<GlobalCloud>> prepareClouds(const std::vector<Fragment>& fragments,
                                                const GlobalConfig& config) {
     if (!(config.voxel_size_m > 0.0)) return invalidArgument("global: voxel_size_m must be > 0");
@@ -410,7 +420,7 @@ void matchDirection(const GlobalCloud& from, const GlobalCloud& to,
         const Eigen::Vector3d query = T_to_from * from.points()[k];
         uint32_t idx = 0;
         double d_sq = 0.0;
-        if (!to.nearest(query, &idx, &d_sq) || d_sq >= max_sq) continue;
+        if (!to.nearestWithin(query, max_sq, &idx, &d_sq)) continue;
         if ((R * from.normals()[k]).dot(to.normals()[idx]) < cos_gate) continue;
         out->push_back({static_cast<uint32_t>(k), idx});
     }

@@ -180,6 +180,10 @@ class GlobalCloud {
 
     /// Nearest subsampled point to `query` (fragment frame); false when the cloud is empty.
     bool nearest(const Eigen::Vector3d& query, uint32_t* index, double* distance_sq) const;
+    /// Nearest subsampled point closer to `query` than sqrt(max_distance_sq); false when there is
+    /// none. The same point as nearest() when it is that close, found without searching beyond.
+    bool nearestWithin(const Eigen::Vector3d& query, double max_distance_sq, uint32_t* index,
+                       double* distance_sq) const;
 
   private:
     friend Result<std::vector<GlobalCloud>> prepareClouds(const std::vector<Fragment>&,

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <future>
 #include <limits>
 #include <unordered_map>
 
@@ -124,59 +125,97 @@ FinalModel finish(const tsdf::TsdfVolume& volume, const FinalModelConfig& config
 
 }  // namespace
 
-Result<FinalModel> integrateRawFrames(FrameSource& source, const std::vector<Fragment>& fragments,
-                                      const std::vector<Eigen::Isometry3d>& T_W_F,
-                                      const FinalModelConfig& config, Progress* progress) {
+namespace {
+
+Status checkVariants(const std::vector<Fragment>& fragments,
+                     const std::vector<std::vector<Eigen::Isometry3d>>& T_W_F) {
+    if (T_W_F.empty()) return invalidArgument("final model: no set of poses");
+    for (const std::vector<Eigen::Isometry3d>& T : T_W_F)
+        if (fragments.size() != T.size())
+            return invalidArgument(
+                fmt::format("{} fragments but {} poses", fragments.size(), T.size()));
+    return Status::ok();
+}
+
+std::vector<FinalModel> finishAll(const std::vector<tsdf::TsdfVolume>& volumes,
+                                  const FinalModelConfig& config, size_t frames, bool raw) {
+    std::vector<FinalModel> models;
+    for (const tsdf::TsdfVolume& volume : volumes)
+        models.push_back(finish(volume, config, frames, raw));
+    return models;
+}
+
+std::vector<tsdf::TsdfVolume> volumesFor(size_t variants, const FinalModelConfig& config) {
+    std::vector<tsdf::TsdfVolume> volumes;
+    volumes.reserve(variants);
+    for (size_t v = 0; v < variants; ++v) volumes.emplace_back(volumeConfig(config));
+    return volumes;
+}
+
+}  // namespace
+
+Result<std::vector<FinalModel>> integrateRawFrames(
+    FrameSource& source, const std::vector<Fragment>& fragments,
+    const std::vector<std::vector<Eigen::Isometry3d>>& T_W_F, const FinalModelConfig& config,
+    Progress* progress) {
     PLUMB_RETURN_IF_ERROR(config.validate());
-    if (fragments.size() != T_W_F.size())
-        return invalidArgument(
-            fmt::format("{} fragments but {} poses", fragments.size(), T_W_F.size()));
-    std::unordered_map<int64_t, Eigen::Isometry3d> pose_of;
+    PLUMB_RETURN_IF_ERROR(checkVariants(fragments, T_W_F));
+    // Frame index -> (fragment, T_F_C) of every tracked frame.
+    std::unordered_map<int64_t, std::pair<size_t, Eigen::Isometry3d>> frame_of;
     for (size_t i = 0; i < fragments.size(); ++i)
         for (const FragmentFrame& f : fragments[i].frames)
-            if (f.tracking_ok) pose_of.emplace(f.frame_index, T_W_F[i] * f.T_F_C);
-    if (pose_of.empty()) return invalidArgument("no tracked frame in any fragment");
+            if (f.tracking_ok) frame_of.emplace(f.frame_index, std::make_pair(i, f.T_F_C));
+    if (frame_of.empty()) return invalidArgument("no tracked frame in any fragment");
 
-    tsdf::TsdfVolume volume(volumeConfig(config));
+    std::vector<tsdf::TsdfVolume> volumes = volumesFor(T_W_F.size(), config);
     size_t integrated = 0;
     size_t seen = 0;
+    // The next frame is read (decoded, simulated, undistorted) while this one is integrated; one
+    // read at a time and in order, so the source sees the same calls as a plain loop.
+    std::future<Result<Frame>> next = std::async(std::launch::async, [&] { return source.next(); });
     for (;;) {
-        Result<Frame> frame = source.next();
+        Result<Frame> frame = next.get();
         if (!frame.isOk()) {
             if (frame.status().code() == StatusCode::kOutOfRange) break;
             return Status(frame.status().code(),
                           "re-integrating raw frames: " + frame.status().message());
         }
+        next = std::async(std::launch::async, [&] { return source.next(); });
         ++seen;
         if (progress) progress->advance();
-        const auto it = pose_of.find(frame->index);
-        if (it == pose_of.end()) continue;
+        const auto it = frame_of.find(frame->index);
+        if (it == frame_of.end()) continue;
         if (frame->index % config.frame_stride != 0) continue;
         // Colour of another size than the depth (a source that does not register it) is left out.
         const bool colour = !frame->colour.empty() &&
                             frame->colour.width() == frame->depth.width() &&
                             frame->colour.height() == frame->depth.height();
-        Result<tsdf::IntegrationStats> stats = volume.integrate(
-            frame->depth, source.camera(), it->second, colour ? &frame->colour : nullptr);
-        if (!stats.isOk()) return stats.status();
+        const auto& [fragment, T_F_C] = it->second;
+        for (size_t v = 0; v < volumes.size(); ++v) {
+            Result<tsdf::IntegrationStats> stats =
+                volumes[v].integrate(frame->depth, source.camera(), T_W_F[v][fragment] * T_F_C,
+                                     colour ? &frame->colour : nullptr);
+            if (!stats.isOk()) {
+                next.wait();
+                return stats.status();
+            }
+        }
         ++integrated;
     }
     if (integrated == 0)
         return failedPrecondition(fmt::format(
             "none of the {} frames of {} matches a fragment frame", seen, source.description()));
-    return finish(volume, config, integrated, true);
+    return finishAll(volumes, config, integrated, true);
 }
 
-Result<FinalModel> fuseFragmentSurfaces(const std::vector<Fragment>& fragments,
-                                        const std::vector<Eigen::Isometry3d>& T_W_F,
-                                        const PinholeCamera& camera, const FinalModelConfig& config,
-                                        Progress* progress) {
+Result<std::vector<FinalModel>> fuseFragmentSurfaces(
+    const std::vector<Fragment>& fragments,
+    const std::vector<std::vector<Eigen::Isometry3d>>& T_W_F, const PinholeCamera& camera,
+    const FinalModelConfig& config, Progress* progress) {
     PLUMB_RETURN_IF_ERROR(config.validate());
     PLUMB_RETURN_IF_ERROR(camera.validate());
-    if (fragments.size() != T_W_F.size())
-        return invalidArgument(
-            fmt::format("{} fragments but {} poses", fragments.size(), T_W_F.size()));
-    tsdf::TsdfVolume volume(volumeConfig(config));
+    PLUMB_RETURN_IF_ERROR(checkVariants(fragments, T_W_F));
+    std::vector<tsdf::TsdfVolume> volumes = volumesFor(T_W_F.size(), config);
     size_t integrated = 0;
     for (size_t i = 0; i < fragments.size(); ++i) {
         const Fragment& fragment = fragments[i];
@@ -186,15 +225,17 @@ Result<FinalModel> fuseFragmentSurfaces(const std::vector<Fragment>& fragments,
             ColourImage colour;
             const DepthImage depth = renderPointsToDepth(fragment.points_F, camera, f.T_F_C,
                                                          config.splat_radius_px, &colour);
-            Result<tsdf::IntegrationStats> stats = volume.integrate(
-                depth, camera, T_W_F[i] * f.T_F_C, colour.empty() ? nullptr : &colour);
-            if (!stats.isOk()) return stats.status();
+            for (size_t v = 0; v < volumes.size(); ++v) {
+                Result<tsdf::IntegrationStats> stats = volumes[v].integrate(
+                    depth, camera, T_W_F[v][i] * f.T_F_C, colour.empty() ? nullptr : &colour);
+                if (!stats.isOk()) return stats.status();
+            }
             ++integrated;
         }
         if (progress) progress->advance();
     }
     if (integrated == 0) return invalidArgument("no tracked frame in any fragment");
-    return finish(volume, config, integrated, false);
+    return finishAll(volumes, config, integrated, false);
 }
 
 }  // namespace plumb::backend

@@ -69,18 +69,23 @@ struct FinalModel {
     bool from_raw_frames = false;  ///< true: raw frames re-integrated; false: fragment surfaces
 };
 
-/// Re-integrates the raw frames of `source` (read from the start until it ends) at the poses of
-/// `poses` (keyed by Frame::index through `frameTrajectory`'s order: fragments' frame indices).
-/// Frames without an optimised pose are skipped. Fails when the source's frames do not match the
-/// fragments (no frame index in common).
-Result<FinalModel> integrateRawFrames(FrameSource& source, const std::vector<Fragment>& fragments,
-                                      const std::vector<Eigen::Isometry3d>& T_W_F,
-                                      const FinalModelConfig& config, Progress* progress = nullptr);
+/// Re-integrates the raw frames of `source` (read from the start until it ends, once) at the
+/// poses of every variant in `T_W_F` (one set of fragment poses per variant, e.g. the full method
+/// and the baseline; each set keyed by Frame::index through `frameTrajectory`'s order: fragments'
+/// frame indices), one volume per variant: the result has one model per variant, in order.
+/// Frames without an optimised pose are skipped. While a frame is integrated the next one is
+/// read. Fails when the source's frames do not match the fragments (no frame index in common).
+Result<std::vector<FinalModel>> integrateRawFrames(
+    FrameSource& source, const std::vector<Fragment>& fragments,
+    const std::vector<std::vector<Eigen::Isometry3d>>& T_W_F, const FinalModelConfig& config,
+    Progress* progress = nullptr);
 
-/// Fuses the fragments' surfaces through synthetic depth frames (see the file comment).
-Result<FinalModel> fuseFragmentSurfaces(const std::vector<Fragment>& fragments,
-                                        const std::vector<Eigen::Isometry3d>& T_W_F,
-                                        const PinholeCamera& camera, const FinalModelConfig& config,
-                                        Progress* progress = nullptr);
+/// Fuses the fragments' surfaces through synthetic depth frames (see the file comment), one
+/// volume per variant of `T_W_F` (as integrateRawFrames); each synthetic frame is rendered once
+/// (it lies in its fragment's frame) and integrated into every volume.
+Result<std::vector<FinalModel>> fuseFragmentSurfaces(
+    const std::vector<Fragment>& fragments,
+    const std::vector<std::vector<Eigen::Isometry3d>>& T_W_F, const PinholeCamera& camera,
+    const FinalModelConfig& config, Progress* progress = nullptr);
 
 }  // namespace plumb::backend

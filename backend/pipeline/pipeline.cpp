@@ -77,30 +77,34 @@ std::vector<global::PairPrior> pairPriors(const posegraph::PoseGraph& graph) {
     return priors;
 }
 
-Result<TriangleMesh> finalMesh(const PipelineInput& input, const std::vector<Eigen::Isometry3d>& T,
-                               const FinalModelConfig& config, const std::string& what,
-                               bool show_progress, bool* from_raw) {
+/// The final mesh of every variant of `T` (one set of fragment poses each), from one pass over
+/// the raw frames or the fragment surfaces.
+Result<std::vector<TriangleMesh>> finalMeshes(const PipelineInput& input,
+                                              const std::vector<std::vector<Eigen::Isometry3d>>& T,
+                                              const FinalModelConfig& config,
+                                              const std::string& what, bool show_progress,
+                                              bool* from_raw) {
+    Result<std::vector<FinalModel>> models = std::vector<FinalModel>{};
     if (input.open_raw_frames) {
         Result<std::unique_ptr<FrameSource>> source = input.open_raw_frames();
         if (!source.isOk()) return prefixed(source.status(), "reopening the raw frames");
         const std::optional<size_t> total = (*source)->size();
         Progress progress("re-integrating frames (" + what + ")", total.value_or(0),
                           progressOptions(show_progress));
-        Result<FinalModel> model =
-            integrateRawFrames(**source, input.fragments, T, config, &progress);
+        models = integrateRawFrames(**source, input.fragments, T, config, &progress);
         progress.finish();
-        if (!model.isOk()) return model.status();
         *from_raw = true;
-        return std::move(model->mesh);
+    } else {
+        Progress progress("fusing fragment surfaces (" + what + ")", input.fragments.size(),
+                          progressOptions(show_progress));
+        models = fuseFragmentSurfaces(input.fragments, T, input.camera, config, &progress);
+        progress.finish();
+        *from_raw = false;
     }
-    Progress progress("fusing fragment surfaces (" + what + ")", input.fragments.size(),
-                      progressOptions(show_progress));
-    Result<FinalModel> model =
-        fuseFragmentSurfaces(input.fragments, T, input.camera, config, &progress);
-    progress.finish();
-    if (!model.isOk()) return model.status();
-    *from_raw = false;
-    return std::move(model->mesh);
+    if (!models.isOk()) return models.status();
+    std::vector<TriangleMesh> meshes;
+    for (FinalModel& m : *models) meshes.push_back(std::move(m.mesh));
+    return meshes;
 }
 
 posegraph::PoseGraph withPoses(posegraph::PoseGraph graph,
@@ -280,7 +284,22 @@ Result<PipelineResult> runPipeline(const PipelineInput& input, const PipelineCon
     ReportFigures figures;
     nlohmann::json variants_json = nlohmann::json::object();
     bool from_raw = false;
-    for (const Plan& plan : plans) {
+    std::vector<TriangleMesh> meshes;
+    {
+        std::vector<std::vector<Eigen::Isometry3d>> poses;
+        std::string names;
+        for (const Plan& plan : plans) {
+            poses.push_back(*plan.T);
+            names += (names.empty() ? "" : " and ") + plan.name;
+        }
+        auto scope = timer.scope("final model (" + names + ")");
+        Result<std::vector<TriangleMesh>> m =
+            finalMeshes(input, poses, config.final_model, names, show_progress, &from_raw);
+        if (!m.isOk()) return prefixed(m.status(), "final model (" + names + ")");
+        meshes = std::move(*m);
+    }
+    for (size_t p = 0; p < plans.size(); ++p) {
+        const Plan& plan = plans[p];
         fs::create_directories(plan.dir, ec);
         if (ec)
             return ioError(fmt::format("{}: cannot create: {}", plan.dir.string(), ec.message()));
@@ -288,13 +307,7 @@ Result<PipelineResult> runPipeline(const PipelineInput& input, const PipelineCon
         v.name = plan.name;
         v.T_W_F = *plan.T;
         v.layout = *plan.layout;
-        {
-            auto scope = timer.scope("final model (" + plan.name + ")");
-            Result<TriangleMesh> mesh =
-                finalMesh(input, v.T_W_F, config.final_model, plan.name, show_progress, &from_raw);
-            if (!mesh.isOk()) return prefixed(mesh.status(), "final model (" + plan.name + ")");
-            v.mesh = std::move(*mesh);
-        }
+        v.mesh = std::move(meshes[p]);
         auto scope = timer.scope("outputs and evaluation (" + plan.name + ")");
         const posegraph::PoseGraph graph = withPoses(outcome.graph, v.T_W_F);
         const posegraph::PoseGraphReport& report =
