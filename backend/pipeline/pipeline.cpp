@@ -132,12 +132,17 @@ nlohmann::json edgeSummary(const registration::RegistrationOutcome& outcome) {
             {"pruned_edges", pruned},
             {"rejected_edges", rejected},
             {"loop_pairs_tried", s.loop_pairs_tried},
+            {"loop_pairs_skipped", s.loop_pairs_skipped},
             {"ransac_failed", s.ransac_failed},
             {"overlap_rejected", s.overlap_rejected},
             {"rotation_rejected", s.rotation_rejected},
             {"translation_rejected", s.translation_rejected},
             {"pose_graph_iterations", outcome.first.iterations + outcome.refined.iterations},
-            {"line_process_mu", outcome.refined_ran ? outcome.refined.mu : outcome.first.mu}};
+            {"line_process_mu", outcome.refined_ran ? outcome.refined.mu : outcome.first.mu},
+            {"seconds",
+             {{"pairs", outcome.pairs_seconds},
+              {"refinement", outcome.refinement_seconds},
+              {"pose_graph", outcome.optimise_seconds}}}};
 }
 
 }  // namespace

@@ -46,15 +46,56 @@ size_t KdTree3::knnWithin(const Eigen::Vector3f& q, size_t k, float radius_sq, u
     return n;
 }
 
+namespace {
+
+/// A voxel key and the point in it, sorted by key then index.
+struct Keyed {
+    std::array<int64_t, 3> key;
+    uint32_t index;
+};
+
+/// Sorts `keyed` by (key, index). When every coordinate fits in 21 bits, by one 64-bit word that
+/// orders as the triple does (each coordinate offset to be non-negative): the same order.
+void sortKeyed(std::vector<Keyed>& keyed) {
+    constexpr int64_t kHalf = int64_t{1} << 20;
+    const bool packable = std::all_of(keyed.begin(), keyed.end(), [](const Keyed& k) {
+        return std::all_of(k.key.begin(), k.key.end(),
+                           [](int64_t c) { return c >= -kHalf && c < kHalf; });
+    });
+    if (!packable) {
+        std::sort(keyed.begin(), keyed.end(), [](const Keyed& a, const Keyed& b) {
+            return a.key != b.key ? a.key < b.key : a.index < b.index;
+        });
+        return;
+    }
+    struct Packed {
+        uint64_t word;
+        uint32_t slot;
+    };
+    std::vector<Packed> packed(keyed.size());
+    for (size_t i = 0; i < keyed.size(); ++i) {
+        const auto& k = keyed[i].key;
+        packed[i] = {static_cast<uint64_t>(k[0] + kHalf) << 42 |
+                         static_cast<uint64_t>(k[1] + kHalf) << 21 |
+                         static_cast<uint64_t>(k[2] + kHalf),
+                     static_cast<uint32_t>(i)};
+    }
+    // Slots follow the points' order, so ties on the word sort by index as before.
+    std::sort(packed.begin(), packed.end(), [](const Packed& a, const Packed& b) {
+        return a.word != b.word ? a.word < b.word : a.slot < b.slot;
+    });
+    std::vector<Keyed> sorted(keyed.size());
+    for (size_t i = 0; i < packed.size(); ++i) sorted[i] = keyed[packed[i].slot];
+    keyed = std::move(sorted);
+}
+
+}  // namespace
+
 PointCloud voxelDownsample(const PointCloud& cloud, double voxel_m) {
     PointCloud out;
     const bool with_normals = cloud.hasNormals();
     const bool with_colors = cloud.hasColors();
     const double inv = 1.0 / voxel_m;
-    struct Keyed {
-        std::array<int64_t, 3> key;
-        uint32_t index;
-    };
     std::vector<Keyed> keyed;
     keyed.reserve(cloud.size());
     for (size_t i = 0; i < cloud.size(); ++i) {
@@ -65,9 +106,7 @@ PointCloud voxelDownsample(const PointCloud& cloud, double voxel_m) {
                           static_cast<int64_t>(std::floor(p.z() * inv))},
                          static_cast<uint32_t>(i)});
     }
-    std::sort(keyed.begin(), keyed.end(), [](const Keyed& a, const Keyed& b) {
-        return a.key != b.key ? a.key < b.key : a.index < b.index;
-    });
+    sortKeyed(keyed);
     out.reserve(keyed.size() / 4 + 1, with_normals, with_colors);
     size_t i = 0;
     while (i < keyed.size()) {

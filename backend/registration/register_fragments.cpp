@@ -2,6 +2,7 @@
 #include "backend/registration/register_fragments.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cstdio>
 #include <numbers>
 #include <optional>
@@ -46,6 +47,12 @@ void describe(config::Schema& s, RegistrationConfig& c) {
     s.field("loop_icp_iterations", c.loop_icp_iterations,
             "coarse ICP iterations when verifying a RANSAC loop candidate")
         .min(1);
+    s.field("candidate_drift_sigmas", c.candidate_drift_sigmas,
+            "offline, pairs of one tracking segment are registered only when min_overlap of the "
+            "smaller fragment lies within tau + this many deviations of the drift prior of the "
+            "other at the odometry poses (pairs that could not pass the overlap test unless the "
+            "odometry drifted further); 0 = every pair")
+        .min(0.0);
     s.field("plane_information", c.plane_information,
             "edges weigh by the point-to-plane information over their overlap, scaled to the "
             "trace of Choi's point-to-point information (false: Choi's, which trusts a slide "
@@ -61,6 +68,20 @@ void describe(config::Schema& s, RegistrationConfig& c) {
 }
 
 namespace {
+
+/// Wall-clock seconds since the last lap (or construction).
+class Stopwatch {
+  public:
+    double lap() {
+        const auto now = std::chrono::steady_clock::now();
+        const double s = std::chrono::duration<double>(now - last_).count();
+        last_ = now;
+        return s;
+    }
+
+  private:
+    std::chrono::steady_clock::time_point last_ = std::chrono::steady_clock::now();
+};
 
 uint64_t splitmix64(uint64_t x) {
     x += 0x9e3779b97f4a7c15ULL;
@@ -413,19 +434,60 @@ Result<RegistrationOutcome> finishGraph(PoseGraph graph,
                                         Progress* progress) {
     RegistrationOutcome out;
     out.stats = stats;
+    Stopwatch watch;
     Result<posegraph::PoseGraphReport> first = posegraph::optimisePoseGraph(graph, c.pose_graph);
     if (!first.isOk()) return first.status();
     out.first = *first;
+    out.optimise_seconds = watch.lap();
     if (c.refinement_pass) {
         refineWithIndex(graph, idx, c, progress);
+        out.refinement_seconds = watch.lap();
         Result<posegraph::PoseGraphReport> second =
             posegraph::optimisePoseGraph(graph, c.pose_graph);
         if (!second.isOk()) return second.status();
         out.refined = *second;
         out.refined_ran = true;
+        out.optimise_seconds += watch.lap();
     }
     out.graph = std::move(graph);
     return out;
+}
+
+/// The pairs the offline stage registers, in (i, j) order: every consecutive pair, every pair of
+/// different segments, and the pairs of one segment that could overlap
+/// (RegistrationConfig::candidate_drift_sigmas); `skipped` counts the others.
+std::vector<std::pair<uint32_t, uint32_t>> candidatePairs(const std::vector<Fragment>& fragments,
+                                                          const std::vector<FragmentIndex>& idx,
+                                                          const RegistrationConfig& c,
+                                                          int* skipped) {
+    const uint32_t n = static_cast<uint32_t>(fragments.size());
+    std::vector<std::pair<uint32_t, uint32_t>> all;
+    for (uint32_t i = 0; i < n; ++i)
+        for (uint32_t j = i + 1; j < n; ++j) all.emplace_back(i, j);
+    std::vector<char> keep(all.size(), 1);
+    // Without the translation check (guided.max_offset_sigmas = 0) loops may lie anywhere from
+    // the odometry: every pair is registered.
+    if (c.candidate_drift_sigmas > 0.0 && c.guided.max_offset_sigmas > 0.0) {
+        detail::parallelFor(c.num_threads, all.size(), [&](size_t k) {
+            const auto [i, j] = all[k];
+            const std::optional<Eigen::Isometry3d> T_odo =
+                odometryBetween(fragments[i], fragments[j]);
+            if (j == i + 1 || !T_odo) return;
+            const double radius =
+                tauOf(c) + c.candidate_drift_sigmas * odometryPriorSigma(c.guided, j - i);
+            keep[k] = evaluateAlignment(idx[i], idx[j], *T_odo, radius, 1).overlap >= c.min_overlap;
+        });
+    }
+    std::vector<std::pair<uint32_t, uint32_t>> pairs;
+    *skipped = 0;
+    for (size_t k = 0; k < all.size(); ++k) {
+        if (keep[k]) {
+            pairs.push_back(all[k]);
+        } else {
+            ++*skipped;
+        }
+    }
+    return pairs;
 }
 
 std::vector<const FragmentIndex*> pointers(const std::vector<FragmentIndex>& idx) {
@@ -436,18 +498,17 @@ std::vector<const FragmentIndex*> pointers(const std::vector<FragmentIndex>& idx
 
 }  // namespace
 
-Result<PoseGraph> buildPoseGraph(const std::vector<Fragment>& fragments,
-                                 const std::vector<PreparedFragment>& prepared,
-                                 const RegistrationConfig& config, Progress* progress,
-                                 PairStats* stats_out) {
-    PLUMB_RETURN_IF_ERROR(checkInputs(fragments, prepared, config));
-    const std::vector<FragmentIndex> idx = buildIndices(fragments, prepared, config);
+namespace {
+
+/// buildPoseGraph on checked inputs and their indices.
+PoseGraph buildPoseGraphWith(const std::vector<Fragment>& fragments,
+                             const std::vector<FragmentIndex>& idx,
+                             const RegistrationConfig& config, Progress* progress,
+                             PairStats* stats_out) {
     const RegistrationConfig inner = innerConfig(config);
-    const size_t n = fragments.size();
-    std::vector<std::pair<uint32_t, uint32_t>> pairs;
-    for (uint32_t i = 0; i < n; ++i) {
-        for (uint32_t j = i + 1; j < n; ++j) pairs.emplace_back(i, j);
-    }
+    int skipped = 0;
+    const std::vector<std::pair<uint32_t, uint32_t>> pairs =
+        candidatePairs(fragments, idx, config, &skipped);
     std::vector<std::optional<PoseGraphEdge>> edges(pairs.size());
     std::vector<int> outcome(pairs.size(), 0);  // 0 odo ok, 1 odo icp failed, 2.. loop outcomes
     detail::parallelFor(config.num_threads, pairs.size(), [&](size_t k) {
@@ -468,6 +529,7 @@ Result<PoseGraph> buildPoseGraph(const std::vector<Fragment>& fragments,
     PoseGraph graph;
     for (const Fragment& f : fragments) graph.T_W_F.push_back(f.T_W_F);
     PairStats stats;
+    stats.loop_pairs_skipped = skipped;
     for (size_t k = 0; k < pairs.size(); ++k) {
         switch (outcome[k]) {
             case 0:
@@ -505,6 +567,17 @@ Result<PoseGraph> buildPoseGraph(const std::vector<Fragment>& fragments,
     return graph;
 }
 
+}  // namespace
+
+Result<PoseGraph> buildPoseGraph(const std::vector<Fragment>& fragments,
+                                 const std::vector<PreparedFragment>& prepared,
+                                 const RegistrationConfig& config, Progress* progress,
+                                 PairStats* stats_out) {
+    PLUMB_RETURN_IF_ERROR(checkInputs(fragments, prepared, config));
+    const std::vector<FragmentIndex> idx = buildIndices(fragments, prepared, config);
+    return buildPoseGraphWith(fragments, idx, config, progress, stats_out);
+}
+
 Status refineEdges(PoseGraph& graph, const std::vector<Fragment>& fragments,
                    const std::vector<PreparedFragment>& prepared, const RegistrationConfig& config,
                    Progress* progress) {
@@ -529,10 +602,14 @@ Result<RegistrationOutcome> registerFragments(const std::vector<Fragment>& fragm
                                               Progress* progress) {
     PLUMB_RETURN_IF_ERROR(checkInputs(fragments, prepared, config));
     PairStats stats;
-    Result<PoseGraph> graph = buildPoseGraph(fragments, prepared, config, progress, &stats);
-    if (!graph.isOk()) return graph.status();
+    Stopwatch watch;
     const std::vector<FragmentIndex> idx = buildIndices(fragments, prepared, config);
-    return finishGraph(std::move(graph.value()), pointers(idx), config, stats, progress);
+    PoseGraph graph = buildPoseGraphWith(fragments, idx, config, progress, &stats);
+    const double pairs_seconds = watch.lap();
+    Result<RegistrationOutcome> out =
+        finishGraph(std::move(graph), pointers(idx), config, stats, progress);
+    if (out.isOk()) out->pairs_seconds = pairs_seconds;
+    return out;
 }
 
 // ---- LiveRegistrar ----

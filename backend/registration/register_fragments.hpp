@@ -77,6 +77,16 @@ struct RegistrationConfig {
     double max_loop_rotation_deviation_deg = 30.0;
     /// ICP iterations at the coarsest level when verifying a RANSAC loop candidate.
     int loop_icp_iterations = 30;
+    /// Offline, a non-consecutive pair of one tracking segment is registered only when, at the
+    /// odometry poses, at least min_overlap of the smaller fragment lies within
+    /// τ + candidate_drift_sigmas × σ of the other, σ the drift prior's deviation for the pair
+    /// (guided.drift_per_fragment_m × sqrt(fragments apart)). An alignment the overlap test
+    /// accepts has min_overlap within τ; the odometry places it within that radius wherever it
+    /// drifted by less than candidate_drift_sigmas × σ, so only pairs that could not pass are
+    /// skipped. Pairs of different segments (no odometry) are always registered, and so is every
+    /// pair when guided.max_offset_sigmas is 0 (loops may then lie anywhere from the odometry).
+    /// 0 = every pair.
+    double candidate_drift_sigmas = 2.0;
     /// Overlap edges weigh by the point-to-plane information over their overlap
     /// (PoseGraphEdge::Information::kPlane), scaled to the trace of Choi's Λ, instead of Choi's
     /// point-to-point Λ. Off: with it, wrong loop closures that slid along a corridor cost little
@@ -103,6 +113,7 @@ struct PairStats {
     int odometry_pairs = 0;
     int odometry_icp_failed = 0;  ///< odometry edges that kept the odometry transform
     int loop_pairs_tried = 0;
+    int loop_pairs_skipped = 0;  ///< could not overlap at the odometry (candidate_drift_sigmas)
     int ransac_failed = 0;
     int overlap_rejected = 0;
     int rotation_rejected = 0;     ///< turned too far from the odometry (max_loop_rotation_...)
@@ -159,6 +170,9 @@ struct RegistrationOutcome {
     posegraph::PoseGraphReport first;    ///< optimisation of the initial graph
     posegraph::PoseGraphReport refined;  ///< optimisation after the refinement pass
     bool refined_ran = false;
+    double pairs_seconds = 0.0;       ///< registering the pairs (odometry and loop candidates)
+    double refinement_seconds = 0.0;  ///< the refinement pass's ICP
+    double optimise_seconds = 0.0;    ///< both pose-graph optimisations
 };
 
 /// The whole offline stage: build, optimise (prune), refine, optimise again.
