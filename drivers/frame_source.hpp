@@ -43,6 +43,11 @@ class FrameSource {
     /// to skip it when the source allows (see `canSkipErrors`).
     virtual Result<Frame> next() = 0;
 
+    /// Passes over the next frame without producing it: the same as next() minus the frame.
+    /// Sources that can (datasets, the simulator) neither decode nor render it. At the end of the
+    /// stream returns StatusCode::kOutOfRange; other errors as next().
+    virtual Status skip() { return next().status(); }
+
     /// Number of frames when known in advance (datasets, simulator), nullopt for live sensors.
     virtual std::optional<size_t> size() const { return std::nullopt; }
 
@@ -72,6 +77,7 @@ class FrameSourceDecorator : public FrameSource {
 
     const PinholeCamera& camera() const override { return inner_->camera(); }
     Result<Frame> next() override { return inner_->next(); }
+    Status skip() override { return inner_->skip(); }
     std::optional<size_t> size() const override { return inner_->size(); }
     bool canSkipErrors() const override { return inner_->canSkipErrors(); }
     std::string description() const override { return inner_->description(); }

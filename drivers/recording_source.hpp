@@ -42,6 +42,8 @@ class RecordingSource final : public FrameSourceDecorator {
     static Result<std::unique_ptr<RecordingSource>> create(std::unique_ptr<FrameSource> inner,
                                                            const std::filesystem::path& dir);
     Result<Frame> next() override;
+    /// A skipped frame is still read and recorded: the recording keeps every frame.
+    Status skip() override { return next().status(); }
     std::string description() const override;
 
     /// Frames recorded so far.

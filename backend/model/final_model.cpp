@@ -35,7 +35,10 @@ void describe(config::Schema& s, FinalModelConfig& c) {
         .max(0.5);
     s.field("truncation_m", c.truncation_m, "TSDF truncation distance", "m").positive();
     s.field("max_depth_m", c.max_depth_m, "depth beyond this is not integrated", "m").positive();
-    s.field("frame_stride", c.frame_stride, "integrate every k-th frame (1 = all)").min(1);
+    s.field("frame_stride", c.frame_stride,
+            "integrate every k-th frame (1 = all); raw frames in between are skipped unread where "
+            "the source allows (datasets, the simulator)")
+        .min(1);
     s.field("min_weight", c.min_weight, "voxels observed fewer times are not meshed").min(0.0);
     s.field("splat_radius_px", c.splat_radius_px,
             "splat radius when rendering fragment points into synthetic depth frames", "px")
@@ -152,6 +155,20 @@ std::vector<tsdf::TsdfVolume> volumesFor(size_t variants, const FinalModelConfig
     return volumes;
 }
 
+/// Integrates one frame of fragment `fragment` (at T_F_C in it) into every variant's volume, one
+/// after the other (each integration is parallel; two side by side were slower on two cores).
+Status integrateAll(std::vector<tsdf::TsdfVolume>& volumes, const DepthImage& depth,
+                    const PinholeCamera& camera,
+                    const std::vector<std::vector<Eigen::Isometry3d>>& T_W_F, size_t fragment,
+                    const Eigen::Isometry3d& T_F_C, const ColourImage* colour) {
+    for (size_t v = 0; v < volumes.size(); ++v) {
+        Result<tsdf::IntegrationStats> stats =
+            volumes[v].integrate(depth, camera, T_W_F[v][fragment] * T_F_C, colour);
+        if (!stats.isOk()) return stats.status();
+    }
+    return Status::ok();
+}
+
 }  // namespace
 
 Result<std::vector<FinalModel>> integrateRawFrames(
@@ -169,37 +186,43 @@ Result<std::vector<FinalModel>> integrateRawFrames(
 
     std::vector<tsdf::TsdfVolume> volumes = volumesFor(T_W_F.size(), config);
     size_t integrated = 0;
-    size_t seen = 0;
-    // The next frame is read (decoded, simulated, undistorted) while this one is integrated; one
-    // read at a time and in order, so the source sees the same calls as a plain loop.
-    std::future<Result<Frame>> next = std::async(std::launch::async, [&] { return source.next(); });
+    size_t seen = 0;    // frames read or skipped
+    size_t passed = 0;  // of those, handed to the integration loop (progress)
+    // Every frame_stride-th frame is read, the others skipped (not decoded where the source
+    // allows). The next frame is read (decoded, simulated, undistorted) while this one is
+    // integrated; one call at a time and in order, so the source sees a plain loop's calls.
+    const size_t stride = static_cast<size_t>(config.frame_stride);
+    auto read = [&source, &seen, stride]() -> Result<Frame> {
+        while (seen % stride != 0) {
+            const Status s = source.skip();
+            if (!s.isOk()) return s;
+            ++seen;
+        }
+        Result<Frame> frame = source.next();
+        if (frame.isOk()) ++seen;
+        return frame;
+    };
+    std::future<Result<Frame>> next = std::async(std::launch::async, read);
     for (;;) {
         Result<Frame> frame = next.get();
+        if (progress) progress->advance(seen - passed);
+        passed = seen;
         if (!frame.isOk()) {
             if (frame.status().code() == StatusCode::kOutOfRange) break;
             return Status(frame.status().code(),
                           "re-integrating raw frames: " + frame.status().message());
         }
-        next = std::async(std::launch::async, [&] { return source.next(); });
-        ++seen;
-        if (progress) progress->advance();
+        next = std::async(std::launch::async, read);
         const auto it = frame_of.find(frame->index);
         if (it == frame_of.end()) continue;
-        if (frame->index % config.frame_stride != 0) continue;
         // Colour of another size than the depth (a source that does not register it) is left out.
         const bool colour = !frame->colour.empty() &&
                             frame->colour.width() == frame->depth.width() &&
                             frame->colour.height() == frame->depth.height();
         const auto& [fragment, T_F_C] = it->second;
-        for (size_t v = 0; v < volumes.size(); ++v) {
-            Result<tsdf::IntegrationStats> stats =
-                volumes[v].integrate(frame->depth, source.camera(), T_W_F[v][fragment] * T_F_C,
-                                     colour ? &frame->colour : nullptr);
-            if (!stats.isOk()) {
-                next.wait();
-                return stats.status();
-            }
-        }
+        const Status s = integrateAll(volumes, frame->depth, source.camera(), T_W_F, fragment,
+                                      T_F_C, colour ? &frame->colour : nullptr);
+        if (!s.isOk()) return s;
         ++integrated;
     }
     if (integrated == 0)
@@ -225,11 +248,9 @@ Result<std::vector<FinalModel>> fuseFragmentSurfaces(
             ColourImage colour;
             const DepthImage depth = renderPointsToDepth(fragment.points_F, camera, f.T_F_C,
                                                          config.splat_radius_px, &colour);
-            for (size_t v = 0; v < volumes.size(); ++v) {
-                Result<tsdf::IntegrationStats> stats = volumes[v].integrate(
-                    depth, camera, T_W_F[v][i] * f.T_F_C, colour.empty() ? nullptr : &colour);
-                if (!stats.isOk()) return stats.status();
-            }
+            const Status s = integrateAll(volumes, depth, camera, T_W_F, i, f.T_F_C,
+                                          colour.empty() ? nullptr : &colour);
+            if (!s.isOk()) return s;
             ++integrated;
         }
         if (progress) progress->advance();

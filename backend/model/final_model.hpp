@@ -35,8 +35,10 @@ struct FinalModelConfig {
     double truncation_m = 0.04;
     /// Depth beyond this is not integrated, metres (noise grows with z^2).
     double max_depth_m = 4.0;
-    /// Integrate every k-th frame (1 = all). Fragments of 50 frames overlap heavily, so 2 loses
-    /// little; the default keeps every frame.
+    /// Integrate every k-th frame of the source (1 = all); raw frames in between are skipped
+    /// without being decoded or rendered where the source allows (FrameSource::skip). 2 halves
+    /// the final model's time for about 2 % more reconstruction error (BENCHMARKS.md); the
+    /// default keeps every frame.
     int frame_stride = 1;
     /// Voxels observed fewer times are not meshed.
     double min_weight = 1.0;

@@ -768,4 +768,13 @@ Result<Frame> DatasetSource::next() {
     return loadFrame(info_, next_++);
 }
 
+Status DatasetSource::skip() {
+    if (next_ >= info_.frames.size()) {
+        return outOfRange(
+            fmt::format("end of {} ({} frames)", info_.root.string(), info_.frames.size()));
+    }
+    ++next_;
+    return Status::ok();
+}
+
 }  // namespace plumb::dataset

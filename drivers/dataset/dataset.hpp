@@ -163,6 +163,8 @@ class DatasetSource final : public FrameSource {
 
     const PinholeCamera& camera() const override { return info_.camera; }
     Result<Frame> next() override;
+    /// Moves past the next frame without reading its files.
+    Status skip() override;
     std::optional<size_t> size() const override { return info_.frames.size(); }
     bool canSkipErrors() const override { return true; }
     std::string description() const override { return info_.summary(); }

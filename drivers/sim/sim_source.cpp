@@ -157,6 +157,14 @@ Result<Frame> SimSource::next() {
     return std::move(scratch_.frame);
 }
 
+Status SimSource::skip() {
+    if (next_ >= trajectory_.size()) {
+        return outOfRange(fmt::format("end of the simulated sequence ({} frames)", next_));
+    }
+    ++next_;
+    return Status::ok();
+}
+
 std::string SimSource::description() const {
     const NoiseConfig& n = config_.noise;
     return fmt::format(

@@ -58,6 +58,8 @@ class SimSource final : public FrameSource {
 
     const PinholeCamera& camera() const override { return renderer_->camera(); }
     Result<Frame> next() override;
+    /// Frame k depends on k alone: skipping does not render it.
+    Status skip() override;
     std::optional<size_t> size() const override { return trajectory_.size(); }
     std::string description() const override;
 

@@ -249,6 +249,25 @@ TEST(DatasetSynthetic, RedwoodOrdersNumericallyAndReadsLogTrajectory) {
     }
 }
 
+TEST(DatasetSynthetic, SkipMovesPastAFrameWithoutReadingIt) {
+    const fs::path dir = plumb::testing::freshTempDir("dataset-skip");
+    for (int id = 0; id < 4; ++id)
+        writePng(dir / "depth" / (std::to_string(id) + ".png"),
+                 rampDepth(640, 480, 1000 * (id + 1)));
+    // Frame 1 is unreadable: skipping it is no error, reading it would be.
+    writeText(dir / "depth" / "1.png", "not a png");
+    auto source = DatasetSource::open(dir);
+    ASSERT_TRUE(source.isOk()) << source.status().toString();
+    ASSERT_TRUE((*source)->next().isOk());
+    EXPECT_TRUE((*source)->skip().isOk());
+    auto frame = (*source)->next();
+    ASSERT_TRUE(frame.isOk()) << frame.status().toString();
+    EXPECT_EQ(frame->name, "depth/2.png");
+    EXPECT_FLOAT_EQ(frame->depth(3, 2), (3000.0f + 3 + 14) / 1000.0f);
+    EXPECT_TRUE((*source)->skip().isOk());
+    EXPECT_EQ((*source)->skip().code(), StatusCode::kOutOfRange);
+}
+
 TEST(DatasetSynthetic, SevenScenesMapsInvalidAndReadsPoseFiles) {
     const fs::path dir = plumb::testing::freshTempDir("dataset-7scenes");
     for (int id = 0; id < 3; ++id) {

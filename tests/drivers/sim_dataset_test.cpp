@@ -109,6 +109,27 @@ TEST(SimSource, StreamsDeterministicFramesWithGroundTruth) {
     EXPECT_GT(w.within, 0.9);
 }
 
+TEST(SimSource, SkipPassesOverAFrameWithoutChangingTheOthers) {
+    auto plain = SimSource::create(smallConfig());
+    auto skipping = SimSource::create(smallConfig());
+    ASSERT_TRUE(plain.isOk() && skipping.isOk());
+    for (size_t k = 0; k < 12; ++k) {
+        auto f = (*plain)->next();
+        ASSERT_TRUE(f.isOk()) << f.status().toString();
+        if (k % 3 != 0) {
+            EXPECT_TRUE((*skipping)->skip().isOk()) << k;
+            continue;
+        }
+        auto g = (*skipping)->next();
+        ASSERT_TRUE(g.isOk()) << g.status().toString();
+        EXPECT_EQ(g->index, f->index);
+        EXPECT_TRUE(g->depth == f->depth) << k;
+        EXPECT_TRUE(g->colour == f->colour) << k;
+    }
+    EXPECT_EQ((*skipping)->skip().code(), StatusCode::kOutOfRange);
+    EXPECT_EQ((*skipping)->next().status().code(), StatusCode::kOutOfRange);
+}
+
 TEST(SimSource, OpensThroughTheSourceUri) {
     SourceOptions options;
     options.intrinsics = "ci";
