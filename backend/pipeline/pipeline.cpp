@@ -140,7 +140,8 @@ nlohmann::json edgeSummary(const registration::RegistrationOutcome& outcome) {
             {"pose_graph_iterations", outcome.first.iterations + outcome.refined.iterations},
             {"line_process_mu", outcome.refined_ran ? outcome.refined.mu : outcome.first.mu},
             {"seconds",
-             {{"pairs", outcome.pairs_seconds},
+             {{"index", outcome.index_seconds},
+              {"pairs", outcome.pairs_seconds},
               {"refinement", outcome.refinement_seconds},
               {"pose_graph", outcome.optimise_seconds}}}};
 }

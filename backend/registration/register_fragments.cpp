@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "backend/registration/register_fragments.hpp"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -53,6 +54,10 @@ void describe(config::Schema& s, RegistrationConfig& c) {
             "other at the odometry poses (pairs that could not pass the overlap test unless the "
             "odometry drifted further); 0 = every pair")
         .min(0.0);
+    s.field("max_candidates_per_fragment", c.max_candidates_per_fragment,
+            "offline, at most this many loop candidates of its own segment per fragment, those "
+            "of the highest overlap predicted at the odometry (0 = no limit)")
+        .min(0);
     s.field("plane_information", c.plane_information,
             "edges weigh by the point-to-plane information over their overlap, scaled to the "
             "trace of Choi's point-to-point information (false: Choi's, which trusts a slide "
@@ -453,9 +458,18 @@ Result<RegistrationOutcome> finishGraph(PoseGraph graph,
     return out;
 }
 
+/// The box of `f`'s prepared points in the world at its odometry pose T_W_F.
+Eigen::AlignedBox3d worldBox(const Fragment& f, const FragmentIndex& idx) {
+    Eigen::AlignedBox3d box;
+    for (const Eigen::Vector3f& p : idx.coarse.cloud().points)
+        box.extend(f.T_W_F * p.cast<double>());
+    return box;
+}
+
 /// The pairs the offline stage registers, in (i, j) order: every consecutive pair, every pair of
 /// different segments, and the pairs of one segment that could overlap
-/// (RegistrationConfig::candidate_drift_sigmas); `skipped` counts the others.
+/// (RegistrationConfig::candidate_drift_sigmas), at most max_candidates_per_fragment of them per
+/// later fragment; `skipped` counts the others.
 std::vector<std::pair<uint32_t, uint32_t>> candidatePairs(const std::vector<Fragment>& fragments,
                                                           const std::vector<FragmentIndex>& idx,
                                                           const RegistrationConfig& c,
@@ -464,10 +478,16 @@ std::vector<std::pair<uint32_t, uint32_t>> candidatePairs(const std::vector<Frag
     std::vector<std::pair<uint32_t, uint32_t>> all;
     for (uint32_t i = 0; i < n; ++i)
         for (uint32_t j = i + 1; j < n; ++j) all.emplace_back(i, j);
-    std::vector<char> keep(all.size(), 1);
+    // Overlap of each loop candidate of one segment predicted at the odometry; consecutive pairs
+    // and pairs of different segments are always registered (kAlways, above any overlap).
+    constexpr double kAlways = 2.0;
+    std::vector<double> predicted(all.size(), kAlways);
     // Without the translation check (guided.max_offset_sigmas = 0) loops may lie anywhere from
     // the odometry: every pair is registered.
-    if (c.candidate_drift_sigmas > 0.0 && c.guided.max_offset_sigmas > 0.0) {
+    const bool filter = c.candidate_drift_sigmas > 0.0 && c.guided.max_offset_sigmas > 0.0;
+    if (filter) {
+        std::vector<Eigen::AlignedBox3d> boxes(n);
+        for (uint32_t i = 0; i < n; ++i) boxes[i] = worldBox(fragments[i], idx[i]);
         detail::parallelFor(c.num_threads, all.size(), [&](size_t k) {
             const auto [i, j] = all[k];
             const std::optional<Eigen::Isometry3d> T_odo =
@@ -475,8 +495,34 @@ std::vector<std::pair<uint32_t, uint32_t>> candidatePairs(const std::vector<Frag
             if (j == i + 1 || !T_odo) return;
             const double radius =
                 tauOf(c) + c.candidate_drift_sigmas * odometryPriorSigma(c.guided, j - i);
-            keep[k] = evaluateAlignment(idx[i], idx[j], *T_odo, radius, 1).overlap >= c.min_overlap;
+            // Boxes farther apart than the radius share no point within it.
+            Eigen::AlignedBox3d grown = boxes[i];
+            if (!grown.isEmpty()) {
+                grown.min().array() -= radius;
+                grown.max().array() += radius;
+            }
+            predicted[k] = boxes[j].isEmpty() || !grown.intersects(boxes[j])
+                               ? 0.0
+                               : evaluateAlignment(idx[i], idx[j], *T_odo, radius, 1).overlap;
         });
+    }
+    // Per later fragment, the candidates of its segment that could pass, most overlap first.
+    std::vector<std::vector<size_t>> by_target(n);
+    for (size_t k = 0; k < all.size(); ++k)
+        if (predicted[k] >= c.min_overlap) by_target[all[k].second].push_back(k);
+    std::vector<char> keep(all.size(), 0);
+    for (std::vector<size_t>& ks : by_target) {
+        std::stable_sort(ks.begin(), ks.end(),
+                         [&](size_t a, size_t b) { return predicted[a] > predicted[b]; });
+        size_t loops = 0;
+        for (const size_t k : ks) {
+            const bool always = predicted[k] == kAlways;
+            if (!always && filter && c.max_candidates_per_fragment > 0 &&
+                loops >= static_cast<size_t>(c.max_candidates_per_fragment))
+                continue;
+            if (!always) ++loops;
+            keep[k] = 1;
+        }
     }
     std::vector<std::pair<uint32_t, uint32_t>> pairs;
     *skipped = 0;
@@ -604,11 +650,15 @@ Result<RegistrationOutcome> registerFragments(const std::vector<Fragment>& fragm
     PairStats stats;
     Stopwatch watch;
     const std::vector<FragmentIndex> idx = buildIndices(fragments, prepared, config);
+    const double index_seconds = watch.lap();
     PoseGraph graph = buildPoseGraphWith(fragments, idx, config, progress, &stats);
     const double pairs_seconds = watch.lap();
     Result<RegistrationOutcome> out =
         finishGraph(std::move(graph), pointers(idx), config, stats, progress);
-    if (out.isOk()) out->pairs_seconds = pairs_seconds;
+    if (out.isOk()) {
+        out->index_seconds = index_seconds;
+        out->pairs_seconds = pairs_seconds;
+    }
     return out;
 }
 

@@ -87,6 +87,11 @@ struct RegistrationConfig {
     /// pair when guided.max_offset_sigmas is 0 (loops may then lie anywhere from the odometry).
     /// 0 = every pair.
     double candidate_drift_sigmas = 2.0;
+    /// Offline, at most this many loop candidates of its own segment per fragment (pairs (i, j)
+    /// with i < j - 1 for fragment j), those with the highest overlap predicted at the odometry
+    /// as above: the pairs registered grow with the fragments, not with their square. 0 = no
+    /// limit.
+    int max_candidates_per_fragment = 8;
     /// Overlap edges weigh by the point-to-plane information over their overlap
     /// (PoseGraphEdge::Information::kPlane), scaled to the trace of Choi's Λ, instead of Choi's
     /// point-to-point Λ. Off: with it, wrong loop closures that slid along a corridor cost little
@@ -170,6 +175,7 @@ struct RegistrationOutcome {
     posegraph::PoseGraphReport first;    ///< optimisation of the initial graph
     posegraph::PoseGraphReport refined;  ///< optimisation after the refinement pass
     bool refined_ran = false;
+    double index_seconds = 0.0;       ///< the fragments' ICP pyramids, k-d trees and features
     double pairs_seconds = 0.0;       ///< registering the pairs (odometry and loop candidates)
     double refinement_seconds = 0.0;  ///< the refinement pass's ICP
     double optimise_seconds = 0.0;    ///< both pose-graph optimisations

@@ -5,6 +5,7 @@
 // determinism (twice; 1 vs 2 threads), the live mode, and bad input.
 
 #include <gtest/gtest.h>
+
 #include <tbb/global_control.h>
 #include <Eigen/Eigenvalues>
 
@@ -12,6 +13,7 @@
 #include <filesystem>
 #include <fstream>
 #include <random>
+#include <set>
 #include <sstream>
 
 #include "backend/registration/outputs.hpp"
@@ -245,6 +247,45 @@ std::string runOffline(const std::filesystem::path& dir, int num_threads, double
         all += std::string("== ") + name + "\n" + text;
     }
     return all;
+}
+
+TEST(Registration, CandidatesAreThePairsThatCanOverlapAtMostAFewPerFragment) {
+    // Every pair against the default selection: the pairs left out cannot overlap at the
+    // odometry, so every loop the overlap test accepts among all pairs is still found.
+    const size_t n = scan().fragments.size();
+    RegistrationConfig every = config();
+    every.candidate_drift_sigmas = 0.0;
+    PairStats all_stats, stats;
+    Result<PoseGraph> all =
+        buildPoseGraph(scan().fragments, prepared(), every, nullptr, &all_stats);
+    Result<PoseGraph> some =
+        buildPoseGraph(scan().fragments, prepared(), config(), nullptr, &stats);
+    ASSERT_TRUE(all.isOk() && some.isOk());
+    const int loop_pairs = static_cast<int>((n - 1) * (n - 2) / 2);
+    EXPECT_EQ(all_stats.loop_pairs_tried, loop_pairs);
+    EXPECT_EQ(all_stats.loop_pairs_skipped, 0);
+    EXPECT_EQ(stats.loop_pairs_tried + stats.loop_pairs_skipped, loop_pairs);
+    EXPECT_GT(stats.loop_pairs_skipped, loop_pairs / 4);
+    auto accepted = [](const PoseGraph& g) {
+        std::set<std::pair<uint32_t, uint32_t>> loops;
+        for (const PoseGraphEdge& e : g.edges)
+            if (e.kind == PoseGraphEdge::Kind::kLoop && e.kept) loops.insert({e.source, e.target});
+        return loops;
+    };
+    EXPECT_EQ(accepted(*some), accepted(*all));
+    EXPECT_GT(accepted(*all).size(), 3u);
+
+    // At most one candidate a fragment: the most overlapping one at the odometry.
+    RegistrationConfig one = config();
+    one.max_candidates_per_fragment = 1;
+    Result<PoseGraph> capped = buildPoseGraph(scan().fragments, prepared(), one, nullptr, &stats);
+    ASSERT_TRUE(capped.isOk());
+    std::vector<int> per_target(n, 0);
+    for (const PoseGraphEdge& e : capped->edges)
+        if (e.kind == PoseGraphEdge::Kind::kLoop) ++per_target[e.target];
+    for (size_t j = 0; j < n; ++j) EXPECT_LE(per_target[j], 1) << "fragment " << j;
+    EXPECT_LE(stats.loop_pairs_tried, static_cast<int>(n));
+    EXPECT_EQ(stats.loop_pairs_tried + stats.loop_pairs_skipped, loop_pairs);
 }
 
 TEST(Registration, OfflineOutputsAreDeterministicAcrossRunsAndThreads) {
