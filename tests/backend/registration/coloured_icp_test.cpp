@@ -347,8 +347,12 @@ TEST(ColouredIcp, WithoutColourOnBothSidesItIsPointToPlane) {
                 << colour_a << colour_b << " " << spread;
             EXPECT_EQ(r.iterations, oracle.iterations);
             EXPECT_EQ(r.inlier_rmse_m, oracle.inlier_rmse_m);
-            // And it does not recover the slide.
-            EXPECT_GT(std::abs(errorOf(r, p.truth).translation().z()), 0.01);
+            // And it does not recover the slide: with solution remapping it keeps the start's
+            // 4 cm along the corridor. (Plain Gauss-Newton wanders along it on noise, by an
+            // amount that depends on when a level stops: no figure to hold it to.)
+            if (spread > 0.0) {
+                EXPECT_GT(std::abs(errorOf(r, p.truth).translation().z()), 0.03);
+            }
         }
     }
     // Colour switched off: no colour levels are built, and the answer is point-to-plane's.
