@@ -146,6 +146,166 @@ nlohmann::json edgeSummary(const registration::RegistrationOutcome& outcome) {
               {"pose_graph", outcome.optimise_seconds}}}};
 }
 
+/// Step 1 (§3.1): every fragment downsampled, with normals and FPFH.
+Result<std::vector<registration::PreparedFragment>> prepareAll(
+    const std::vector<Fragment>& fragments, const registration::PrepareConfig& config,
+    bool show_progress) {
+    std::vector<registration::PreparedFragment> prepared(fragments.size());
+    Progress progress("preparing fragments", fragments.size(), progressOptions(show_progress));
+    for (size_t i = 0; i < fragments.size(); ++i) {
+        Result<registration::PreparedFragment> p =
+            registration::prepareFragment(fragments[i], config);
+        if (!p.isOk()) return prefixed(p.status(), fmt::format("preparing fragment {}", i));
+        prepared[i] = std::move(*p);
+        progress.advance();
+    }
+    progress.finish();
+    return prepared;
+}
+
+/// Step 3 (§3.2): every fragment's planes (supervoxels, T-linkage, graph cuts).
+Result<std::vector<layout::FragmentPlanes>> extractAllPlanes(
+    const std::vector<Fragment>& fragments, const layout::FragmentPlaneConfig& config,
+    bool show_progress) {
+    std::vector<layout::FragmentPlanes> planes(fragments.size());
+    Progress progress("extracting fragment planes", fragments.size(),
+                      progressOptions(show_progress));
+    for (size_t i = 0; i < fragments.size(); ++i) {
+        if (fragments[i].points_F.empty()) {
+            // A fragment closed by lost tracking may hold no surface: it has no planes, and the
+            // layout is estimated from the others.
+            log::warn("fragment {} has no points; it contributes no planes to the layout",
+                      fragments[i].id);
+            planes[i].fragment_id = fragments[i].id;
+            progress.advance();
+            continue;
+        }
+        Result<layout::FragmentPlanes> p = layout::extractFragmentPlanes(fragments[i], config);
+        if (!p.isOk()) return prefixed(p.status(), fmt::format("planes of fragment {}", i));
+        planes[i] = std::move(*p);
+        progress.advance();
+    }
+    progress.finish();
+    return planes;
+}
+
+/// Every inner iteration of Algorithm 1 with its energy terms.
+nlohmann::json energiesJson(const global::AlternationResult& a) {
+    nlohmann::json energies = nlohmann::json::array();
+    for (const auto& outer : a.iterations) {
+        for (const auto& inner : outer.inner) {
+            energies.push_back({{"outer", outer.iteration},
+                                {"round", inner.round},
+                                {"inner", inner.iteration},
+                                {"accepted", inner.accepted},
+                                {"energy", inner.energy.total},
+                                {"layout", inner.energy.layout},
+                                {"frag", inner.energy.frag},
+                                {"pair", inner.energy.pair}});
+        }
+    }
+    return energies;
+}
+
+/// One variant of the result (full method or baseline): its poses, layout and output folder.
+struct Plan {
+    std::string name;
+    const std::vector<Eigen::Isometry3d>* T;
+    const std::optional<Layout>* layout;
+    fs::path dir;
+};
+
+/// The final mesh of every plan, in order, from one pass (finalMeshes), timed as one stage.
+Result<std::vector<TriangleMesh>> planMeshes(const PipelineInput& input,
+                                             const std::vector<Plan>& plans,
+                                             const FinalModelConfig& config, bool show_progress,
+                                             StageTimer& timer, bool* from_raw) {
+    std::vector<std::vector<Eigen::Isometry3d>> poses;
+    std::string names;
+    for (const Plan& plan : plans) {
+        poses.push_back(*plan.T);
+        names += (names.empty() ? "" : " and ") + plan.name;
+    }
+    auto scope = timer.scope("final model (" + names + ")");
+    Result<std::vector<TriangleMesh>> meshes =
+        finalMeshes(input, poses, config, names, show_progress, from_raw);
+    if (!meshes.isOk()) return prefixed(meshes.status(), "final model (" + names + ")");
+    return meshes;
+}
+
+/// A variant's files: registration outputs, mesh, and the layout with its floor plan.
+Status writeVariantFiles(const fs::path& dir, const std::vector<Fragment>& fragments,
+                         const posegraph::PoseGraph& graph,
+                         const posegraph::PoseGraphReport& report, const TriangleMesh& mesh,
+                         const std::optional<Layout>& layout) {
+    Status s = registration::writeRegistrationOutputs(dir, fragments, graph, report);
+    if (!s.isOk()) return prefixed(s, "writing " + dir.string());
+    s = io::writeTriangleMesh(dir / "mesh.ply", mesh);
+    if (!s.isOk()) return prefixed(s, "writing the mesh");
+    if (layout) {
+        s = io::writeLayoutJson(dir / "layout.json", *layout);
+        if (!s.isOk()) return prefixed(s, "writing layout.json");
+        s = layout::writeFloorplanSvg(dir / "floorplan.svg", *layout);
+        if (!s.isOk()) return prefixed(s, "writing floorplan.svg");
+    }
+    return Status::ok();
+}
+
+/// Writes variant `v`'s files (its poses, mesh and layout) into `dir` and evaluates it against
+/// the input's ground truth (v->evaluation).
+Status outputAndEvaluate(const fs::path& dir, const PipelineInput& input,
+                         const registration::RegistrationOutcome& outcome,
+                         const std::optional<Layout>& full_layout, VariantResult* v) {
+    const posegraph::PoseGraph graph = withPoses(outcome.graph, v->T_W_F);
+    PLUMB_RETURN_IF_ERROR(writeVariantFiles(dir, input.fragments, graph,
+                                            outcome.refined_ran ? outcome.refined : outcome.first,
+                                            v->mesh, v->layout));
+    Result<io::Trajectory> trajectory = registration::frameTrajectory(input.fragments, graph);
+    if (!trajectory.isOk()) return trajectory.status();
+    Result<VariantEvaluation> ev =
+        evaluateVariant(v->name, *trajectory, v->mesh, v->layout, input.ground_truth, full_layout,
+                        EvaluationConfig{});
+    if (!ev.isOk()) return prefixed(ev.status(), "evaluating " + v->name);
+    v->evaluation = std::move(*ev);
+    return Status::ok();
+}
+
+/// What metrics.json says of the input before any figure: format, input, fragments and frames,
+/// the ground truth, and where the final model came from.
+nlohmann::json metricsHeader(const PipelineInput& input, bool from_raw) {
+    size_t frames = 0;
+    for (const Fragment& f : input.fragments) frames += f.frames.size();
+    nlohmann::json metrics;
+    metrics["format"] = "plumb-metrics-1";
+    metrics["input"] = input.description;
+    metrics["fragments"] = input.fragments.size();
+    metrics["frames"] = frames;
+    metrics["ground_truth"] = input.ground_truth.description.empty()
+                                  ? std::string("none")
+                                  : input.ground_truth.description;
+    metrics["final_model"] = from_raw ? "raw frames re-integrated" : "fragment surfaces fused";
+    return metrics;
+}
+
+nlohmann::json stagesJson(const StageTimer& timer) {
+    nlohmann::json stages = nlohmann::json::array();
+    for (const StageTime& st : timer.stages())
+        stages.push_back({{"name", st.name}, {"seconds", st.seconds}});
+    return stages;
+}
+
+/// The <svg> element of an SVG file, for inlining into the report; empty when there is none.
+std::string inlineSvg(const fs::path& path) {
+    if (!fs::exists(path)) return {};
+    std::ifstream in(path);
+    std::stringstream text;
+    text << in.rdbuf();
+    std::string svg = text.str();
+    const size_t start = svg.find("<svg");
+    if (start != std::string::npos) svg.erase(0, start);
+    return svg;
+}
+
 }  // namespace
 
 Result<PipelineResult> runPipeline(const PipelineInput& input, const PipelineConfig& config,
@@ -163,21 +323,15 @@ Result<PipelineResult> runPipeline(const PipelineInput& input, const PipelineCon
 
     StageTimer timer;
     const std::vector<Fragment>& fragments = input.fragments;
-    const size_t n = fragments.size();
 
     // 1. Preparation (§3.1).
-    std::vector<registration::PreparedFragment> prepared(n);
+    std::vector<registration::PreparedFragment> prepared;
     {
         auto scope = timer.scope("prepare fragments (downsample, normals, FPFH)");
-        Progress progress("preparing fragments", n, progressOptions(show_progress));
-        for (size_t i = 0; i < n; ++i) {
-            Result<registration::PreparedFragment> p =
-                registration::prepareFragment(fragments[i], config.registration.prepare);
-            if (!p.isOk()) return prefixed(p.status(), fmt::format("preparing fragment {}", i));
-            prepared[i] = std::move(*p);
-            progress.advance();
-        }
-        progress.finish();
+        Result<std::vector<registration::PreparedFragment>> p =
+            prepareAll(fragments, config.registration.prepare, show_progress);
+        if (!p.isOk()) return p.status();
+        prepared = std::move(*p);
     }
 
     // 2. Initial registration: the baseline (Choi et al. 2015).
@@ -194,27 +348,13 @@ Result<PipelineResult> runPipeline(const PipelineInput& input, const PipelineCon
     const std::vector<Eigen::Isometry3d> T_baseline = outcome.graph.T_W_F;
 
     // 3. Layout (§3.2) and Algorithm 1 (§3.3).
-    std::vector<layout::FragmentPlanes> planes(n);
+    std::vector<layout::FragmentPlanes> planes;
     {
         auto scope = timer.scope("per-fragment planes (supervoxels, T-linkage, graph cuts)");
-        Progress progress("extracting fragment planes", n, progressOptions(show_progress));
-        for (size_t i = 0; i < n; ++i) {
-            if (fragments[i].points_F.empty()) {
-                // A fragment closed by lost tracking may hold no surface: it has no planes,
-                // and the layout is estimated from the others.
-                log::warn("fragment {} has no points; it contributes no planes to the layout",
-                          fragments[i].id);
-                planes[i].fragment_id = fragments[i].id;
-                progress.advance();
-                continue;
-            }
-            Result<layout::FragmentPlanes> p =
-                layout::extractFragmentPlanes(fragments[i], config.layout.planes);
-            if (!p.isOk()) return prefixed(p.status(), fmt::format("planes of fragment {}", i));
-            planes[i] = std::move(*p);
-            progress.advance();
-        }
-        progress.finish();
+        Result<std::vector<layout::FragmentPlanes>> p =
+            extractAllPlanes(fragments, config.layout.planes, show_progress);
+        if (!p.isOk()) return p.status();
+        planes = std::move(*p);
     }
     nlohmann::json layout_diagnostics;
     const global::LayoutEstimator estimator =
@@ -253,30 +393,13 @@ Result<PipelineResult> runPipeline(const PipelineInput& input, const PipelineCon
         if (!a.isOk()) return prefixed(a.status(), "layout-constrained global registration");
         T_full = a->T_W_F;
         full_layout = a->layout;
-        for (const auto& outer : a->iterations) {
-            for (const auto& inner : outer.inner) {
-                energies.push_back({{"outer", outer.iteration},
-                                    {"round", inner.round},
-                                    {"inner", inner.iteration},
-                                    {"accepted", inner.accepted},
-                                    {"energy", inner.energy.total},
-                                    {"layout", inner.energy.layout},
-                                    {"frag", inner.energy.frag},
-                                    {"pair", inner.energy.pair}});
-            }
-        }
+        energies = energiesJson(*a);
         alternation_summary = {{"outer_iterations", a->iterations.size()},
                                {"converged", a->converged},
                                {"stop_reason", a->stop_reason}};
     }
 
     // 4./5. Final models, outputs and evaluation per variant.
-    struct Plan {
-        std::string name;
-        const std::vector<Eigen::Isometry3d>* T;
-        const std::optional<Layout>* layout;
-        fs::path dir;
-    };
     std::vector<Plan> plans;
     if (config.use_layout) {
         plans.push_back({"full", &T_full, &full_layout, out_dir});
@@ -290,20 +413,9 @@ Result<PipelineResult> runPipeline(const PipelineInput& input, const PipelineCon
     ReportFigures figures;
     nlohmann::json variants_json = nlohmann::json::object();
     bool from_raw = false;
-    std::vector<TriangleMesh> meshes;
-    {
-        std::vector<std::vector<Eigen::Isometry3d>> poses;
-        std::string names;
-        for (const Plan& plan : plans) {
-            poses.push_back(*plan.T);
-            names += (names.empty() ? "" : " and ") + plan.name;
-        }
-        auto scope = timer.scope("final model (" + names + ")");
-        Result<std::vector<TriangleMesh>> m =
-            finalMeshes(input, poses, config.final_model, names, show_progress, &from_raw);
-        if (!m.isOk()) return prefixed(m.status(), "final model (" + names + ")");
-        meshes = std::move(*m);
-    }
+    Result<std::vector<TriangleMesh>> meshes =
+        planMeshes(input, plans, config.final_model, show_progress, timer, &from_raw);
+    if (!meshes.isOk()) return meshes.status();
     for (size_t p = 0; p < plans.size(); ++p) {
         const Plan& plan = plans[p];
         fs::create_directories(plan.dir, ec);
@@ -313,64 +425,24 @@ Result<PipelineResult> runPipeline(const PipelineInput& input, const PipelineCon
         v.name = plan.name;
         v.T_W_F = *plan.T;
         v.layout = *plan.layout;
-        v.mesh = std::move(meshes[p]);
+        v.mesh = std::move((*meshes)[p]);
         auto scope = timer.scope("outputs and evaluation (" + plan.name + ")");
-        const posegraph::PoseGraph graph = withPoses(outcome.graph, v.T_W_F);
-        const posegraph::PoseGraphReport& report =
-            outcome.refined_ran ? outcome.refined : outcome.first;
-        Status s = registration::writeRegistrationOutputs(plan.dir, fragments, graph, report);
-        if (!s.isOk()) return prefixed(s, "writing " + plan.dir.string());
-        s = io::writeTriangleMesh(plan.dir / "mesh.ply", v.mesh);
-        if (!s.isOk()) return prefixed(s, "writing the mesh");
-        if (v.layout) {
-            s = io::writeLayoutJson(plan.dir / "layout.json", *v.layout);
-            if (!s.isOk()) return prefixed(s, "writing layout.json");
-            s = layout::writeFloorplanSvg(plan.dir / "floorplan.svg", *v.layout);
-            if (!s.isOk()) return prefixed(s, "writing floorplan.svg");
-        }
-        Result<io::Trajectory> trajectory = registration::frameTrajectory(fragments, graph);
-        if (!trajectory.isOk()) return trajectory.status();
-        Result<VariantEvaluation> ev =
-            evaluateVariant(plan.name, *trajectory, v.mesh, v.layout, input.ground_truth,
-                            full_layout, EvaluationConfig{});
-        if (!ev.isOk()) return prefixed(ev.status(), "evaluating " + plan.name);
-        v.evaluation = std::move(*ev);
+        PLUMB_RETURN_IF_ERROR(outputAndEvaluate(plan.dir, input, outcome, full_layout, &v));
         variants_json[plan.name] = toJson(v.evaluation);
         figures.top_views[plan.name] = topViewSvg(v.mesh, full_layout);
         result.variants.push_back(std::move(v));
     }
 
-    size_t frames = 0;
-    for (const Fragment& f : fragments) frames += f.frames.size();
-    nlohmann::json metrics;
-    metrics["format"] = "plumb-metrics-1";
-    metrics["input"] = input.description;
-    metrics["fragments"] = n;
-    metrics["frames"] = frames;
-    metrics["ground_truth"] = input.ground_truth.description.empty()
-                                  ? std::string("none")
-                                  : input.ground_truth.description;
-    metrics["final_model"] = from_raw ? "raw frames re-integrated" : "fragment surfaces fused";
+    nlohmann::json metrics = metricsHeader(input, from_raw);
     metrics["variants"] = variants_json;
     metrics["registration"] = edgeSummary(outcome);
     if (!input.self_calibration.is_null()) metrics["self_calibration"] = input.self_calibration;
     if (!alternation_summary.is_null()) metrics["alternation"] = alternation_summary;
     metrics["energies"] = energies;
     if (!layout_diagnostics.is_null()) metrics["layout_diagnostics"] = layout_diagnostics;
-    nlohmann::json stages = nlohmann::json::array();
-    for (const StageTime& st : timer.stages())
-        stages.push_back({{"name", st.name}, {"seconds", st.seconds}});
-    metrics["stages"] = stages;
+    metrics["stages"] = stagesJson(timer);
     metrics["total_seconds"] = timer.totalSeconds();
-
-    if (fs::exists(out_dir / "floorplan.svg")) {
-        std::ifstream in(out_dir / "floorplan.svg");
-        std::stringstream text;
-        text << in.rdbuf();
-        figures.floorplan_svg = text.str();
-        const size_t start = figures.floorplan_svg.find("<svg");
-        if (start != std::string::npos) figures.floorplan_svg.erase(0, start);
-    }
+    figures.floorplan_svg = inlineSvg(out_dir / "floorplan.svg");
     PLUMB_RETURN_IF_ERROR(writeText(out_dir / "metrics.json", metrics.dump(2) + "\n"));
     PLUMB_RETURN_IF_ERROR(writeText(out_dir / "report.html", renderReportHtml(metrics, figures)));
     if (!input.config_toml.empty())

@@ -484,8 +484,7 @@ std::vector<std::pair<uint32_t, uint32_t>> candidatePairs(const std::vector<Frag
     std::vector<double> predicted(all.size(), kAlways);
     // Without the translation check (guided.max_offset_sigmas = 0) loops may lie anywhere from
     // the odometry: every pair is registered.
-    const bool filter = c.candidate_drift_sigmas > 0.0 && c.guided.max_offset_sigmas > 0.0;
-    if (filter) {
+    if (c.candidate_drift_sigmas > 0.0 && c.guided.max_offset_sigmas > 0.0) {
         std::vector<Eigen::AlignedBox3d> boxes(n);
         for (uint32_t i = 0; i < n; ++i) boxes[i] = worldBox(fragments[i], idx[i]);
         detail::parallelFor(c.num_threads, all.size(), [&](size_t k) {
@@ -496,14 +495,10 @@ std::vector<std::pair<uint32_t, uint32_t>> candidatePairs(const std::vector<Frag
             const double radius =
                 tauOf(c) + c.candidate_drift_sigmas * odometryPriorSigma(c.guided, j - i);
             // Boxes farther apart than the radius share no point within it.
-            Eigen::AlignedBox3d grown = boxes[i];
-            if (!grown.isEmpty()) {
-                grown.min().array() -= radius;
-                grown.max().array() += radius;
-            }
-            predicted[k] = boxes[j].isEmpty() || !grown.intersects(boxes[j])
-                               ? 0.0
-                               : evaluateAlignment(idx[i], idx[j], *T_odo, radius, 1).overlap;
+            const bool apart = boxes[i].isEmpty() || boxes[j].isEmpty() ||
+                               boxes[i].exteriorDistance(boxes[j]) > radius;
+            predicted[k] =
+                apart ? 0.0 : evaluateAlignment(idx[i], idx[j], *T_odo, radius, 1).overlap;
         });
     }
     // Per later fragment, the candidates of its segment that could pass, most overlap first.
@@ -517,7 +512,7 @@ std::vector<std::pair<uint32_t, uint32_t>> candidatePairs(const std::vector<Frag
         size_t loops = 0;
         for (const size_t k : ks) {
             const bool always = predicted[k] == kAlways;
-            if (!always && filter && c.max_candidates_per_fragment > 0 &&
+            if (!always && c.max_candidates_per_fragment > 0 &&
                 loops >= static_cast<size_t>(c.max_candidates_per_fragment))
                 continue;
             if (!always) ++loops;
