@@ -277,6 +277,7 @@ nlohmann::json metricsHeader(const PipelineInput& input, bool from_raw) {
     for (const Fragment& f : input.fragments) frames += f.frames.size();
     nlohmann::json metrics;
     metrics["format"] = "plumb-metrics-1";
+    metrics["status"] = "complete";  // an interrupted `plumb reconstruct` writes "interrupted"
     metrics["input"] = input.description;
     metrics["fragments"] = input.fragments.size();
     metrics["frames"] = frames;
@@ -323,6 +324,12 @@ Result<PipelineResult> runPipeline(const PipelineInput& input, const PipelineCon
 
     StageTimer timer;
     const std::vector<Fragment>& fragments = input.fragments;
+    // Between stages: has the caller asked to stop? (`after`: the stage just done.)
+    auto stop = [&input](const char* after) -> Status {
+        if (input.stop_requested && input.stop_requested())
+            return cancelled(std::string("stopped on request after ") + after);
+        return Status::ok();
+    };
 
     // 1. Preparation (§3.1).
     std::vector<registration::PreparedFragment> prepared;
@@ -333,6 +340,7 @@ Result<PipelineResult> runPipeline(const PipelineInput& input, const PipelineCon
         if (!p.isOk()) return p.status();
         prepared = std::move(*p);
     }
+    PLUMB_RETURN_IF_ERROR(stop("preparing the fragments"));
 
     // 2. Initial registration: the baseline (Choi et al. 2015).
     registration::RegistrationOutcome outcome;
@@ -345,6 +353,7 @@ Result<PipelineResult> runPipeline(const PipelineInput& input, const PipelineCon
         if (!r.isOk()) return prefixed(r.status(), "initial registration");
         outcome = std::move(*r);
     }
+    PLUMB_RETURN_IF_ERROR(stop("the initial registration"));
     const std::vector<Eigen::Isometry3d> T_baseline = outcome.graph.T_W_F;
 
     // 3. Layout (§3.2) and Algorithm 1 (§3.3).
@@ -356,6 +365,7 @@ Result<PipelineResult> runPipeline(const PipelineInput& input, const PipelineCon
         if (!p.isOk()) return p.status();
         planes = std::move(*p);
     }
+    PLUMB_RETURN_IF_ERROR(stop("the per-fragment planes"));
     nlohmann::json layout_diagnostics;
     const global::LayoutEstimator estimator =
         [&](const std::vector<Eigen::Isometry3d>& T) -> Result<Layout> {
@@ -398,6 +408,7 @@ Result<PipelineResult> runPipeline(const PipelineInput& input, const PipelineCon
                                {"converged", a->converged},
                                {"stop_reason", a->stop_reason}};
     }
+    PLUMB_RETURN_IF_ERROR(stop("the layout and global registration"));
 
     // 4./5. Final models, outputs and evaluation per variant.
     std::vector<Plan> plans;
@@ -416,6 +427,7 @@ Result<PipelineResult> runPipeline(const PipelineInput& input, const PipelineCon
     Result<std::vector<TriangleMesh>> meshes =
         planMeshes(input, plans, config.final_model, show_progress, timer, &from_raw);
     if (!meshes.isOk()) return meshes.status();
+    PLUMB_RETURN_IF_ERROR(stop("the final model"));
     for (size_t p = 0; p < plans.size(); ++p) {
         const Plan& plan = plans[p];
         fs::create_directories(plan.dir, ec);

@@ -80,6 +80,9 @@ struct PipelineInput {
     /// --self-calibrate`): written as metrics.json's "self_calibration" and shown in the report;
     /// null when the depth was not self-calibrated.
     nlohmann::json self_calibration;
+    /// Asked between stages (and by the raw frames' source, when it is made to): when it returns
+    /// true the pipeline returns kCancelled at once. Empty: never stop.
+    std::function<bool()> stop_requested;
 };
 
 /// One variant's result.

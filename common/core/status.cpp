@@ -25,6 +25,8 @@ const char* toString(StatusCode code) {
             return "internal error";
         case StatusCode::kUnavailable:
             return "unavailable";
+        case StatusCode::kCancelled:
+            return "cancelled";
     }
     return "unknown";
 }

@@ -24,6 +24,7 @@ enum class StatusCode {
     kFailedPrecondition,  ///< the operation cannot run in the current state
     kInternal,            ///< a failure we could not classify
     kUnavailable,         ///< a device is gone for now (unplugged, stalled); retrying may succeed
+    kCancelled,           ///< the work was stopped on request (Ctrl-C) before it finished
 };
 
 const char* toString(StatusCode code);
@@ -58,6 +59,7 @@ inline Status failedPrecondition(std::string m) {
     return {StatusCode::kFailedPrecondition, std::move(m)};
 }
 inline Status unavailable(std::string m) { return {StatusCode::kUnavailable, std::move(m)}; }
+inline Status cancelled(std::string m) { return {StatusCode::kCancelled, std::move(m)}; }
 
 /// The same error with "<context>: " before its message (the stage or input it concerns).
 inline Status prefixed(const Status& status, const std::string& context) {

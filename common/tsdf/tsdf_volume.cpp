@@ -213,6 +213,49 @@ void TsdfVolume::clear() {
     stamps_.clear();
 }
 
+void TsdfVolume::saveState(io::StateWriter& out) const {
+    out.value(config_.voxel_size_m);
+    out.value<uint64_t>(config_.max_blocks);
+    out.array(block_keys_);
+    out.array(voxels_);
+    out.value<uint8_t>(has_colour_ ? 1 : 0);
+    out.array(colours_);
+    out.array(stamps_);
+    out.value(frame_stamp_);
+}
+
+Status TsdfVolume::loadState(io::StateReader& in) {
+    clear();
+    float voxel_size_m = 0.0f;
+    uint64_t max_blocks = 0;
+    std::vector<BlockKey> keys;
+    uint8_t has_colour = 0;
+    if (!in.value(&voxel_size_m) || !in.value(&max_blocks) || !in.array(&keys) ||
+        !in.array(&voxels_) || !in.value(&has_colour) || !in.array(&colours_) ||
+        !in.array(&stamps_) || !in.value(&frame_stamp_)) {
+        clear();
+        return corrupt("TSDF volume state: truncated");
+    }
+    const bool sizes_match = voxels_.size() == keys.size() * kBlockVoxels &&
+                             stamps_.size() == keys.size() &&
+                             colours_.size() == (has_colour ? voxels_.size() : 0);
+    if (voxel_size_m != config_.voxel_size_m || max_blocks != config_.max_blocks || !sizes_match ||
+        has_colour > 1) {
+        clear();
+        return corrupt("TSDF volume state: saved with another configuration or damaged");
+    }
+    has_colour_ = has_colour == 1;
+    for (size_t i = 0; i < keys.size(); ++i) {
+        if (hash_.find(keys[i]) != BlockHashMap::kNotFound) {
+            clear();
+            return corrupt("TSDF volume state: a block is listed twice");
+        }
+        hash_.insert(keys[i], static_cast<int32_t>(i));
+    }
+    block_keys_ = std::move(keys);
+    return Status::ok();
+}
+
 std::vector<BlockKey> TsdfVolume::collectBlocks(const DepthImage& depth,
                                                 const PinholeCamera& camera,
                                                 const Eigen::Isometry3d& T_V_C,

@@ -23,6 +23,7 @@
 #include "common/camera/pinhole.hpp"
 #include "common/core/status.hpp"
 #include "common/image/image.hpp"
+#include "common/io/state_archive.hpp"
 #include "common/tsdf/block_hash.hpp"
 
 namespace plumb::tsdf {
@@ -134,6 +135,13 @@ class TsdfVolume {
 
     /// Removes every block.
     void clear();
+
+    /// Appends the whole state (blocks in index order, voxels, colours, per-block stamps) to
+    /// `out`. loadState() restores it into a volume of the same configuration, after which
+    /// every call behaves exactly as on the saved volume. kCorrupt for a damaged state or one
+    /// saved with another voxel size or block budget (the volume is then cleared).
+    void saveState(io::StateWriter& out) const;
+    Status loadState(io::StateReader& in);
 
     size_t numBlocks() const { return block_keys_.size(); }
     size_t memoryBytes() const {

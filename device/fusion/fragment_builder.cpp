@@ -38,7 +38,7 @@ Status FusionConfig::validate() const {
 }
 
 FragmentBuilder::FragmentBuilder(const PinholeCamera& camera, const FusionConfig& config)
-    : camera_(camera), config_(config), volume_(config.tsdf) {
+    : camera_(camera), config_(config), volume_(config.tsdf), previous_volume_(config.tsdf) {
     const Status s = config_.validate();
     PLUMB_CHECK(s.isOk()) << s.toString();
 }

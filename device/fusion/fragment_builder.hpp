@@ -22,6 +22,7 @@
 
 #include <Eigen/Geometry>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -117,6 +118,16 @@ class FragmentBuilder {
 
     /// Closes the open fragment (FragmentEnd::kEndOfStream); nullopt when none holds frames.
     std::optional<Fragment> finish();
+
+    /// The builder's whole state after the frames processed so far (the open fragment, both
+    /// volumes, the tracking model and reference, the odometry), as bytes for a checkpoint.
+    /// restoreState() on a builder made with the same camera and configuration continues
+    /// exactly as this one would have: the same fragments, byte for byte, from the same next
+    /// frames. The bytes are for this build on this machine only (io::StateWriter).
+    std::vector<uint8_t> saveState() const;
+    /// kCorrupt for damaged bytes or a state saved with another camera or configuration (the
+    /// builder must then be discarded).
+    Status restoreState(std::span<const uint8_t> bytes);
 
     /// Current camera pose estimate in the world (odometry) frame.
     const Eigen::Isometry3d& T_W_C() const { return T_W_C_; }

@@ -255,3 +255,104 @@ TEST(FragmentBuilder, EachFragmentCarriesWhatTrackingObservedOfItsPose) {
 
 }  // namespace
 }  // namespace plumb::device
+
+namespace plumb::device {
+namespace {
+
+/// Frame k of a textured hand-held scan of the box room, with depth noise and colour.
+Frame colourFrame(const testing::Scene& room, int k) {
+    Frame frame;
+    frame.index = k;
+    frame.timestamp_s = k / 30.0;
+    frame.depth = room.render(camera(), testing::handheldPose(k), static_cast<uint64_t>(k + 1));
+    frame.colour = testing::renderColour(room, camera(), testing::handheldPose(k));
+    return frame;
+}
+
+/// Feeds frames [from, to) to `builder`, appending the fragments it closes.
+void feed(FragmentBuilder& builder, const testing::Scene& room, int from, int to,
+          std::vector<Fragment>* fragments) {
+    for (int k = from; k < to; ++k) {
+        Result<FrameReport> r = builder.process(colourFrame(room, k));
+        ASSERT_TRUE(r.isOk()) << r.status().toString();
+        for (Fragment& f : r->closed) fragments->push_back(std::move(f));
+    }
+}
+
+void expectSameFragment(const Fragment& a, const Fragment& b) {
+    EXPECT_EQ(a.id, b.id);
+    EXPECT_EQ(a.segment, b.segment);
+    EXPECT_EQ(a.end, b.end);
+    EXPECT_TRUE(a.T_W_F.matrix() == b.T_W_F.matrix());
+    EXPECT_EQ(a.tracking_quality, b.tracking_quality);
+    EXPECT_TRUE(a.odometry_information == b.odometry_information);
+    ASSERT_EQ(a.frames.size(), b.frames.size());
+    for (size_t i = 0; i < a.frames.size(); ++i) {
+        EXPECT_EQ(a.frames[i].frame_index, b.frames[i].frame_index);
+        EXPECT_TRUE(a.frames[i].T_F_C.matrix() == b.frames[i].T_F_C.matrix()) << "frame " << i;
+        EXPECT_EQ(a.frames[i].tracking_ok, b.frames[i].tracking_ok);
+    }
+    EXPECT_TRUE(a.points_F.points == b.points_F.points);
+    EXPECT_TRUE(a.points_F.normals == b.points_F.normals);
+    EXPECT_TRUE(a.points_F.colors == b.points_F.colors);
+}
+
+TEST(FragmentBuilder, ARestoredStateContinuesExactlyAsTheBuilderWouldHave) {
+    // A fragment closes on its 8th frame and the next 5 track against it (handover): the state
+    // after 3 frames is inside a fragment, after 10 inside a handover, after 16 just after a cut;
+    // colour makes the photometric reference part of the state.
+    FusionConfig config = fusionConfig();
+    config.frames_per_fragment = 8;
+    const testing::Scene room = testing::boxRoom();
+    constexpr int kFrames = 27;
+    FragmentBuilder whole(camera(), config);
+    std::vector<Fragment> expected;
+    feed(whole, room, 0, kFrames, &expected);
+    std::optional<Fragment> tail = whole.finish();
+    ASSERT_TRUE(tail.has_value());
+    expected.push_back(std::move(*tail));
+    ASSERT_EQ(expected.size(), 4u);
+    ASSERT_FALSE(expected[0].points_F.colors.empty());
+
+    for (int stop : {3, 10, 16}) {
+        SCOPED_TRACE("checkpoint after frame " + std::to_string(stop));
+        FragmentBuilder first(camera(), config);
+        std::vector<Fragment> got;
+        feed(first, room, 0, stop, &got);
+        const std::vector<uint8_t> state = first.saveState();
+        FragmentBuilder second(camera(), config);
+        ASSERT_TRUE(second.restoreState(state).isOk());
+        feed(second, room, stop, kFrames, &got);
+        std::optional<Fragment> last = second.finish();
+        ASSERT_TRUE(last.has_value());
+        got.push_back(std::move(*last));
+        ASSERT_EQ(got.size(), expected.size());
+        for (size_t i = 0; i < got.size(); ++i) expectSameFragment(got[i], expected[i]);
+    }
+}
+
+TEST(FragmentBuilder, ADamagedOrForeignStateIsRefused) {
+    FusionConfig config = fusionConfig();
+    const testing::Scene room = testing::boxRoom();
+    FragmentBuilder builder(camera(), config);
+    std::vector<Fragment> unused;
+    feed(builder, room, 0, 4, &unused);
+    const std::vector<uint8_t> state = builder.saveState();
+
+    FragmentBuilder fresh(camera(), config);
+    EXPECT_TRUE(fresh.restoreState(state).isOk());
+    const std::vector<uint8_t> cut(state.begin(), state.begin() + state.size() / 2);
+    EXPECT_EQ(FragmentBuilder(camera(), config).restoreState(cut).code(), StatusCode::kCorrupt);
+    std::vector<uint8_t> longer = state;
+    longer.push_back(0);
+    EXPECT_EQ(FragmentBuilder(camera(), config).restoreState(longer).code(), StatusCode::kCorrupt);
+    FusionConfig other = config;
+    other.tsdf.voxel_size_m = 0.02f;
+    EXPECT_EQ(FragmentBuilder(camera(), other).restoreState(state).code(), StatusCode::kCorrupt);
+    other = config;
+    other.frames_per_fragment = 7;
+    EXPECT_EQ(FragmentBuilder(camera(), other).restoreState(state).code(), StatusCode::kCorrupt);
+}
+
+}  // namespace
+}  // namespace plumb::device

@@ -10,6 +10,8 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <atomic>
+
 #include <chrono>
 #include <filesystem>
 #include <fstream>
@@ -61,7 +63,10 @@ constexpr const char* kUsage =
     "  --port P         LCM UDP port on 239.255.76.67 (default: 7667 + pid % 1000)\n"
     "  -h, --help       this text\n"
     "\n"
-    "exit status: 0 done, 1 a process or stage failed, 2 bad command line.\n";
+    "Ctrl-C (or SIGTERM) is passed on to plumb-device and plumb-backend, and the demo waits\n"
+    "for them to stop cleanly; a second Ctrl-C kills them.\n"
+    "\n"
+    "exit status: 0 done, 1 a process or stage failed, 2 bad command line, 130 interrupted.\n";
 
 constexpr const char* kCommand = "demo";
 
@@ -101,13 +106,35 @@ Result<pid_t> spawn(const fs::path& program, const std::vector<std::string>& arg
     return pid;
 }
 
-int waitExit(pid_t pid) {
-    int status = 0;
-    while (waitpid(pid, &status, 0) < 0) {
-        if (errno != EINTR) return -1;
+/// SIGINT and SIGTERM received by the demo (counted by its handler).
+std::atomic<int> g_signals{0};
+
+void countSignal(int) { g_signals.fetch_add(1); }
+
+/// Waits for `pid` to exit and returns its exit status (128 + the signal that ended it), while
+/// passing Ctrl-C on: the demo's first SIGINT or SIGTERM goes to every child in `children` as
+/// SIGINT (each stops its work cleanly), a second one kills them (SIGKILL).
+int waitExit(pid_t pid, const std::vector<pid_t>& children) {
+    int forwarded = 0;
+    for (;;) {
+        int status = 0;
+        const pid_t r = waitpid(pid, &status, WNOHANG);
+        if (r == pid) {
+            if (WIFEXITED(status)) return WEXITSTATUS(status);
+            return 128 + (WIFSIGNALED(status) ? WTERMSIG(status) : 0);
+        }
+        if (r < 0 && errno != EINTR) return -1;
+        const int received = g_signals.load();
+        if (received > forwarded) {
+            if (forwarded == 0) {
+                std::cerr << "plumb demo: interrupted; stopping plumb-device and plumb-backend "
+                             "(Ctrl-C again to kill them)\n";
+            }
+            for (const pid_t child : children) kill(child, forwarded == 0 ? SIGINT : SIGKILL);
+            forwarded = received;
+        }
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
     }
-    if (WIFEXITED(status)) return WEXITSTATUS(status);
-    return 128 + (WIFSIGNALED(status) ? WTERMSIG(status) : 0);
 }
 
 /// The ground truth of the scan the device will render, for the backend to score against.
@@ -187,29 +214,48 @@ int runDemo(const std::vector<std::string>& args) {
     const std::string log_level = log::levelName(log::currentLevel());  // plumb's, for both
     std::cout << fmt::format("plumb demo: device and backend talk over {}\n", url);
 
+    // From here on Ctrl-C goes to the children (waitExit), and the demo waits for them.
+    struct sigaction sa {};
+    sa.sa_handler = countSignal;
+    sigemptyset(&sa.sa_mask);
+    sa.sa_flags = SA_RESTART;
+    sigaction(SIGINT, &sa, nullptr);
+    sigaction(SIGTERM, &sa, nullptr);
     Result<pid_t> backend_pid =
         spawn(*backend, {"--live", "--until-end", "--out", out.string(), "--lcm-url", url, "--gt",
                          gt_dir.string(), "--timeout", "3600", "--log-level", log_level});
     if (!backend_pid.isOk()) return failure(kCommand, backend_pid.status());
     std::this_thread::sleep_for(std::chrono::milliseconds(500));
+    if (g_signals.load() > 0) {
+        kill(*backend_pid, SIGINT);
+        waitExit(*backend_pid, {*backend_pid});
+        std::cerr << "plumb demo: interrupted\n";
+        return kExitInterrupted;
+    }
     Result<pid_t> device_pid =
         spawn(*device, {"--source", "sim:" + scene, "--frames", std::to_string(frames), "--noise",
                         noise, "--depth-calibration", depth_calibration, "--lcm-url", url,
                         "--spool-dir", (out / "device_spool").string(), "--log-level", log_level});
     if (!device_pid.isOk()) {
         kill(*backend_pid, SIGTERM);
-        waitExit(*backend_pid);
+        waitExit(*backend_pid, {*backend_pid});
         return failure(kCommand, device_pid.status());
     }
-    const int device_rc = waitExit(*device_pid);
-    if (device_rc != 0) {
+    const int device_rc = waitExit(*device_pid, {*device_pid, *backend_pid});
+    if (device_rc != 0 && g_signals.load() == 0) {
         std::cerr << fmt::format("plumb demo: plumb-device exited with {}; stopping the backend\n",
                                  device_rc);
         kill(*backend_pid, SIGTERM);
-        waitExit(*backend_pid);
-        return kExitFailure;
     }
-    const int backend_rc = waitExit(*backend_pid);
+    const int backend_rc = waitExit(*backend_pid, {*backend_pid});
+    if (g_signals.load() > 0) {
+        std::cerr << fmt::format(
+            "plumb demo: interrupted; plumb-device exited with {}, plumb-backend with {}; what "
+            "they kept is in {}\n",
+            device_rc, backend_rc, out.string());
+        return kExitInterrupted;
+    }
+    if (device_rc != 0) return kExitFailure;
     if (backend_rc != 0) {
         std::cerr << fmt::format("plumb demo: plumb-backend exited with {}\n", backend_rc);
         return kExitFailure;

@@ -6,6 +6,7 @@
 #include <fmt/format.h>
 #include <tbb/global_control.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -13,6 +14,7 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -24,14 +26,17 @@
 #include "common/core/progress.hpp"
 #include "common/io/trajectory.hpp"
 #include "common/layout/layout.hpp"
-#include "device/fusion/fragment_builder.hpp"
 #include "device/fusion/fusion_config.hpp"
 #include "drivers/sim/scene.hpp"
 #include "drivers/sim/sim_source.hpp"
 #include "drivers/source.hpp"
+#include "messages/files.hpp"
 #include "tools/plumb/calibration_aligner.hpp"
 #include "tools/plumb/command.hpp"
+#include "tools/plumb/interrupt.hpp"
+#include "tools/plumb/output_folder.hpp"
 #include "tools/plumb/pose_lookup.hpp"
+#include "tools/plumb/reconstruct_fusion.hpp"
 
 namespace plumb::tools {
 
@@ -85,8 +90,15 @@ constexpr const char* kUsage =
     "closures, line-process pose graph), layout estimation alternated with layout-constrained\n"
     "global registration, the final mesh, and an evaluation against whatever ground truth the\n"
     "input carries. Writes the output contract: trajectory.txt, trajectory.log, pose_graph.json,\n"
-    "layout.json, floorplan.svg, mesh.ply, metrics.json, report.html, config.toml; the\n"
-    "--no-layout baseline goes to DIR/baseline for comparison.\n"
+    "layout.json, floorplan.svg, mesh.ply, metrics.json, report.html, config.toml, and the\n"
+    "fragments as the device would send them (fragments/); the --no-layout baseline goes to\n"
+    "DIR/baseline for comparison.\n"
+    "\n"
+    "Ctrl-C (or SIGTERM) stops at the next frame, or after the backend stage running: the\n"
+    "fragments fused so far, the trajectory tracked so far (trajectory.txt) and metrics.json\n"
+    "with \"status\": \"interrupted\" are kept, and `plumb reconstruct --resume DIR` continues\n"
+    "the run, giving the same outputs byte for byte as a run never interrupted. A second\n"
+    "Ctrl-C stops at once.\n"
     "\n"
     "source:\n"
     "  DIR | dataset:DIR  a TUM, ICL-NUIM, Redwood, 7-Scenes or plumb-sim folder (detected)\n"
@@ -94,7 +106,11 @@ constexpr const char* kUsage =
     "                     corridor, or a scene .toml file)\n"
     "\n"
     "options:\n"
-    "  --out DIR          output folder (required)\n"
+    "  --out DIR          output folder (required; created when missing). A folder that\n"
+    "                     is not empty is refused, so that no earlier run's files mix in\n"
+    "  --force            clear a non-empty --out folder of an earlier plumb run first\n"
+    "  --resume DIR       continue the run interrupted in DIR, with its options (only\n"
+    "                     --quiet and --threads may be given besides)\n"
     "  --no-layout        the Choi-style baseline only (registration without layout)\n"
     "  --no-baseline      do not also compute the baseline for comparison\n"
     "  --frames N         use the first N frames only\n"
@@ -128,7 +144,7 @@ constexpr const char* kUsage =
     "  -h, --help         this text\n"
     "\n"
     "exit status: 0 done, 1 the input or a stage failed (the message says which), 2 bad\n"
-    "command line.\n";
+    "command line, 130 interrupted (the work so far kept; see --resume).\n";
 
 constexpr const char* kCommand = "reconstruct";
 
@@ -146,6 +162,9 @@ struct Options {
     double frame_step = 1.0;
     int threads = 0;
     bool quiet = false;
+    bool force = false;
+    /// --resume: continue the run interrupted in this folder.
+    std::filesystem::path resume;
 };
 
 std::string normaliseUri(const std::string& source) {
@@ -167,98 +186,98 @@ Result<backend::GroundTruth> simGroundTruth(const sim::SimSource& sim) {
     return gt;
 }
 
-/// Runs the device's tracking and fusion over a whole source. Empty fragments (a tracking loss
-/// on the first frame of a fragment) are dropped and the rest renumbered 0..n-1.
-Result<std::vector<Fragment>> fuseSource(FrameSource& source, const device::FusionConfig& config,
-                                         double frame_step, bool quiet,
-                                         io::Trajectory* poses_read) {
-    device::FragmentBuilder builder(source.camera(), config);
-    std::vector<Fragment> fragments;
-    ProgressOptions po;
-    if (quiet) po.mode = ProgressOptions::Mode::kQuiet;
-    po.unit = "frames";
-    Progress progress("tracking and fusing", source.size().value_or(0), po);
-    size_t lost = 0;
-    size_t read = 0, fused = 0;  // source frames read, frames fused (--frame-step)
-    for (;;) {
-        Result<Frame> frame = source.next();
-        if (!frame.isOk()) {
-            if (frame.status().code() == StatusCode::kOutOfRange) break;
-            return frame.status();
-        }
-        if (frame->T_W_C_gt) poses_read->push_back({frame->timestamp_s, *frame->T_W_C_gt});
-        const size_t position = read++;
-        if (position != static_cast<size_t>(std::floor(static_cast<double>(fused) * frame_step))) {
-            progress.advance();
-            continue;  // dropped, as a device that keeps up with 1 / frame_step of the rate
-        }
-        ++fused;
-        Result<device::FrameReport> report = builder.process(*frame);
-        if (!report.isOk()) return report.status();
-        if (!report->tracked) ++lost;
-        for (Fragment& f : report->closed) fragments.push_back(std::move(f));
-        progress.advance();
+/// The raw frames for the final model, stopping (kCancelled) once Ctrl-C asked to.
+class StoppableSource : public FrameSourceDecorator {
+  public:
+    using FrameSourceDecorator::FrameSourceDecorator;
+    Result<Frame> next() override {
+        if (InterruptScope::requested()) return cancelled("stopped on request");
+        return inner().next();
     }
-    if (std::optional<Fragment> last = builder.finish()) fragments.push_back(std::move(*last));
-    progress.finish();
-    if (lost > 0)
-        log::warn("tracking failed on {} frames (their fragments were closed early)", lost);
-    std::vector<Fragment> kept;
-    for (Fragment& f : fragments) {
-        if (f.points_F.points.empty()) {
-            log::warn("fragment {} has no surface points; dropped", f.id);
-            continue;
-        }
-        f.id = static_cast<uint32_t>(kept.size());
-        kept.push_back(std::move(f));
+    Status skip() override {
+        if (InterruptScope::requested()) return cancelled("stopped on request");
+        return inner().skip();
     }
-    if (kept.empty()) return failedPrecondition("the scan produced no fragment with a surface");
-    return kept;
-}
+};
 
-/// Creates `out` (when missing) and checks that a file can be written into it, before any work.
-Status prepareOutputFolder(const std::filesystem::path& out) {
-    std::error_code ec;
-    if (std::filesystem::exists(out, ec) && !std::filesystem::is_directory(out, ec)) {
-        return invalidArgument(fmt::format("--out {}: exists and is not a folder", out.string()));
-    }
-    std::filesystem::create_directories(out, ec);
-    if (ec) return ioError(fmt::format("--out {}: cannot create: {}", out.string(), ec.message()));
-    const std::filesystem::path probe = out / ".plumb-write-test";
-    {
-        std::ofstream f(probe);
-        if (!(f << "plumb\n")) {
-            return ioError(fmt::format("--out {}: cannot write into it", out.string()));
-        }
-    }
-    std::filesystem::remove(probe, ec);
-    return Status::ok();
+/// What an interrupted run keeps in `out`: the fusion checkpoint (resume/), the trajectory tracked
+/// so far, and metrics.json saying where it stopped.
+Status writeInterrupted(const std::filesystem::path& out, const FusionPass& pass,
+                        const std::string& stage) {
+    PLUMB_RETURN_IF_ERROR(pass.checkpoint());
+    PLUMB_RETURN_IF_ERROR(io::writeTumTrajectory(out / "trajectory.txt", pass.tracked()));
+    const FusionCounts& c = pass.counts();
+    nlohmann::json m;
+    m["format"] = "plumb-metrics-1";
+    m["status"] = "interrupted";
+    m["stage"] = stage;
+    m["frames_read"] = c.read;
+    m["frames_fused"] = c.fused;
+    m["frames_tracking_failed"] = c.lost;
+    m["fusion_finished"] = pass.finished();
+    m["fragments_stored"] = pass.fragmentsStored();
+    m["trajectory"] = fmt::format("trajectory.txt: the odometry of the {} frames tracked so far",
+                                  pass.tracked().size());
+    m["resume"] = "plumb reconstruct --resume " + out.string();
+    const std::string text = m.dump(2) + "\n";
+    return messages::writeFileAtomic(
+        out / "metrics.json",
+        std::span(reinterpret_cast<const uint8_t*>(text.data()), text.size()));
 }
 
 /// Fusion of `source` (opened from `uri` with `source_options`) into fragments, then the backend
-/// into `out`.
-Result<backend::PipelineResult> reconstructOnce(
-    FrameSource& source, const std::string& uri, const SourceOptions& source_options,
-    const ReconstructConfig& cfg, const backend::PipelineConfig& pipeline,
-    backend::PipelineInput input, const std::filesystem::path& out, const Options& options) {
-    io::Trajectory poses_read;
-    Result<std::vector<Fragment>> fragments =
-        fuseSource(source, cfg.fusion, options.frame_step, options.quiet, &poses_read);
+/// into `out`; with `resume`, the fusion continues from the checkpoint in `out`. kCancelled when
+/// Ctrl-C stopped it, after writing what an interrupted run keeps.
+Result<backend::PipelineResult> reconstructOnce(FrameSource& source, const std::string& uri,
+                                                const SourceOptions& source_options,
+                                                const ReconstructConfig& cfg,
+                                                const backend::PipelineConfig& pipeline,
+                                                backend::PipelineInput input,
+                                                const std::filesystem::path& out,
+                                                const Options& options, bool resume = false) {
+    Result<std::unique_ptr<FusionPass>> opened =
+        resume ? FusionPass::resume(out, source, source.camera(), cfg.fusion, options.frame_step)
+               : FusionPass::start(out, source.camera(), cfg.fusion, options.frame_step);
+    if (!opened.isOk()) return opened.status();
+    FusionPass& pass = **opened;
+    if (resume) {
+        log::info("resuming after frame {} ({} fragments stored{})", pass.counts().read,
+                  pass.fragmentsStored(), pass.finished() ? ", tracking and fusion done" : "");
+    }
+    Result<bool> finished = pass.run(source, InterruptScope::requested, options.quiet);
+    if (!finished.isOk()) return finished.status();
+    if (!*finished) {
+        PLUMB_RETURN_IF_ERROR(writeInterrupted(out, pass, "tracking and fusion"));
+        return cancelled(
+            fmt::format("during tracking and fusion, after {} frames", pass.counts().read));
+    }
+    PLUMB_RETURN_IF_ERROR(pass.checkpoint());  // a resume from here goes straight to the backend
+    Result<std::vector<Fragment>> fragments = pass.fragments();
     if (!fragments.isOk()) return fragments.status();
     // Poses the source reads with its frames (7-Scenes' per-frame files, a dataset's
     // groundtruth.txt) are scored when the folder has no trajectory file of its own.
-    if (!options.no_gt && !input.ground_truth.trajectory && !poses_read.empty()) {
+    if (!options.no_gt && !input.ground_truth.trajectory && !pass.posesRead().empty()) {
         std::string& d = input.ground_truth.description;
-        const std::string what = fmt::format("the poses read with {} frames", poses_read.size());
+        const std::string what =
+            fmt::format("the poses read with {} frames", pass.posesRead().size());
         d = (d.empty() || d == "none") ? what : d + "; " + what;
-        input.ground_truth.trajectory = std::move(poses_read);
+        input.ground_truth.trajectory = pass.posesRead();
     }
     input.fragments = std::move(*fragments);
     log::info("{} fragments fused", input.fragments.size());
-    input.open_raw_frames = [uri, source_options]() {
-        return openFrameSource(uri, source_options);
+    input.open_raw_frames = [uri, source_options]() -> Result<std::unique_ptr<FrameSource>> {
+        Result<std::unique_ptr<FrameSource>> raw = openFrameSource(uri, source_options);
+        if (!raw.isOk()) return raw.status();
+        return std::unique_ptr<FrameSource>(new StoppableSource(std::move(*raw)));
     };
-    return backend::runPipeline(input, pipeline, out, !options.quiet);
+    input.stop_requested = InterruptScope::requested;
+    Result<backend::PipelineResult> result =
+        backend::runPipeline(input, pipeline, out, !options.quiet);
+    if (!result.isOk() && result.status().code() == StatusCode::kCancelled) {
+        PLUMB_RETURN_IF_ERROR(writeInterrupted(out, pass, "backend"));
+        return cancelled("in the backend (" + result.status().message() + ")");
+    }
+    return result;
 }
 
 /// The accuracy figures of a run's main variant, for the self-calibration's before/after.
@@ -359,13 +378,8 @@ Result<backend::PipelineResult> selfCalibratedRun(FrameSource& raw_source, const
                            std::move(input), o.out, o);
 }
 
-}  // namespace
-
-int runReconstruct(const std::vector<std::string>& arguments) {
-    std::vector<std::string> args = arguments;
-    Result<config::ConfigArgs> config_args = config::extractConfigArgs(args);
-    if (!config_args.isOk()) return usageError(kCommand, config_args.status().message());
-    Options o;
+/// Parses a command line (without --resume) into `*o`; nullopt to go on, else the exit status.
+std::optional<int> parseOptions(const std::vector<std::string>& args, Options* o) {
     for (size_t i = 0; i < args.size(); ++i) {
         const std::string& a = args[i];
         auto value = [&](std::string* v) {
@@ -379,66 +393,188 @@ int runReconstruct(const std::vector<std::string>& arguments) {
             return kExitOk;
         } else if (a == "--out") {
             if (!value(&v)) return usageError(kCommand, "--out needs a folder");
-            o.out = v;
+            o->out = v;
         } else if (a == "--no-layout") {
-            o.no_layout = true;
+            o->no_layout = true;
         } else if (a == "--no-baseline") {
-            o.no_baseline = true;
+            o->no_baseline = true;
         } else if (a == "--frames") {
-            if (!value(&v) || !parseNumber(v, &o.source_options.max_frames) ||
-                o.source_options.max_frames == 0)
+            if (!value(&v) || !parseNumber(v, &o->source_options.max_frames) ||
+                o->source_options.max_frames == 0)
                 return usageError(kCommand, "--frames needs a positive integer");
         } else if (a == "--intrinsics") {
-            if (!value(&o.source_options.intrinsics))
+            if (!value(&o->source_options.intrinsics))
                 return usageError(kCommand, "--intrinsics needs a preset or a file");
         } else if (a == "--depth-scale") {
-            if (!value(&v) || !parseNumber(v, &o.source_options.depth_scale) ||
-                !(o.source_options.depth_scale > 0))
+            if (!value(&v) || !parseNumber(v, &o->source_options.depth_scale) ||
+                !(o->source_options.depth_scale > 0))
                 return usageError(kCommand, "--depth-scale needs a positive number");
         } else if (a == "--seed") {
-            if (!value(&v) || !parseNumber(v, &o.source_options.seed))
+            if (!value(&v) || !parseNumber(v, &o->source_options.seed))
                 return usageError(kCommand, "--seed needs a non-negative integer");
         } else if (a == "--depth-calibration") {
-            if (!value(&o.source_options.depth_calibration))
+            if (!value(&o->source_options.depth_calibration))
                 return usageError(kCommand, "--depth-calibration needs a value");
-            if (Status s = checkDepthCalibration(o.source_options.depth_calibration); !s.isOk())
+            if (Status s = checkDepthCalibration(o->source_options.depth_calibration); !s.isOk())
                 return usageError(kCommand, s.message());
-            o.depth_calibration_given = true;
+            o->depth_calibration_given = true;
         } else if (a == "--frame-step") {
-            if (!value(&v) || !parseNumber(v, &o.frame_step) || !(o.frame_step >= 1.0))
+            if (!value(&v) || !parseNumber(v, &o->frame_step) || !(o->frame_step >= 1.0))
                 return usageError(kCommand, "--frame-step needs a number >= 1");
         } else if (a == "--self-calibrate") {
-            o.self_calibrate = true;
+            o->self_calibrate = true;
         } else if (a == "--no-colour") {
-            o.source_options.colour = false;
+            o->source_options.colour = false;
         } else if (a == "--noise") {
-            if (!value(&o.source_options.sim_noise))
+            if (!value(&o->source_options.sim_noise))
                 return usageError(kCommand, "--noise needs a mode");
-            if (Status s = sim::checkNoiseMode(o.source_options.sim_noise); !s.isOk())
+            if (Status s = sim::checkNoiseMode(o->source_options.sim_noise); !s.isOk())
                 return usageError(kCommand, s.message());
         } else if (a == "--gt") {
             if (!value(&v)) return usageError(kCommand, "--gt needs a folder");
-            o.gt_dir = v;
+            o->gt_dir = v;
         } else if (a == "--no-gt") {
-            o.no_gt = true;
+            o->no_gt = true;
         } else if (a == "--threads") {
-            if (!value(&v) || !parseNumber(v, &o.threads) || o.threads < 1)
+            if (!value(&v) || !parseNumber(v, &o->threads) || o->threads < 1)
                 return usageError(kCommand, "--threads needs a positive integer");
         } else if (a == "--quiet") {
-            o.quiet = true;
+            o->quiet = true;
+        } else if (a == "--force") {
+            o->force = true;
+        } else if (a == "--resume") {
+            return usageError(kCommand, "--resume DIR comes without a source and other options");
         } else if (!a.empty() && a[0] == '-') {
             return usageError(kCommand, "unknown option " + a);
-        } else if (o.source.empty()) {
-            o.source = a;
+        } else if (o->source.empty()) {
+            o->source = a;
         } else {
-            return usageError(kCommand, "more than one source given: " + o.source + " and " + a);
+            return usageError(kCommand, "more than one source given: " + o->source + " and " + a);
         }
     }
-    if (o.source.empty()) return usageError(kCommand, "no source given");
-    if (o.out.empty()) return usageError(kCommand, "--out is required");
-    if (o.self_calibrate && o.depth_calibration_given)
+    if (o->source.empty()) return usageError(kCommand, "no source given");
+    if (o->out.empty()) return usageError(kCommand, "--out is required");
+    if (o->self_calibrate && o->depth_calibration_given)
         return usageError(
             kCommand, "--self-calibrate learns the depth calibration: drop --depth-calibration");
+    return std::nullopt;
+}
+
+/// `--resume DIR [--quiet] [--threads N]`, into `*o` (resume, quiet, threads).
+std::optional<int> parseResume(const std::vector<std::string>& args, Options* o) {
+    for (size_t i = 0; i < args.size(); ++i) {
+        const std::string& a = args[i];
+        if (a == "--resume" && i + 1 < args.size() && o->resume.empty()) {
+            o->resume = args[++i];
+        } else if (a == "--quiet") {
+            o->quiet = true;
+        } else if (a == "--threads" && i + 1 < args.size()) {
+            if (!parseNumber(args[++i], &o->threads) || o->threads < 1)
+                return usageError(kCommand, "--threads needs a positive integer");
+        } else if (a == "-h" || a == "--help") {
+            std::cout << kUsage;
+            return kExitOk;
+        } else {
+            return usageError(kCommand,
+                              "--resume DIR takes only --quiet and --threads besides (the "
+                              "rest is the interrupted run's); not " +
+                                  a);
+        }
+    }
+    if (o->resume.empty()) return usageError(kCommand, "--resume needs a folder");
+    return std::nullopt;
+}
+
+/// What --resume needs of a run: its command line, working folder and configuration, in
+/// DIR/resume/run.json (written before any work, removed when the run completes).
+struct RunRecord {
+    std::vector<std::string> arguments;
+    std::filesystem::path cwd;
+    std::string config_toml;
+    bool self_calibrate = false;
+};
+
+Status writeRunRecord(const std::filesystem::path& out, const RunRecord& r) {
+    std::error_code ec;
+    std::filesystem::create_directories(out / "resume", ec);
+    if (ec)
+        return ioError(
+            fmt::format("{}: cannot create: {}", (out / "resume").string(), ec.message()));
+    const nlohmann::json j = {{"format", "plumb-reconstruct-run-1"},
+                              {"arguments", r.arguments},
+                              {"cwd", r.cwd.string()},
+                              {"config_toml", r.config_toml},
+                              {"self_calibrate", r.self_calibrate}};
+    const std::string text = j.dump(2) + "\n";
+    return messages::writeFileAtomic(
+        out / "resume" / "run.json",
+        std::span(reinterpret_cast<const uint8_t*>(text.data()), text.size()));
+}
+
+Result<RunRecord> readRunRecord(const std::filesystem::path& dir) {
+    const std::filesystem::path path = dir / "resume" / "run.json";
+    std::error_code ec;
+    if (!std::filesystem::exists(path, ec)) {
+        return notFound(
+            fmt::format("--resume {}: no interrupted run there (no {}; a run that "
+                        "completed keeps none)",
+                        dir.string(), path.string()));
+    }
+    Result<std::vector<uint8_t>> bytes = messages::readFile(path, int64_t{1} << 24);
+    if (!bytes.isOk()) return bytes.status();
+    const nlohmann::json j = nlohmann::json::parse(bytes->begin(), bytes->end(), nullptr, false);
+    RunRecord r;
+    if (j.is_discarded() || j.value("format", "") != "plumb-reconstruct-run-1" ||
+        !j.contains("arguments") || !j["arguments"].is_array()) {
+        return corrupt(path.string() + ": not a plumb run record");
+    }
+    try {
+        r.arguments = j["arguments"].get<std::vector<std::string>>();
+        r.cwd = j.at("cwd").get<std::string>();
+        r.config_toml = j.at("config_toml").get<std::string>();
+        r.self_calibrate = j.at("self_calibrate").get<bool>();
+    } catch (const nlohmann::json::exception& e) {
+        return corrupt(path.string() + ": " + e.what());
+    }
+    return r;
+}
+
+}  // namespace
+
+int runReconstruct(const std::vector<std::string>& arguments) {
+    std::vector<std::string> args = arguments;
+    // --resume DIR: the interrupted run's own command line, in its working folder.
+    Options resumed;
+    std::optional<RunRecord> record;
+    if (std::find(args.begin(), args.end(), "--resume") != args.end()) {
+        if (std::optional<int> rc = parseResume(args, &resumed)) return *rc;
+        resumed.resume = std::filesystem::absolute(resumed.resume);
+        Result<RunRecord> r = readRunRecord(resumed.resume);
+        if (!r.isOk()) return usageError(kCommand, r.status().message());
+        if (r->self_calibrate) {
+            return usageError(kCommand,
+                              "--resume does not continue a --self-calibrate run; run it "
+                              "again (with --force)");
+        }
+        std::error_code ec;
+        std::filesystem::current_path(r->cwd, ec);
+        if (ec) {
+            return usageError(kCommand, fmt::format("--resume: cannot enter {}, the interrupted "
+                                                    "run's working folder: {}",
+                                                    r->cwd.string(), ec.message()));
+        }
+        args = r->arguments;
+        record = std::move(*r);
+    }
+    Result<config::ConfigArgs> config_args = config::extractConfigArgs(args);
+    if (!config_args.isOk()) return usageError(kCommand, config_args.status().message());
+    Options o;
+    if (std::optional<int> rc = parseOptions(args, &o)) return *rc;
+    if (record) {
+        o.out = resumed.resume;
+        o.quiet = o.quiet || resumed.quiet;
+        if (resumed.threads > 0) o.threads = resumed.threads;
+    }
 
     ReconstructConfig cfg;
     if (Status s = config::load(*config_args, cfg); !s.isOk())
@@ -460,7 +596,20 @@ int runReconstruct(const std::vector<std::string>& arguments) {
     if (Status s = calibration::validate(cfg.self_calibration.estimate);
         o.self_calibrate && !s.isOk())
         return usageError(kCommand, s.message());
-    if (Status s = prepareOutputFolder(o.out); !s.isOk()) return usageError(kCommand, s.message());
+    const std::string config_toml =
+        config::toToml(cfg, "plumb reconstruct: effective configuration");
+    if (record && record->config_toml != config_toml) {
+        return usageError(kCommand,
+                          "--resume: the configuration differs from the interrupted "
+                          "run's (was its --config file changed?)");
+    }
+    if (!record) {
+        if (Status s = prepareOutputFolder(o.out, o.force); !s.isOk())
+            return usageError(kCommand, s.message());
+        RunRecord r{arguments, std::filesystem::current_path(), config_toml, o.self_calibrate};
+        if (Status s = writeRunRecord(o.out, r); !s.isOk()) return failure(kCommand, s);
+    }
+    InterruptScope interrupt("plumb reconstruct");
     SourceOptions first_options = o.source_options;
     if (o.self_calibrate) first_options.depth_calibration = "none";
     Result<std::unique_ptr<FrameSource>> source = openFrameSource(uri, first_options);
@@ -484,13 +633,23 @@ int runReconstruct(const std::vector<std::string>& arguments) {
             base.ground_truth = std::move(*gt);
         }
     }
-    base.config_toml = config::toToml(cfg, "plumb reconstruct: effective configuration");
+    base.config_toml = config_toml;
 
     Result<backend::PipelineResult> result =
-        o.self_calibrate
-            ? selfCalibratedRun(**source, uri, o, cfg, base)
-            : reconstructOnce(**source, uri, o.source_options, cfg, cfg.pipeline, base, o.out, o);
+        o.self_calibrate ? selfCalibratedRun(**source, uri, o, cfg, base)
+                         : reconstructOnce(**source, uri, o.source_options, cfg, cfg.pipeline, base,
+                                           o.out, o, record.has_value());
+    if (!result.isOk() && result.status().code() == StatusCode::kCancelled) {
+        std::cerr << fmt::format(
+            "plumb reconstruct: interrupted {}; the work so far is kept in {}{}\n",
+            result.status().message(), o.out.string(),
+            o.self_calibrate ? " (a --self-calibrate run cannot be resumed)"
+                             : "; continue with: plumb reconstruct --resume " + o.out.string());
+        return kExitInterrupted;
+    }
     if (!result.isOk()) return failure(kCommand, result.status());
+    std::error_code ec;
+    std::filesystem::remove_all(o.out / "resume", ec);  // complete: nothing left to resume
     if (o.self_calibrate) {
         const nlohmann::json& sc = result->metrics["self_calibration"];
         const nlohmann::json before = sc.value("before", nlohmann::json::object());

@@ -35,8 +35,9 @@ const std::vector<Command>& commands();
 
 /// Exit codes shared by every command.
 constexpr int kExitOk = 0;
-constexpr int kExitFailure = 1;  ///< the work failed (bad data, failed stage)
-constexpr int kExitUsage = 2;    ///< bad command line or configuration
+constexpr int kExitFailure = 1;        ///< the work failed (bad data, failed stage)
+constexpr int kExitUsage = 2;          ///< bad command line or configuration
+constexpr int kExitInterrupted = 130;  ///< stopped by Ctrl-C (SIGINT) or SIGTERM, as shells do
 
 /// Prints "plumb <command>: <message> (see plumb <command> --help)" to stderr and returns
 /// kExitUsage. `command` is the sub-command as typed ("fuse", "eval traj").
