@@ -74,6 +74,42 @@ std::string readText(const fs::path& p) {
     return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }
 
+// True once `text` appears in the file at `p` (false after `timeout`).
+bool waitForText(const fs::path& p, const std::string& text, std::chrono::seconds timeout) {
+    const auto deadline = std::chrono::steady_clock::now() + timeout;
+    while (std::chrono::steady_clock::now() < deadline) {
+        if (readText(p).find(text) != std::string::npos) return true;
+        std::this_thread::sleep_for(50ms);
+    }
+    return false;
+}
+
+// The device's closing summary: fragments cut, acknowledged, kept unacknowledged, lost.
+struct DeviceSummary {
+    int cut = -1, acked = -1, kept = -1, lost = -1;
+};
+
+DeviceSummary parseSummary(const std::string& log) {
+    DeviceSummary s;
+    const std::string key = "fragments: ";
+    const size_t at = log.rfind(key);
+    if (at == std::string::npos) return s;
+    std::sscanf(log.c_str() + at + key.size(),
+                "%d cut, %d acknowledged, %d kept unacknowledged, %d lost", &s.cut, &s.acked,
+                &s.kept, &s.lost);
+    return s;
+}
+
+// The device exited 1 and reported each of the (at least `min_cut`) fragments it cut as lost.
+void expectEveryFragmentLost(int rc, const std::string& log, int min_cut) {
+    EXPECT_EQ(rc, 1) << log;
+    const DeviceSummary s = parseSummary(log);
+    EXPECT_GE(s.cut, min_cut) << log;
+    EXPECT_EQ(s.kept, 0) << log;
+    EXPECT_EQ(s.lost, s.cut) << log;
+    EXPECT_NE(log.find("never entered the spool and are lost"), std::string::npos) << log;
+}
+
 std::map<std::string, std::vector<uint8_t>> readPlf(const fs::path& dir) {
     std::map<std::string, std::vector<uint8_t>> files;
     if (!fs::is_directory(dir)) return files;
@@ -215,6 +251,50 @@ TEST(StreamingProcesses, DeviceStoppedBySigintFlushesAndExitsCleanly) {
     fs::remove_all(dir);
 }
 
+// deviceArgs with a spool too small for any fragment: 1 byte of memory, `disk_bytes` on disk.
+std::vector<std::string> fullSpoolArgs(const fs::path& dir, int frames, int disk_bytes,
+                                       int ack_wait_s) {
+    auto args = deviceArgs(dir, frames);
+    args.insert(args.end(), {"--set", "stream.spool_memory_bytes=1", "--set",
+                             "stream.spool_disk_bytes=" + std::to_string(disk_bytes), "--set",
+                             "stream.ack_wait_s=" + std::to_string(ack_wait_s)});
+    return args;
+}
+
+// No backend and a spool that takes nothing (issue 32, item 1): the device must not hang. The
+// first SIGINT ends capture, the second ends the wait (SIGTERM after it changes nothing); the
+// device reports every cut fragment as lost and exits 1.
+TEST(StreamingProcesses, DeviceWithFullSpoolHonoursSigintAndSigterm) {
+    const fs::path dir = tempDir("spoolfull_signal");
+    const pid_t device = spawn(fullSpoolArgs(dir, 600, 1, 600), dir / "device.log");
+    ASSERT_GT(device, 0);
+    const bool stalled = waitForText(dir / "device.log", "waits for room in the spool", 90s);
+    kill(device, SIGINT);
+    std::this_thread::sleep_for(1000ms);
+    kill(device, SIGINT);
+    kill(device, SIGTERM);
+    const int rc = waitExit(device, 90s);
+    const std::string log = readText(dir / "device.log");
+    EXPECT_TRUE(stalled) << log;
+    expectEveryFragmentLost(rc, log, 1);
+    EXPECT_EQ(countPlf(dir / "sent"), 0u);  // nothing was sent
+    fs::remove_all(dir);
+}
+
+// A full spool disk and no backend (an injected disk budget of 1000 bytes): a finite scan ends
+// on its own after stream.ack_wait_s, reports the fragments it could not keep and exits 1.
+TEST(StreamingProcesses, DeviceWithFullSpoolDiskEndsAndReportsLostFragments) {
+    const fs::path dir = tempDir("spoolfull_disk");
+    const pid_t device = spawn(fullSpoolArgs(dir, 40, 1000, 2), dir / "device.log");
+    ASSERT_GT(device, 0);
+    const int rc = waitExit(device, 120s);
+    const std::string log = readText(dir / "device.log");
+    expectEveryFragmentLost(rc, log, 3);  // 40 frames, 10 per fragment
+    EXPECT_NE(log.find("spool full"), std::string::npos) << log;
+    EXPECT_EQ(countPlf(dir / "spool"), 0u);
+    fs::remove_all(dir);
+}
+
 TEST(StreamingProcesses, LcmLoggerRecordingReplaysToTheSameStoreTwice) {
     const fs::path dir = tempDir("logger");
     const fs::path log = dir / "scan.lcmlog";
@@ -253,6 +333,7 @@ TEST(StreamingProcesses, LcmLoggerRecordingReplaysToTheSameStoreTwice) {
     // Whatever the log holds completely is bit-identical to what the device sent.
     const auto sent = readPlf(dir / "sent");
     for (const auto& [name, bytes] : fa) EXPECT_TRUE(sent.at(name) == bytes) << name;
+
     fs::remove_all(dir);
 }
 
