@@ -53,11 +53,12 @@ int64_t randomSenderId() {
 }
 
 Result<std::unique_ptr<LcmLink>> LcmLink::open(const LinkOptions& options) {
-    if (!options.allow_remote && !keepsTrafficOnHost(options.url)) {
+    if (auto parsed = parseLcmUrl(options.url); !parsed.isOk()) return parsed.status();
+    if (Status s = checkStaysOnHost(options.url); !options.allow_remote && !s.isOk()) {
         return failedPrecondition(fmt::format(
-            "LCM URL '{}' can send packets off this machine; use a udpm:// URL with ttl=0 (the "
-            "default {}) or memq://, or allow it explicitly",
-            options.url, kDefaultLcmUrl));
+            "{}; use a udpm:// URL with ttl=0 (the default {}) or memq://, or allow packets to "
+            "leave this machine with --allow-remote",
+            s.message(), kDefaultLcmUrl));
     }
     AuthConfig auth;
     if (!options.key_file.empty()) {

@@ -40,8 +40,9 @@ int64_t randomSenderId();
 
 class LcmLink {
   public:
-    /// Opens LCM (and authentication). FailedPrecondition for a URL that can leave the host
-    /// without allow_remote.
+    /// Opens LCM (and authentication). InvalidArgument for a URL parseLcmUrl refuses (e.g. a
+    /// repeated option), whatever allow_remote says; FailedPrecondition for a URL that can leave
+    /// the host (checkStaysOnHost) without allow_remote.
     static Result<std::unique_ptr<LcmLink>> open(const LinkOptions& options);
 
     /// Publish and subscribe here (authenticated when a key is configured).

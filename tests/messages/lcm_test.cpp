@@ -22,6 +22,58 @@ TEST(LcmTransport, UrlPolicy) {
     EXPECT_FALSE(keepsTrafficOnHost("file:///tmp/log?mode=w"));
 }
 
+// Issue 32, item 3: LCM 1.3.1 keeps the last value of a repeated option, so the first ttl=0 must
+// not make a URL pass; repeated or half-given options are refused with a message saying why.
+TEST(LcmUrl, RepeatedOptionsCannotBypassTheOnHostCheck) {
+    for (const char* url : {"udpm://239.255.76.67:7807?ttl=0&ttl=255",
+                            "udpm://239.255.76.67:7807?ttl=0&recv_buf_size=1&ttl=1",
+                            "udpm://239.255.76.67:7807?ttl=1&ttl=0"}) {
+        EXPECT_FALSE(keepsTrafficOnHost(url)) << url;
+    }
+    const Status s = checkStaysOnHost("udpm://239.255.76.67:7807?ttl=0&ttl=255");
+    EXPECT_EQ(s.code(), StatusCode::kInvalidArgument);
+    EXPECT_NE(s.message().find("'ttl' is given more than once"), std::string::npos) << s.message();
+    EXPECT_NE(s.message().find("'255'"), std::string::npos) << s.message();
+    auto parsed = parseLcmUrl("memq://?a=1&a=2");
+    ASSERT_FALSE(parsed.isOk());
+    EXPECT_EQ(parsed.status().code(), StatusCode::kInvalidArgument);
+}
+
+TEST(LcmUrl, ParsedTheWayLcmDoes) {
+    auto u = parseLcmUrl("udpm://239.255.76.67:7667?recv_buf_size=100&&ttl=0&x=a=b");
+    ASSERT_TRUE(u.isOk()) << u.status().toString();
+    EXPECT_EQ(u->provider, "udpm");
+    EXPECT_EQ(u->network, "239.255.76.67:7667");
+    EXPECT_EQ(u->options.size(), 3u);
+    EXPECT_EQ(u->options.at("ttl"), "0");
+    EXPECT_EQ(u->options.at("x"), "a=b");  // split at the first '=' only
+    auto nested = parseLcmUrl("udpm://239.255.76.67:7667?a=1?ttl=5");
+    ASSERT_TRUE(nested.isOk());
+    EXPECT_EQ(nested->options.at("a"), "1?ttl=5");  // only the first '?' separates
+    EXPECT_FALSE(keepsTrafficOnHost("udpm://239.255.76.67:7667?a=1?ttl=0"));
+    for (const char* bad : {"", "udpm:/239.255.76.67", "udpm://239.255.76.67?ttl=",
+                            "udpm://239.255.76.67?=0", "udpm://239.255.76.67?ttl"}) {
+        auto r = parseLcmUrl(bad);
+        EXPECT_EQ(r.status().code(), StatusCode::kInvalidArgument) << bad;
+    }
+}
+
+TEST(LcmUrl, OnlyMulticastWithTtlZeroOrMemqStayOnHost) {
+    EXPECT_FALSE(keepsTrafficOnHost("udpm://?ttl=0"));  // no group named: not judged
+    EXPECT_TRUE(keepsTrafficOnHost("udpm://239.255.76.67?ttl=0"));
+    EXPECT_TRUE(keepsTrafficOnHost("memq://"));
+    // Unicast ignores the multicast ttl; inet_aton would read 0xef/octal forms differently;
+    // LCM's option names are case-sensitive.
+    for (const char* url : {"udpm://10.0.0.5:7667?ttl=0", "udpm://0xef.255.76.67:7667?ttl=0",
+                            "udpm://239.255.076.67:7667?ttl=0", "udpm://239.255.76.67:port?ttl=0",
+                            "udpm://239.255.76.67:7667?ttl=0x0", "udpm://239.255.76.67:7667?ttl=-1",
+                            "udpm://239.255.76.67:7667?TTL=0", "tcpq://localhost:7700"}) {
+        EXPECT_FALSE(keepsTrafficOnHost(url)) << url;
+    }
+    EXPECT_EQ(checkStaysOnHost("udpm://239.255.76.67:7667?ttl=2").code(),
+              StatusCode::kFailedPrecondition);
+}
+
 // Runs the fragment protocol (signed when `key` is set) over one LCM instance.
 void runOverLcm(const std::string& url, const std::string& key) {
     auto lcm = LcmTransport::create(url);

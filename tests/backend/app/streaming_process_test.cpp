@@ -295,6 +295,30 @@ TEST(StreamingProcesses, DeviceWithFullSpoolDiskEndsAndReportsLostFragments) {
     fs::remove_all(dir);
 }
 
+// Issue 32, item 3: LCM uses the last of two ttl options, so neither program may accept
+// "ttl=0&ttl=255" as staying on the host (nor with --allow-remote: the URL is ambiguous).
+TEST(StreamingProcesses, RepeatedTtlIsRefusedByDeviceAndBackend) {
+    const fs::path dir = tempDir("repeated_ttl");
+    const std::string url = "udpm://239.255.76.67:7807?ttl=0&ttl=255";
+    const std::vector<std::vector<std::string>> runs = {
+        {PLUMB_BACKEND_EXE, "--live", "--no-finalise", "--timeout", "20", "--lcm-url", url, "--out",
+         (dir / "out").string()},
+        {PLUMB_BACKEND_EXE, "--live", "--no-finalise", "--timeout", "20", "--lcm-url", url,
+         "--allow-remote", "--out", (dir / "out").string()},
+        {PLUMB_DEVICE_EXE, "--source", "sim:living_room", "--intrinsics", "ci", "--frames", "20",
+         "--set", "stream.ack_wait_s=20", "--lcm-url", url}};
+    for (size_t i = 0; i < runs.size(); ++i) {
+        const fs::path log = dir / ("run" + std::to_string(i) + ".log");
+        const pid_t pid = spawn(runs[i], log);
+        ASSERT_GT(pid, 0);
+        const int rc = waitExit(pid, 60s);
+        const std::string text = readText(log);
+        EXPECT_EQ(rc, 1) << text;
+        EXPECT_NE(text.find("option 'ttl' is given more than once"), std::string::npos) << text;
+    }
+    fs::remove_all(dir);
+}
+
 TEST(StreamingProcesses, LcmLoggerRecordingReplaysToTheSameStoreTwice) {
     const fs::path dir = tempDir("logger");
     const fs::path log = dir / "scan.lcmlog";
