@@ -26,7 +26,9 @@ constexpr const char* kUsage =
     " (--live | --log LOG | --fragments DIR) --out DIR [options]\n"
     "\n"
     "  --live               receive fragments from plumb-device over LCM, persist and acknowledge\n"
-    "  --log LOG            process an lcm-logger log deterministically at full speed\n"
+    "  --log LOG            process an lcm-logger log deterministically at full speed; a log\n"
+    "                       that is empty, damaged or cut short, or holds no complete\n"
+    "                       fragment, is an error (exit 1) after what is intact is stored\n"
     "  --fragments DIR      the fragment store (default <out>/fragments); alone: reconstruct\n"
     "                       from an existing store\n"
     "  --out DIR            output directory (metrics.json, camera_info.json, ...)\n"
@@ -197,6 +199,10 @@ int runBackendCommand(std::vector<std::string> args, const char* program) {
             m["messages_rejected"].dump());
         if (result->timed_out) {
             log::error("timed out before the scan was complete");
+            code = 1;
+        }
+        if (!result->log_damage.isOk()) {
+            log::error("{}", result->log_damage.message());
             code = 1;
         }
     }

@@ -4,12 +4,12 @@
 #include <fmt/format.h>
 
 #include <chrono>
-#include <lcm/lcm-cpp.hpp>
 #include <map>
 #include <vector>
 
 #include "common/core/logging.hpp"
 #include "messages/files.hpp"
+#include "messages/lcm_log.hpp"
 
 namespace plumb::backend {
 namespace {
@@ -117,13 +117,8 @@ Result<IngestRunResult> runLiveIngest(messages::LcmLink& link, const IngestRunOp
 Result<IngestRunResult> runLogIngest(const std::filesystem::path& log_path,
                                      const IngestRunOptions& options,
                                      const messages::AuthConfig& auth) {
-    if (!std::filesystem::is_regular_file(log_path)) {
-        return notFound(fmt::format("LCM log {} does not exist", log_path.string()));
-    }
-    lcm::LogFile log_file(log_path.string(), "r");
-    if (!log_file.good()) {
-        return ioError(fmt::format("cannot read LCM log {}", log_path.string()));
-    }
+    auto reader = messages::LcmLogReader::open(log_path);
+    if (!reader.isOk()) return reader.status();
     PLUMB_RETURN_IF_ERROR(makeDirs(options));
     LogFeed feed;
     messages::AuthenticatedTransport transport(feed, auth);
@@ -137,22 +132,32 @@ Result<IngestRunResult> runLogIngest(const std::filesystem::path& log_path,
                 ingestor.onMessage(ch, bytes, now);
             }));
     }
-    uint64_t events = 0;
-    while (const lcm::LogEvent* event = log_file.readNextEvent()) {
-        ++events;
-        now = static_cast<double>(event->timestamp) * 1e-6;
-        transport.setTime(event->timestamp);
-        if (event->datalen < 0) continue;
-        feed.feed(event->channel, std::span<const uint8_t>(static_cast<const uint8_t*>(event->data),
-                                                           static_cast<size_t>(event->datalen)));
+    while (const std::optional<messages::LcmLogEvent> event = (*reader)->next()) {
+        now = static_cast<double>(event->timestamp_us) * 1e-6;
+        transport.setTime(event->timestamp_us);
+        feed.feed(event->channel, event->data);
         ingestor.poll(now);
     }
     ingestor.poll(now);
     IngestRunResult result;
     result.complete = true;
     result.metrics = ingestor.metrics(transport.stats());
-    result.metrics["log_events"] = events;
+    const messages::LcmLogStats& log_stats = (*reader)->stats();
+    result.metrics["log_events"] = log_stats.events;
+    result.metrics["log"] = {{"bytes", log_stats.file_bytes},
+                             {"events", log_stats.events},
+                             {"events_lost", log_stats.events_lost},
+                             {"damaged_events", log_stats.damaged_events},
+                             {"skipped_bytes", log_stats.skipped_bytes},
+                             {"truncated", log_stats.truncated}};
     result.fragments_in_store = ingestor.fragmentsInStore();
+    result.log_damage = (*reader)->verdict();
+    const IngestCounters& c = ingestor.counters();
+    if (result.log_damage.isOk() && c.fragments_received + c.fragments_duplicate == 0) {
+        result.log_damage =
+            corrupt(fmt::format("LCM log {} holds {} intact event(s) but not one complete fragment",
+                                log_path.string(), log_stats.events));
+    }
     PLUMB_RETURN_IF_ERROR(writeMetrics(options.out_dir, result.metrics));
     return result;
 }

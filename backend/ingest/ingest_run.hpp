@@ -41,14 +41,19 @@ struct IngestRunResult {
     bool complete = false;   ///< the stop condition was met (live), or the log ended (log)
     bool timed_out = false;  ///< live: timeout_s passed first
     size_t fragments_in_store = 0;
+    /// Log ingest: Ok, or Corrupt saying what the log lost (an empty file, no LCM event, damaged
+    /// or cut events, garbage) or that it held no complete fragment. What was intact is ingested
+    /// all the same; metrics.json counts it under "log".
+    Status log_damage;
 };
 
 /// Live ingest on `link` until a stop condition or `stop_requests` > 0.
 Result<IngestRunResult> runLiveIngest(messages::LcmLink& link, const IngestRunOptions& options,
                                       const std::atomic<int>& stop_requests);
 
-/// Ingests an LCM log file. With a key in `auth`, envelopes are verified like live traffic.
-/// NotFound/IoError for an unreadable log.
+/// Ingests an LCM log file (messages/lcm_log.hpp reads it strictly). With a key in `auth`,
+/// envelopes are verified like live traffic. NotFound/IoError for an unreadable log; a damaged
+/// one is ingested as far as it is intact and reported in IngestRunResult::log_damage.
 Result<IngestRunResult> runLogIngest(const std::filesystem::path& log_path,
                                      const IngestRunOptions& options,
                                      const messages::AuthConfig& auth);

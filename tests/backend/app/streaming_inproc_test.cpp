@@ -319,6 +319,7 @@ TEST(StreamingInProcess, RecordedLogReplaysToTheSameStoreTwice) {
     auto rb = runLogIngest(log_path, b, {});
     ASSERT_TRUE(ra.isOk()) << ra.status().toString();
     ASSERT_TRUE(rb.isOk()) << rb.status().toString();
+    EXPECT_TRUE(ra->log_damage.isOk()) << ra->log_damage.toString();  // an intact log
     const auto fa = readDir(a.fragments_dir), fb = readDir(b.fragments_dir);
     EXPECT_EQ(fa.size(), 5u);
     EXPECT_TRUE(fa == fb);

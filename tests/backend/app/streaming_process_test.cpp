@@ -319,6 +319,64 @@ TEST(StreamingProcesses, RepeatedTtlIsRefusedByDeviceAndBackend) {
     fs::remove_all(dir);
 }
 
+void writeBytes(const fs::path& path, const std::vector<uint8_t>& bytes) {
+    std::ofstream out(path, std::ios::binary | std::ios::trunc);
+    out.write(reinterpret_cast<const char*>(bytes.data()),
+              static_cast<std::streamsize>(bytes.size()));
+}
+
+// Runs `plumb-backend --log` (or `plumb replay`) on `log`; returns the exit code and the output.
+std::pair<int, std::string> replayLog(const fs::path& log, const fs::path& out, bool tool) {
+    const fs::path text = out.string() + ".log";
+    const pid_t pid = tool ? spawn({PLUMB_TOOL_EXE, "replay", log.string(), "--out", out.string(),
+                                    "--no-finalise"},
+                                   text)
+                           : spawn({PLUMB_BACKEND_EXE, "--log", log.string(), "--out", out.string(),
+                                    "--no-finalise"},
+                                   text);
+    const int rc = waitExit(pid, 60s);
+    return {rc, readText(text)};
+}
+
+// Issue 32, item 5: files that are not LCM logs fail with a message saying so.
+TEST(StreamingProcesses, EmptyRandomAndTextLogsFail) {
+    const fs::path dir = tempDir("badlogs");
+    writeBytes(dir / "empty.lcmlog", {});
+    std::vector<uint8_t> noise(300000);
+    uint32_t x = 32;
+    for (auto& b : noise) {
+        x = x * 1664525u + 1013904223u;  // seeded
+        b = static_cast<uint8_t>(x >> 24);
+    }
+    writeBytes(dir / "random.lcmlog", noise);
+    const std::string text = "PLUMB_FRAGMENT_CHUNK is not what this file holds\n";
+    writeBytes(dir / "text.lcmlog", std::vector<uint8_t>(text.begin(), text.end()));
+    const std::vector<std::pair<std::string, std::string>> cases = {
+        {"empty", "is empty"}, {"random", "is not an LCM log"}, {"text", "is not an LCM log"}};
+    for (const auto& [name, message] : cases) {
+        for (bool tool : {false, true}) {
+            const auto [rc, out] = replayLog(dir / (name + ".lcmlog"),
+                                             dir / (name + (tool ? "_tool" : "_backend")), tool);
+            EXPECT_EQ(rc, 1) << name << ": " << out;
+            EXPECT_NE(out.find(message), std::string::npos) << name << ": " << out;
+        }
+    }
+    fs::remove_all(dir);
+}
+
+// Offsets of the events of an intact LCM log (28-byte header, then channel and data).
+std::vector<size_t> eventOffsets(const std::vector<uint8_t>& bytes) {
+    auto be32 = [&](size_t p) {
+        return (size_t{bytes[p]} << 24) | (size_t{bytes[p + 1]} << 16) |
+               (size_t{bytes[p + 2]} << 8) | bytes[p + 3];
+    };
+    std::vector<size_t> at;
+    for (size_t p = 0; p + 28 <= bytes.size(); p += 28 + be32(p + 20) + be32(p + 24)) {
+        at.push_back(p);
+    }
+    return at;
+}
+
 TEST(StreamingProcesses, LcmLoggerRecordingReplaysToTheSameStoreTwice) {
     const fs::path dir = tempDir("logger");
     const fs::path log = dir / "scan.lcmlog";
@@ -358,6 +416,32 @@ TEST(StreamingProcesses, LcmLoggerRecordingReplaysToTheSameStoreTwice) {
     const auto sent = readPlf(dir / "sent");
     for (const auto& [name, bytes] : fa) EXPECT_TRUE(sent.at(name) == bytes) << name;
 
+    // Issue 32, item 5: the same log with a damaged event header at 45 %, then cut inside an
+    // event: the intact events are still ingested, the loss is counted, the exit is 1.
+    auto bytes = plumb::messages::readFile(log, int64_t{1} << 32);
+    ASSERT_TRUE(bytes.isOk());
+    const std::vector<size_t> at = eventOffsets(*bytes);
+    ASSERT_GE(at.size(), 10u);
+    std::vector<uint8_t> damaged = *bytes;
+    damaged[at[at.size() * 45 / 100] + 24] = 0x7f;  // data length beyond the end of the file
+    writeBytes(dir / "damaged.lcmlog", damaged);
+    for (bool tool : {false, true}) {
+        const fs::path out = dir / (tool ? "damaged_tool" : "damaged_backend");
+        const auto [rc, text] = replayLog(dir / "damaged.lcmlog", out, tool);
+        EXPECT_EQ(rc, 1) << text;
+        EXPECT_NE(text.find("is damaged: " + std::to_string(at.size() - 1) +
+                            " event(s) read intact, 1 lost (1 damaged event header(s))"),
+                  std::string::npos)
+            << text;
+        const auto m = nlohmann::json::parse(readText(out / "metrics.json"));
+        EXPECT_EQ(m["log"]["events"], at.size() - 1);
+        EXPECT_EQ(m["log"]["events_lost"], 1);
+    }
+    const std::vector<uint8_t> cut(bytes->begin(), bytes->begin() + at[at.size() / 2] + 30);
+    writeBytes(dir / "cut.lcmlog", cut);
+    const auto [rc, text] = replayLog(dir / "cut.lcmlog", dir / "cut", false);
+    EXPECT_EQ(rc, 1) << text;
+    EXPECT_NE(text.find("the file ends inside an event (truncated)"), std::string::npos) << text;
     fs::remove_all(dir);
 }
 
