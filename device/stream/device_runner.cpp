@@ -503,11 +503,6 @@ Result<DeviceRunReport> runDevice(FrameSource& source, const DeviceRunOptions& o
     if (!failure.isOk()) return failure;
     shared.raw_published += announce.rawFrames(raw_frames);  // the last ones captured
     fillReport(shared, *publisher, feeder, report);
-    if (!report.unacknowledged.empty()) {
-        auto written = publisher->persistToDisk();
-        if (!written.isOk()) return written.status();
-        report.written_to_spool_dir = *written;
-    }
     return report;
 }
 

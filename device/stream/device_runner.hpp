@@ -16,7 +16,8 @@
 // request (SIGINT/SIGTERM), the open fragment is closed and sent, a final heartbeat says
 // TRACKING_STOPPED with the final fragment count (the backend's end-of-scan signal), and the
 // device waits up to stream.ack_wait_s for the remaining acknowledgements. A second stop request
-// ends the wait at once. Unacknowledged fragments are left in the spool directory.
+// ends the wait at once. Unacknowledged fragments are left in the spool directory, where each
+// one was written (and fsynced) when it was cut, so even SIGKILL loses none of them.
 //
 // A fragment counts as kept once the spool took it. When the spool is full (no backend answers
 // and the memory or disk budget is used up), the next fragments wait for room and fusion is held
@@ -77,7 +78,6 @@ struct DeviceRunReport {
     std::vector<uint32_t> lost;
     /// Why the spool last refused a fragment (empty: never).
     std::string spool_error;
-    size_t written_to_spool_dir = 0;  ///< of these, written to disk at exit
 };
 
 /// Runs the pipeline until the source ends or `stop_requests` becomes non-zero, then flushes.

@@ -93,21 +93,6 @@ void FragmentPublisher::poll(double now_s) {
     fill(now_s);
 }
 
-Result<size_t> FragmentPublisher::persistToDisk() {
-    if (config_.spool.disk_dir.empty()) return size_t{0};
-    size_t written = 0;
-    for (const SpoolKey& key : spool_->keys()) {
-        const auto path =
-            config_.spool.disk_dir / messages::fragmentFileName(key.session_id, key.fragment_id);
-        if (std::filesystem::exists(path)) continue;  // already on disk
-        auto bytes = spool_->get(key);
-        if (!bytes.isOk()) return bytes.status();
-        PLUMB_RETURN_IF_ERROR(messages::writeFileAtomic(path, *bytes));
-        ++written;
-    }
-    return written;
-}
-
 messages::FragmentSenderStats FragmentPublisher::senderStats() const {
     messages::FragmentSenderStats sum;
     for (const auto& [session, sender] : senders_) {

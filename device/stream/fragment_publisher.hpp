@@ -1,12 +1,12 @@
 // SPDX-License-Identifier: Apache-2.0
 #pragma once
 
-// The device's side of the fragment stream: every encoded fragment goes into the spool (memory,
-// then disk) first and leaves it only when the backend acknowledges it as persisted; at most
-// `max_in_flight` fragments are on the wire at once (messages/fragment_sender.hpp chunks,
-// announces and retransmits them), the others wait in the spool. Fragments spooled on disk by an
-// earlier run (other sessions) are sent again first, so neither a backend restart nor a device
-// restart loses a fragment.
+// The device's side of the fragment stream: every encoded fragment goes into the spool (on disk
+// before submit() returns when there is a spool directory, else in memory) first and leaves it only
+// when the backend acknowledges it as persisted; at most `max_in_flight` fragments are on the wire
+// at once (messages/fragment_sender.hpp chunks, announces and retransmits them), the others wait in
+// the spool. Fragments spooled on disk by an earlier run (other sessions) are sent again first, so
+// neither a backend restart nor a device restart loses a fragment.
 //
 // Pure: no threads, no clock; time is passed in (seconds). The owner routes messages from
 // PLUMB_FRAGMENT_ACK and PLUMB_RETRANSMIT to onMessage(). Not thread-safe.
@@ -69,9 +69,6 @@ class FragmentPublisher {
     int64_t spoolBytes() const { return spool_->memoryBytes() + spool_->diskBytes(); }
     size_t inFlight() const { return in_flight_.size(); }
     const PublisherStats& stats() const { return stats_; }
-    /// Writes every unacknowledged fragment into the spool's disk directory (at exit, so the
-    /// next run sends them). No-op without a disk directory. Returns the number written.
-    Result<size_t> persistToDisk();
     /// Sender counters summed over sessions.
     messages::FragmentSenderStats senderStats() const;
 

@@ -11,6 +11,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
@@ -291,6 +292,59 @@ TEST(StreamingProcesses, DeviceWithFullSpoolDiskEndsAndReportsLostFragments) {
     const std::string log = readText(dir / "device.log");
     expectEveryFragmentLost(rc, log, 3);  // 40 frames, 10 per fragment
     EXPECT_NE(log.find("spool full"), std::string::npos) << log;
+    EXPECT_EQ(countPlf(dir / "spool"), 0u);
+    fs::remove_all(dir);
+}
+
+// Issue 32, item 2: every fragment the device took into its spool (and then dumped) is on disk
+// at once. SIGKILL mid-scan with no backend, then a second run on the same spool with a backend:
+// every fragment of both runs is stored exactly once, byte-identical, and the spool empties.
+TEST(StreamingProcesses, DeviceKilledMidScanLosesNoSpooledFragment) {
+    const fs::path dir = tempDir("device_kill");
+    auto first = deviceArgs(dir, 600);
+    first.push_back("--realtime");  // a sensor's pace: the scan would last 20 s
+    const pid_t device = spawn(first, dir / "device1.log");
+    ASSERT_GT(device, 0);
+    const auto deadline = std::chrono::steady_clock::now() + 90s;
+    while (countPlf(dir / "sent") < 3 && std::chrono::steady_clock::now() < deadline)
+        std::this_thread::sleep_for(20ms);
+    kill(device, SIGKILL);
+    waitpid(device, nullptr, 0);
+    const auto sent_before = readPlf(dir / "sent");
+    const auto spooled = readPlf(dir / "spool");
+    ASSERT_GE(sent_before.size(), 3u) << readText(dir / "device1.log");
+    for (const auto& [name, bytes] : sent_before) {
+        auto it = spooled.find(name);
+        ASSERT_NE(it, spooled.end()) << name << " was kept but is not in the spool";
+        EXPECT_TRUE(it->second == bytes) << name << " differs in the spool";
+    }
+
+    auto backend_args = backendArgs(dir);
+    backend_args.erase(backend_args.begin() + 2);  // no --until-end: stopped below
+    *(std::find(backend_args.begin(), backend_args.end(), "--timeout") + 1) = "300";
+    const pid_t backend = spawn(backend_args, dir / "backend.log");
+    ASSERT_GT(backend, 0);
+    std::this_thread::sleep_for(300ms);
+    const pid_t again = spawn(deviceArgs(dir, 20), dir / "device2.log");
+    ASSERT_GT(again, 0);
+    const int device_rc = waitExit(again, 100s);  // 0: every fragment acknowledged as stored
+    kill(backend, SIGINT);
+    const int backend_rc = waitExit(backend, 30s);
+    EXPECT_EQ(device_rc, 0) << readText(dir / "device2.log");
+    EXPECT_EQ(backend_rc, 0) << readText(dir / "backend.log");
+    EXPECT_NE(readText(dir / "device2.log").find("of earlier runs found"), std::string::npos);
+    // Expected in the store: the second run's fragments and everything the first one spooled.
+    auto expected = readPlf(dir / "sent");
+    for (const auto& [name, bytes] : spooled) expected.emplace(name, bytes);
+    const auto stored = readPlf(dir / "out" / "fragments");
+    EXPECT_EQ(stored.size(), expected.size());
+    for (const auto& [name, bytes] : expected) {
+        auto it = stored.find(name);
+        ASSERT_NE(it, stored.end()) << name << " missing in the store";
+        EXPECT_TRUE(it->second == bytes) << name << " differs";
+    }
+    const auto metrics = nlohmann::json::parse(readText(dir / "out" / "metrics.json"));
+    EXPECT_EQ(metrics["fragments_received"], expected.size());  // each stored once
     EXPECT_EQ(countPlf(dir / "spool"), 0u);
     fs::remove_all(dir);
 }
