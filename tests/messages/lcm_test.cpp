@@ -13,6 +13,7 @@
 #include "messages/channels.hpp"
 #include "messages/fragment_assembler.hpp"
 #include "messages/fragment_sender.hpp"
+#include "messages/lcm_link.hpp"
 #include "messages/lcm_log.hpp"
 #include "messages/lcm_transport.hpp"
 
@@ -265,6 +266,51 @@ TEST(LcmLogReader, CountsDamageTruncationAndGarbage) {
     EXPECT_EQ(r.verdict.code(), StatusCode::kCorrupt);
     EXPECT_EQ(LcmLogReader::open(dir / "missing").status().code(), StatusCode::kNotFound);
     fs::remove_all(dir);
+}
+
+// Issue 32, item 9: weak keys are refused, and no message repeats what the file holds.
+TEST(KeyFile, WeakKeysAreRefusedAndNeverPrinted) {
+    const fs::path dir = fs::temp_directory_path() / ("plumb_keys_" + std::to_string(::getpid()));
+    fs::create_directories(dir);
+    auto write = [&](const std::string& name, const std::string& text) {
+        writeBytes(dir / name, std::vector<uint8_t>(text.begin(), text.end()));
+        return dir / name;
+    };
+    std::string repeated;
+    for (int i = 0; i < 16; ++i) repeated += "0102";
+    const std::vector<std::pair<std::string, std::string>> weak = {
+        {std::string(64, '0'), "weak key (all zero)"},
+        {std::string(64, 'f'), "weak key (every byte the same)"},
+        {repeated, "weak key (only 2 distinct byte values in 32 bytes)"}};
+    for (const auto& [text, message] : weak) {
+        auto key = readKeyFile(write("weak.key", text + "\n"));
+        ASSERT_FALSE(key.isOk()) << message;
+        EXPECT_EQ(key.status().code(), StatusCode::kInvalidArgument);
+        EXPECT_NE(key.status().message().find(message), std::string::npos)
+            << key.status().message();
+    }
+    auto good = readKeyFile(
+        write("good.key", "00112233445566778899aabbccddeeff0123456789abcdef0123456789abcdef\n"));
+    ASSERT_TRUE(good.isOk()) << good.status().toString();
+    EXPECT_EQ(good->size(), 32u);
+    auto passphrase = readKeyFile(write("pass.key", "deadbeef correct horse battery staple"));
+    ASSERT_FALSE(passphrase.isOk());
+    EXPECT_NE(passphrase.status().message().find("at byte 10"), std::string::npos)
+        << passphrase.status().message();
+    EXPECT_EQ(passphrase.status().message().find("horse"), std::string::npos);
+    EXPECT_EQ(passphrase.status().message().find("0x"), std::string::npos);
+    fs::remove_all(dir);
+}
+
+// Like ssh: any access for group or others is warned about, naming the mode and the fix.
+TEST(KeyFile, LoosePermissionsAreWarnedAbout) {
+    EXPECT_EQ(keyFileModeWarning("plumb.key", 0100600), "");
+    EXPECT_EQ(keyFileModeWarning("plumb.key", 0100400), "");
+    const std::string group = keyFileModeWarning("plumb.key", 0100640);
+    EXPECT_NE(group.find("accessible by its group (mode 0640)"), std::string::npos) << group;
+    const std::string others = keyFileModeWarning("plumb.key", 0100666);
+    EXPECT_NE(others.find("accessible by others (mode 0666)"), std::string::npos) << others;
+    EXPECT_NE(others.find("chmod 600 plumb.key"), std::string::npos) << others;
 }
 
 TEST(LcmTransport, FragmentsOverMemq) { runOverLcm("memq://", ""); }

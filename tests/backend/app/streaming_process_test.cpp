@@ -431,6 +431,34 @@ std::vector<size_t> eventOffsets(const std::vector<uint8_t>& bytes) {
     return at;
 }
 
+// Issue 32, item 9: a key file others can read is warned about (the backend still runs); an
+// all-zero key is refused before anything listens. Neither output holds the key.
+TEST(StreamingProcesses, LooseKeyFileWarnedWeakKeyRefused) {
+    const fs::path dir = tempDir("keys");
+    const std::string secret = "00112233445566778899aabbccddeeff0123456789abcdef0123456789abcdef";
+    writeBytes(dir / "loose.key", std::vector<uint8_t>(secret.begin(), secret.end()));
+    fs::permissions(dir / "loose.key", fs::perms(0666));
+    writeBytes(dir / "zero.key", std::vector<uint8_t>(64, '0'));
+    fs::permissions(dir / "zero.key", fs::perms(0600));
+    auto run = [&](const std::string& key, const std::string& name) {
+        const pid_t pid =
+            spawn({PLUMB_BACKEND_EXE, "--live", "--no-finalise", "--timeout", "1", "--lcm-url",
+                   lcmUrl(), "--key-file", (dir / key).string(), "--out", (dir / name).string()},
+                  dir / (name + ".log"));
+        const int rc = waitExit(pid, 60s);
+        return std::make_pair(rc, readText(dir / (name + ".log")));
+    };
+    const auto [loose_rc, loose] = run("loose.key", "loose");
+    EXPECT_NE(loose.find("is accessible by others (mode 0666)"), std::string::npos) << loose;
+    EXPECT_NE(loose.find("(authenticated)"), std::string::npos) << loose;
+    EXPECT_EQ(loose.find(secret.substr(0, 16)), std::string::npos) << loose;
+    const auto [zero_rc, zero] = run("zero.key", "zero");
+    EXPECT_EQ(zero_rc, 1) << zero;
+    EXPECT_NE(zero.find("a weak key (all zero)"), std::string::npos) << zero;
+    EXPECT_EQ(zero.find("listening"), std::string::npos) << zero;
+    fs::remove_all(dir);
+}
+
 TEST(StreamingProcesses, LcmLoggerRecordingReplaysToTheSameStoreTwice) {
     const fs::path dir = tempDir("logger");
     const fs::path log = dir / "scan.lcmlog";
