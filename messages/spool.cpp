@@ -143,6 +143,33 @@ Status Spool::erase(const SpoolKey& key) {
     return Status::ok();
 }
 
+std::filesystem::path Spool::quarantineDir() const {
+    return config_.disk_dir.empty() ? std::filesystem::path() : config_.disk_dir / "quarantine";
+}
+
+Status Spool::quarantine(const SpoolKey& key, const std::string& reason) {
+    auto it = entries_.find(key);
+    if (it == entries_.end()) return Status::ok();
+    if (it->second.on_disk) {
+        const std::filesystem::path dir = quarantineDir();
+        std::error_code ec;
+        std::filesystem::create_directories(dir, ec);
+        if (ec) {
+            return ioError(fmt::format("spool: cannot create {}: {}", dir.string(), ec.message()));
+        }
+        const std::string name = fragmentFileName(key.session_id, key.fragment_id);
+        const std::string text = reason + "\n";
+        PLUMB_RETURN_IF_ERROR(
+            writeFileAtomic(dir / (name + ".reason"),
+                            std::span(reinterpret_cast<const uint8_t*>(text.data()), text.size())));
+        PLUMB_RETURN_IF_ERROR(moveFile(pathOf(key), dir / name));
+        disk_bytes_ -= it->second.size;
+    }
+    if (!it->second.bytes.empty()) memory_bytes_ -= it->second.size;
+    entries_.erase(it);
+    return Status::ok();
+}
+
 std::vector<SpoolKey> Spool::keys() const {
     std::vector<SpoolKey> out;
     out.reserve(entries_.size());

@@ -6,13 +6,15 @@
 // messages/files.hpp) before put() returns, whatever the memory budget, so a crash, SIGKILL or
 // power loss loses nothing the spool took; memory then only caches fragments for resending.
 // Without a directory fragments live in memory up to the budget. Disk entries survive a device
-// restart and are found again by open(). Entries are keyed by (session, fragment id).
+// restart and are found again by open(); quarantined ones (disk_dir/quarantine/) are not.
+// Entries are keyed by (session, fragment id).
 // Not thread-safe.
 
 #include <cstdint>
 #include <filesystem>
 #include <map>
 #include <memory>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -53,6 +55,12 @@ class Spool {
     Result<std::vector<uint8_t>> get(const SpoolKey& key) const;
     /// Removes an acknowledged fragment (absent: no-op).
     Status erase(const SpoolKey& key);
+    /// Takes a fragment the backend refused for good out of the spool: with disk_dir its file
+    /// moves to disk_dir/quarantine/ beside "<name>.reason" holding `reason`; without, it is
+    /// dropped. Absent: no-op. IoError when the move fails (the fragment stays in the spool).
+    Status quarantine(const SpoolKey& key, const std::string& reason);
+    /// Where quarantine() puts fragments (empty without disk_dir).
+    std::filesystem::path quarantineDir() const;
 
     bool contains(const SpoolKey& key) const { return entries_.count(key) > 0; }
     /// Keys in ascending order (oldest session and fragment first).

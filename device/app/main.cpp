@@ -29,7 +29,8 @@ constexpr const char* kUsage =
     "plumb-backend over LCM until it is acknowledged. Exits 0 when the source ended and every\n"
     "fragment was acknowledged; 1 when fragments remain unacknowledged (they stay in the spool\n"
     "directory and are sent first by the next run) or were lost (the spool stayed full: the\n"
-    "message names them); 2 for a bad command line.\n"
+    "message names them) or were rejected by the backend (moved to <spool-dir>/quarantine with\n"
+    "the reason, not sent again); 2 for a bad command line.\n"
     "\n"
     "  --source URI         sim:<scene> | dataset:<dir> | any source drivers/source.hpp opens\n"
     "  --list-devices       print the depth cameras found (OpenNI2, V4L2, USB) and exit\n"
@@ -201,10 +202,11 @@ int summarise(const plumb::device::DeviceRunReport& r, const DeviceArgs& a,
     using namespace plumb;
     log::info(
         "frames: {} captured, {} processed ({:.0f} %), {} dropped; fragments: {} cut, {} "
-        "acknowledged, {} kept unacknowledged, {} lost",
+        "acknowledged, {} kept unacknowledged, {} lost, {} rejected by the backend",
         r.frames_captured, r.frames_processed,
         100.0 * messages::processedFraction(r.frames_processed, r.frames_dropped), r.frames_dropped,
-        r.fragments_cut, r.fragments_acked, r.unacknowledged.size(), r.lost.size());
+        r.fragments_cut, r.fragments_acked, r.unacknowledged.size(), r.lost.size(),
+        r.quarantined.size());
     if (recorder != nullptr) {
         log::info("recorded {} frame(s) to {}", recorder->recorded(), a.record_dir);
     }
@@ -227,6 +229,18 @@ int summarise(const plumb::device::DeviceRunReport& r, const DeviceArgs& a,
                 "{} fragment(s) were not acknowledged by a backend; they are kept in {} and "
                 "are sent first by the next run",
                 r.unacknowledged.size(), a.spool_dir);
+        }
+        code = 1;
+    }
+    if (!r.quarantined.empty()) {
+        if (r.quarantine_dir.empty()) {
+            log::error("{} fragment(s) were rejected for good by the backend and dropped",
+                       r.quarantined.size());
+        } else {
+            log::error(
+                "{} fragment(s) were rejected for good by the backend and moved to {} (the reason "
+                "beside each); they are not sent again",
+                r.quarantined.size(), r.quarantine_dir.string());
         }
         code = 1;
     }

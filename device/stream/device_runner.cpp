@@ -398,6 +398,8 @@ void fillReport(Shared& shared, const FragmentPublisher& publisher, const SpoolF
     report.unacknowledged = publisher.unacknowledgedKeys();
     report.lost = feeder.lost();
     report.spool_error = feeder.spoolError();
+    report.quarantined = publisher.quarantined();
+    report.quarantine_dir = publisher.quarantineDir();
     std::lock_guard<std::mutex> lock(shared.error_mutex);
     report.source_error = !shared.source_error.empty();
     report.source_message = shared.source_error;

@@ -78,6 +78,10 @@ struct DeviceRunReport {
     std::vector<uint32_t> lost;
     /// Why the spool last refused a fragment (empty: never).
     std::string spool_error;
+    /// Fragments the backend rejected for good in this run, moved to `quarantine_dir` (each with
+    /// a .reason file; empty dir: no spool directory, dropped).
+    std::vector<messages::SpoolKey> quarantined;
+    std::filesystem::path quarantine_dir;
 };
 
 /// Runs the pipeline until the source ends or `stop_requests` becomes non-zero, then flushes.

@@ -63,8 +63,18 @@ void FragmentPublisher::collect() {
         for (uint32_t id : sender->takeRejected()) {
             const SpoolKey key{session, id};
             in_flight_.erase(key);
-            rejected_.insert(key);
             ++stats_.fragments_rejected;
+            const std::string reason = fmt::format(
+                "fragment {} of session {} was rejected for good by the backend (fragment_ack_t "
+                "STATUS_REJECTED: it did not decode or conflicts with a stored fragment; the "
+                "backend's log names the cause)",
+                id, session);
+            if (spool_->quarantine(key, reason).isOk()) {
+                quarantined_.push_back(key);
+            } else {
+                rejected_.insert(key);  // kept, but never sent again by this run
+                ++stats_.spool_errors;
+            }
         }
     }
 }

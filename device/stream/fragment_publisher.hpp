@@ -12,6 +12,7 @@
 // PLUMB_FRAGMENT_ACK and PLUMB_RETRANSMIT to onMessage(). Not thread-safe.
 
 #include <cstdint>
+#include <filesystem>
 #include <map>
 #include <memory>
 #include <set>
@@ -40,7 +41,7 @@ struct PublisherStats {
     uint64_t fragments_submitted = 0;  ///< accepted by submit() in this run
     uint64_t fragments_resumed = 0;    ///< found in the disk spool at start (earlier runs)
     uint64_t fragments_acked = 0;      ///< acknowledged as persisted
-    uint64_t fragments_rejected = 0;   ///< refused for good by the backend (kept in the spool)
+    uint64_t fragments_rejected = 0;   ///< refused for good by the backend (quarantined)
     uint64_t spool_errors = 0;         ///< spool reads/erases that failed
 };
 
@@ -62,8 +63,12 @@ class FragmentPublisher {
     /// Timers: re-announcements, releasing acknowledged fragments, refilling the window.
     void poll(double now_s);
 
-    /// Fragments not yet acknowledged (spooled, in flight or rejected).
+    /// Fragments not yet acknowledged (spooled or in flight).
     size_t unacknowledged() const { return spool_->size(); }
+    /// Fragments the backend refused for good in this run, taken out of the spool into its
+    /// quarantine folder (spool directory/quarantine/, each beside a .reason file), ascending.
+    const std::vector<messages::SpoolKey>& quarantined() const { return quarantined_; }
+    std::filesystem::path quarantineDir() const { return spool_->quarantineDir(); }
     /// Unacknowledged fragments as (session, id), ascending.
     std::vector<messages::SpoolKey> unacknowledgedKeys() const { return spool_->keys(); }
     int64_t spoolBytes() const { return spool_->memoryBytes() + spool_->diskBytes(); }
@@ -84,7 +89,8 @@ class FragmentPublisher {
     std::unique_ptr<messages::Spool> spool_;
     std::map<int64_t, std::unique_ptr<messages::FragmentSender>> senders_;
     std::set<messages::SpoolKey> in_flight_;
-    std::set<messages::SpoolKey> rejected_;
+    std::set<messages::SpoolKey> rejected_;  ///< refused, but quarantine() failed: not resent
+    std::vector<messages::SpoolKey> quarantined_;
     PublisherStats stats_;
 };
 
