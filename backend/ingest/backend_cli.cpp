@@ -32,8 +32,12 @@ constexpr const char* kUsage =
     "  --fragments DIR      the fragment store (default <out>/fragments); alone: reconstruct\n"
     "                       from an existing store\n"
     "  --out DIR            output directory (metrics.json, camera_info.json, ...)\n"
-    "  --until-end          live: stop when the device announces the end of the scan and every\n"
-    "                       fragment is stored\n"
+    "  --until-end          live: stop when every device session being finished (--session, else\n"
+    "                       every device heard from that did not go silent) announced the end of\n"
+    "                       its scan and has every fragment stored; each session is then listed\n"
+    "  --session ID         the device session to finish (repeatable; plumb-device logs its id)\n"
+    "                       and to reconstruct (default: the newest in the store; the others are\n"
+    "                       named in a warning)\n"
     "  --expect N           live: stop once N fragments are in the store\n"
     "  --timeout S          live: give up after S seconds (exit 1)\n"
     "  --linger S           live: keep acknowledging for S seconds after the end (default 1)\n"
@@ -99,6 +103,10 @@ int runBackendCommand(std::vector<std::string> args, const char* program) {
             if (!value(&out_dir)) return usageError("--out needs a directory");
         } else if (a == "--until-end") {
             options.until_end = true;
+        } else if (a == "--session") {
+            if (!value(&v) || !parseDouble(v, &d) || d < 1 || d != static_cast<int64_t>(d))
+                return usageError("--session needs a positive integer (a device's session id)");
+            options.sessions.insert(static_cast<int64_t>(d));
         } else if (a == "--expect") {
             if (!value(&v) || !parseDouble(v, &d) || d < 1 || d != static_cast<int64_t>(d))
                 return usageError("--expect needs a positive integer");
@@ -213,7 +221,14 @@ int runBackendCommand(std::vector<std::string> args, const char* program) {
         log::error("{}", store.status().toString());
         return 1;
     }
-    auto fragments = backend::loadStoredFragments(**store);
+    std::string others;
+    auto session = backend::chooseSession(**store, options.sessions, &others);
+    if (!session.isOk()) {
+        log::error("{}", session.status().toString());
+        return 1;
+    }
+    if (!others.empty()) log::warn("{}", others);
+    auto fragments = backend::loadStoredFragments(**store, *session);
     if (!fragments.isOk()) {
         log::error("{}", fragments.status().toString());
         return 1;

@@ -3,6 +3,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <chrono>
 #include <map>
 #include <vector>
@@ -55,6 +56,48 @@ class LogFeed final : public messages::Transport {
     std::map<std::string, std::vector<Handler>> handlers_;
 };
 
+/// Why a session is not finished, or empty when it is.
+std::string unfinishedReason(const SessionReport& r, const IngestRunOptions& options, double now) {
+    if (!options.sessions.empty() && options.sessions.count(r.session_id) == 0) {
+        return "not waited for: not named by --session";
+    }
+    if (options.sessions.empty() && !r.heard) {
+        return "not waited for: no heartbeat, only fragments (resent from a spool of an earlier "
+               "run?)";
+    }
+    if (r.complete) return {};
+    if (!r.fragments_announced) {
+        return r.heard ? fmt::format(
+                             "incomplete: no end of scan announced (last heartbeat {:.0f} "
+                             "s before the end)",
+                             now - r.last_heard_s)
+                       : "incomplete: nothing received";
+    }
+    return fmt::format("incomplete: {} of {} fragment(s) stored", r.fragments_stored,
+                       *r.fragments_announced);
+}
+
+/// One line per session: what was stored, and whether it is finished (a warning if not).
+void logSessions(const Ingestor& ingestor, const IngestRunOptions& options, double now) {
+    std::vector<SessionReport> sessions = ingestor.sessions();
+    for (int64_t wanted : options.sessions) {  // named but never heard of
+        if (std::none_of(sessions.begin(), sessions.end(),
+                         [&](const SessionReport& r) { return r.session_id == wanted; })) {
+            sessions.push_back(SessionReport{.session_id = wanted});
+        }
+    }
+    for (const SessionReport& r : sessions) {
+        const std::string reason = unfinishedReason(r, options, now);
+        const std::string what =
+            fmt::format("session {}: {} fragment(s) stored", r.session_id, r.fragments_stored);
+        if (reason.empty()) {
+            log::info("{}, complete", what);
+        } else {
+            log::warn("{}; {}", what, reason);
+        }
+    }
+}
+
 }  // namespace
 
 Result<IngestRunResult> runLiveIngest(messages::LcmLink& link, const IngestRunOptions& options,
@@ -94,7 +137,8 @@ Result<IngestRunResult> runLiveIngest(messages::LcmLink& link, const IngestRunOp
             last_metrics = now;
         }
         if (stop_requests.load() > 0) break;
-        const bool done = (options.until_end && ingestor.scanComplete()) ||
+        const bool done = (options.until_end && ingestor.scanComplete(options.sessions, now,
+                                                                      options.session_silence_s)) ||
                           (options.expect > 0 &&
                            static_cast<int64_t>(ingestor.fragmentsInStore()) >= options.expect);
         if (done && done_at < 0) {
@@ -108,6 +152,7 @@ Result<IngestRunResult> runLiveIngest(messages::LcmLink& link, const IngestRunOp
             break;
         }
     }
+    logSessions(ingestor, options, now);
     result.metrics = ingestor.metrics(link.authStats());
     result.fragments_in_store = ingestor.fragmentsInStore();
     PLUMB_RETURN_IF_ERROR(writeMetrics(options.out_dir, result.metrics));

@@ -58,6 +58,17 @@ struct IngestCounters {
     uint64_t raw_frames_malformed = 0;  ///< raw frames that did not decode
 };
 
+/// What the ingest knows about one device session (a run of plumb-device).
+struct SessionReport {
+    int64_t session_id = 0;
+    size_t fragments_stored = 0;  ///< in the store (this process or earlier ones)
+    /// The fragment count of its end-of-scan heartbeat (TRACKING_STOPPED); none: not announced.
+    std::optional<int32_t> fragments_announced;
+    bool heard = false;         ///< it sent heartbeats to this process (a live device)
+    double last_heard_s = 0.0;  ///< time of its latest heartbeat
+    bool complete = false;      ///< end announced and every fragment stored or rejected
+};
+
 class Ingestor {
   public:
     /// Opens (creating) the store in `fragments_dir`; sidecar files (camera_info.json,
@@ -78,9 +89,14 @@ class Ingestor {
     /// Persists and acknowledges completed fragments, requests stalled chunks.
     void poll(double now_s);
 
-    /// True when some session announced its end (TRACKING_STOPPED) and every one of its
-    /// fragments is stored (or was rejected for good).
-    bool scanComplete() const;
+    /// Whether the scans being finished are complete. With `wanted` sessions: each of them
+    /// announced its end (TRACKING_STOPPED) and has every fragment stored (or rejected for good).
+    /// Without: at least one session did, and so did every session that sent heartbeats, except
+    /// those silent for `silence_s` (a device that died: SessionReport says so). Sessions seen
+    /// only through resent fragments (a spool of a crashed run) are never waited for.
+    bool scanComplete(const std::set<int64_t>& wanted, double now_s, double silence_s) const;
+    /// Every session in the store or heard from, ascending.
+    std::vector<SessionReport> sessions() const;
     /// Fragments in the store.
     size_t fragmentsInStore() const { return store_->fragments().size(); }
     const messages::FragmentStore& store() const { return *store_; }
@@ -100,7 +116,8 @@ class Ingestor {
     class CountingTransport;
     Ingestor() = default;
     void onChunk(std::span<const uint8_t> bytes, double now_s);
-    void onStatus(std::span<const uint8_t> bytes);
+    void onStatus(std::span<const uint8_t> bytes, double now_s);
+    bool sessionComplete(int64_t session) const;
     void onCameraInfo(std::span<const uint8_t> bytes);
     void onConfig(std::span<const uint8_t> bytes);
     void onRawFrame(std::span<const uint8_t> bytes);
@@ -116,10 +133,18 @@ class Ingestor {
     std::set<std::pair<int64_t, uint32_t>> rejected_;
     std::map<int64_t, messages::DeviceStatus> status_;
     std::map<int64_t, int32_t> end_of_scan_;  ///< session -> final fragment count
+    std::map<int64_t, double> last_heard_;    ///< session -> time of its latest heartbeat
     std::optional<messages::CameraInfo> camera_;
     std::optional<messages::RawRgbdFrame> last_raw_;
     std::string device_config_;
 };
+
+/// The session to reconstruct from `store`: the one `wanted` names (the newest of them when it
+/// names several), else the newest in the store. `note` (when not null) is set to a warning
+/// listing the store's other sessions and their fragment counts when there are any (empty
+/// otherwise). NotFound for an empty store or a wanted session without fragments there.
+Result<int64_t> chooseSession(const messages::FragmentStore& store, const std::set<int64_t>& wanted,
+                              std::string* note);
 
 /// Loads every fragment of one session from a store (the newest session, or `session_id` when
 /// set), decoded, in id order. NotFound for an empty store, Corrupt for a damaged fragment.

@@ -389,6 +389,51 @@ TEST(StreamingProcesses, DeviceSpoolOnFullTmpfsReportsKeptAndLost) {
     fs::remove_all(dir);
 }
 
+// Issue 32, item 4: a second, short device run on the same channel must not end an --until-end
+// backend while the first device still scans. The backend finishes every session it hears from
+// and lists each one.
+TEST(StreamingProcesses, UntilEndWaitsForEveryDeviceSession) {
+    const fs::path dir = tempDir("two_sessions");
+    const pid_t backend = spawn(backendArgs(dir), dir / "backend.log");
+    ASSERT_GT(backend, 0);
+    std::this_thread::sleep_for(300ms);
+    auto long_run = deviceArgs(dir / "a", 120);
+    long_run.push_back("--realtime");  // about 4 s of scanning
+    const pid_t a = spawn(long_run, dir / "a.log");
+    ASSERT_GT(a, 0);
+    const auto deadline = std::chrono::steady_clock::now() + 60s;
+    while (countPlf(dir / "out" / "fragments") < 1 && std::chrono::steady_clock::now() < deadline)
+        std::this_thread::sleep_for(20ms);
+    const pid_t b = spawn(deviceArgs(dir / "b", 10), dir / "b.log");  // one fragment
+    ASSERT_GT(b, 0);
+    EXPECT_EQ(waitExit(b, 100s), 0) << readText(dir / "b.log");
+    EXPECT_EQ(waitExit(a, 100s), 0) << readText(dir / "a.log");
+    const int backend_rc = waitExit(backend, 30s);
+    const std::string log = readText(dir / "backend.log");
+    EXPECT_EQ(backend_rc, 0) << log;
+    auto sent = readPlf(dir / "a" / "sent");
+    const size_t from_a = sent.size();
+    for (auto& [name, bytes] : readPlf(dir / "b" / "sent")) sent.emplace(name, std::move(bytes));
+    EXPECT_GE(from_a, 3u);
+    EXPECT_EQ(sent.size(), from_a + 1);
+    const auto stored = readPlf(dir / "out" / "fragments");
+    EXPECT_EQ(stored.size(), sent.size()) << log;
+    for (const auto& [name, bytes] : sent) {
+        auto it = stored.find(name);
+        ASSERT_NE(it, stored.end()) << name << " missing in the store\n" << log;
+        EXPECT_TRUE(it->second == bytes) << name << " differs";
+    }
+    size_t complete_lines = 0;
+    for (size_t at = log.find(", complete"); at != std::string::npos;
+         at = log.find(", complete", at + 1)) {
+        ++complete_lines;
+    }
+    EXPECT_EQ(complete_lines, 2u) << log;  // one line per session
+    const auto metrics = nlohmann::json::parse(readText(dir / "out" / "metrics.json"));
+    EXPECT_EQ(metrics["sessions"].size(), 2u);
+    fs::remove_all(dir);
+}
+
 // Issue 32, item 3: LCM uses the last of two ttl options, so neither program may accept
 // "ttl=0&ttl=255" as staying on the host (nor with --allow-remote: the URL is ambiguous).
 TEST(StreamingProcesses, RepeatedTtlIsRefusedByDeviceAndBackend) {
