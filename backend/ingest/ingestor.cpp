@@ -9,6 +9,7 @@
 #include "messages/channels.hpp"
 #include "messages/files.hpp"
 #include "messages/fragment_codec.hpp"
+#include "messages/fragment_sender.hpp"  // toUtime
 #include "messages/wire.hpp"
 
 namespace plumb::backend {
@@ -206,9 +207,7 @@ void Ingestor::poll(double now_s) {
         auto put = store_->put(c.session_id, c.fragment_id, c.bytes);
         if (!put.isOk()) {
             if (put.status().code() == StatusCode::kIoError) {
-                log::error("ingest: cannot persist fragment {}: {}", c.fragment_id,
-                           put.status().toString());
-                ++counters_.persist_errors;
+                onCannotStore(c, put.status(), now_s);
                 assembler_->release(c.session_id, c.fragment_id);
             } else {
                 log::warn("ingest: fragment {} of session {} rejected: {}", c.fragment_id,
@@ -219,6 +218,7 @@ void Ingestor::poll(double now_s) {
             }
             continue;
         }
+        onStored();
         if (*put) {
             ++counters_.fragments_received;
             log::debug("ingest: fragment {} of session {} stored ({} bytes)", c.fragment_id,
@@ -228,6 +228,40 @@ void Ingestor::poll(double now_s) {
         }
         assembler_->acknowledge(c.session_id, c.fragment_id, now_s);
     }
+}
+
+void Ingestor::onCannotStore(const messages::CompletedFragment& c, const Status& error,
+                             double now_s) {
+    ++counters_.persist_errors;
+    ++failed_since_stored_;
+    backoff_s_ = backoff_s_ == 0.0 ? config_.cannot_store_backoff_s
+                                   : std::min(2.0 * backoff_s_, config_.max_cannot_store_backoff_s);
+    if (failed_since_stored_ == 1 || now_s - last_error_log_s_ >= 60.0) {
+        log::error(
+            "ingest: cannot store fragment {} of session {}: {}; asking the device to wait {:.0f} "
+            "s ({} failed attempt(s) since the last fragment stored)",
+            c.fragment_id, c.session_id, error.message(), backoff_s_, failed_since_stored_);
+        last_error_log_s_ = now_s;
+    }
+    plumb::fragment_backoff_t b{};
+    b.utime = messages::toUtime(now_s);
+    b.seq = ++backoff_seq_;
+    b.session_id = c.session_id;
+    b.fragment_id = static_cast<int32_t>(c.fragment_id);
+    b.reason = plumb::fragment_backoff_t::REASON_CANNOT_STORE;
+    b.retry_after_s = backoff_s_;
+    b.message = error.message();
+    if (out_->publish(messages::kChannelFragmentBackoff, messages::encodeMessage(b)).isOk()) {
+        ++counters_.backoffs_sent;
+    }
+}
+
+void Ingestor::onStored() {
+    if (failed_since_stored_ > 0) {
+        log::info("ingest: storing again after {} failed attempt(s)", failed_since_stored_);
+    }
+    failed_since_stored_ = 0;
+    backoff_s_ = 0.0;
 }
 
 bool Ingestor::sessionComplete(int64_t session) const {
@@ -299,6 +333,7 @@ nlohmann::json Ingestor::metrics(const messages::AuthStats& auth) const {
     j["fragments_rejected"] = counters_.fragments_rejected;
     j["fragments_incomplete"] = assembler_->numPartial();
     j["persist_errors"] = counters_.persist_errors;
+    j["backoffs_sent"] = counters_.backoffs_sent;
     j["chunks_received"] = a.chunks_received;
     j["chunks_duplicate"] = a.duplicate_chunks;
     j["chunks_lost"] = counters_.chunks_lost;

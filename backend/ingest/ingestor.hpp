@@ -5,7 +5,9 @@
 // `plumb-backend --log` and `plumb replay`: reassembles fragments from their chunks
 // (messages/fragment_assembler.hpp), verifies them (chunk and fragment CRC-32, then a full
 // decode), persists each one atomically into the fragment store (messages/fragment_store.hpp)
-// and only then acknowledges it. On open() it resumes from the store: fragments already there are
+// and only then acknowledges it; one it cannot store (a full disk) is answered with a
+// fragment_backoff_t, so the device waits instead of re-sending at once. On open() it resumes
+// from the store: fragments already there are
 // acknowledged again when announced and never stored twice. It also keeps the device's latest
 // heartbeat, camera info and configuration snapshot, and notices the end of a scan (a heartbeat
 // with TRACKING_STOPPED carries the final fragment count). Raw frames (depth_frame2_t on
@@ -41,6 +43,11 @@ struct IngestConfig {
     messages::FragmentAssemblerConfig assembler;
     /// Decode every reassembled fragment before persisting it (rejects undecodable ones).
     bool verify_decode = true;
+    /// A fragment that cannot be stored (e.g. a full disk) is answered with a fragment_backoff_t
+    /// asking the device to wait this long before re-sending, seconds; doubled per further
+    /// failure up to max_cannot_store_backoff_s, reset by the next fragment stored.
+    double cannot_store_backoff_s = 2.0;
+    double max_cannot_store_backoff_s = 30.0;
 };
 
 struct IngestCounters {
@@ -49,6 +56,7 @@ struct IngestCounters {
     uint64_t fragments_duplicate = 0;   ///< reassembled again although stored (ignored)
     uint64_t fragments_rejected = 0;    ///< reassembled but undecodable or conflicting
     uint64_t persist_errors = 0;        ///< disk errors (the fragment is received again)
+    uint64_t backoffs_sent = 0;         ///< "cannot store" answers (fragment_backoff_t)
     uint64_t chunks_lost = 0;           ///< distinct chunks requested again (lost or late)
     uint64_t chunks_recovered = 0;      ///< of these, received afterwards
     uint64_t status_messages = 0;       ///< device heartbeats
@@ -117,6 +125,8 @@ class Ingestor {
     Ingestor() = default;
     void onChunk(std::span<const uint8_t> bytes, double now_s);
     void onStatus(std::span<const uint8_t> bytes, double now_s);
+    void onCannotStore(const messages::CompletedFragment& c, const Status& error, double now_s);
+    void onStored();
     bool sessionComplete(int64_t session) const;
     void onCameraInfo(std::span<const uint8_t> bytes);
     void onConfig(std::span<const uint8_t> bytes);
@@ -134,6 +144,10 @@ class Ingestor {
     std::map<int64_t, messages::DeviceStatus> status_;
     std::map<int64_t, int32_t> end_of_scan_;  ///< session -> final fragment count
     std::map<int64_t, double> last_heard_;    ///< session -> time of its latest heartbeat
+    double backoff_s_ = 0.0;                  ///< current "cannot store" back-off (0: storing)
+    uint64_t failed_since_stored_ = 0;        ///< persist failures since the last success
+    double last_error_log_s_ = 0.0;
+    int64_t backoff_seq_ = 0;
     std::optional<messages::CameraInfo> camera_;
     std::optional<messages::RawRgbdFrame> last_raw_;
     std::string device_config_;

@@ -271,6 +271,27 @@ class SpoolFeeder {
     bool stalled_ = false;
 };
 
+/// Logs the backend's "cannot store" answers: the first one, then at most one line a minute.
+class BackoffLog {
+  public:
+    void note(const FragmentPublisher& publisher, double now_s) {
+        const uint64_t n = publisher.senderStats().backoffs_received;
+        if (n == seen_) return;
+        if (seen_ == 0 || now_s - logged_s_ >= 60.0) {
+            log::warn(
+                "device: the backend cannot store fragments ({}); re-sending only after its "
+                "back-off ({} answer(s) so far)",
+                publisher.lastBackoffMessage(), n);
+            logged_s_ = now_s;
+        }
+        seen_ = n;
+    }
+
+  private:
+    uint64_t seen_ = 0;
+    double logged_s_ = 0.0;
+};
+
 /// The publisher of this run, resuming what earlier runs left in the spool directory; creates
 /// the dump folder.
 Result<std::unique_ptr<FragmentPublisher>> openPublisher(const DeviceRunOptions& options,
@@ -427,7 +448,8 @@ Result<DeviceRunReport> runDevice(FrameSource& source, const DeviceRunOptions& o
     auto opened = openPublisher(options, transport);
     if (!opened.isOk()) return opened.status();
     std::unique_ptr<FragmentPublisher> publisher = std::move(opened).value();
-    for (const char* channel : {messages::kChannelFragmentAck, messages::kChannelRetransmit}) {
+    for (const char* channel : {messages::kChannelFragmentAck, messages::kChannelRetransmit,
+                                messages::kChannelFragmentBackoff}) {
         PLUMB_RETURN_IF_ERROR(transport.subscribe(
             channel, [&](const std::string& ch, std::span<const uint8_t> bytes) {
                 publisher->onMessage(ch, bytes, wallSeconds());
@@ -448,6 +470,7 @@ Result<DeviceRunReport> runDevice(FrameSource& source, const DeviceRunOptions& o
 
     Announcer announce(options, transport, source, shared);
     SpoolFeeder feeder(*publisher, options);
+    BackoffLog backoffs;
     DeviceRunReport report;
     double last_status = -1e300, last_config = -1e300, wait_start = -1.0;
     Status failure;
@@ -466,6 +489,7 @@ Result<DeviceRunReport> runDevice(FrameSource& source, const DeviceRunOptions& o
         const bool fusion_done = shared.fusion_done.load();
         feeder.feed(fragments, report.stopped_by_signal || fusion_done, now);
         publisher->poll(now);
+        backoffs.note(*publisher, now);
         const bool scan_done = fusion_done && fragments.drained();
         if (now - last_config >= sc.config_period_s) {
             announce.config(now);

@@ -43,7 +43,8 @@ Status FragmentPublisher::submit(uint32_t fragment_id, std::vector<uint8_t> enco
 
 void FragmentPublisher::onMessage(const std::string& channel, std::span<const uint8_t> bytes,
                                   double now_s) {
-    if (channel != messages::kChannelFragmentAck && channel != messages::kChannelRetransmit) {
+    if (channel != messages::kChannelFragmentAck && channel != messages::kChannelRetransmit &&
+        channel != messages::kChannelFragmentBackoff) {
         return;
     }
     // Acks and requests name their session; every sender ignores other sessions' messages.
@@ -103,6 +104,13 @@ void FragmentPublisher::poll(double now_s) {
     fill(now_s);
 }
 
+std::string FragmentPublisher::lastBackoffMessage() const {
+    for (const auto& [session, sender] : senders_) {
+        if (!sender->lastBackoffMessage().empty()) return sender->lastBackoffMessage();
+    }
+    return {};
+}
+
 messages::FragmentSenderStats FragmentPublisher::senderStats() const {
     messages::FragmentSenderStats sum;
     for (const auto& [session, sender] : senders_) {
@@ -114,6 +122,7 @@ messages::FragmentSenderStats FragmentPublisher::senderStats() const {
         sum.stale_messages += s.stale_messages;
         sum.malformed_messages += s.malformed_messages;
         sum.publish_errors += s.publish_errors;
+        sum.backoffs_received += s.backoffs_received;
     }
     return sum;
 }

@@ -9,7 +9,8 @@
 // neither a backend restart nor a device restart loses a fragment.
 //
 // Pure: no threads, no clock; time is passed in (seconds). The owner routes messages from
-// PLUMB_FRAGMENT_ACK and PLUMB_RETRANSMIT to onMessage(). Not thread-safe.
+// PLUMB_FRAGMENT_ACK, PLUMB_RETRANSMIT and PLUMB_FRAGMENT_BACKOFF to onMessage(). Not
+// thread-safe.
 
 #include <cstdint>
 #include <filesystem>
@@ -57,7 +58,7 @@ class FragmentPublisher {
     /// already submitted with other bytes.
     Status submit(uint32_t fragment_id, std::vector<uint8_t> encoded, double now_s);
 
-    /// Handles a message from PLUMB_FRAGMENT_ACK or PLUMB_RETRANSMIT.
+    /// Handles a message from PLUMB_FRAGMENT_ACK, PLUMB_RETRANSMIT or PLUMB_FRAGMENT_BACKOFF.
     void onMessage(const std::string& channel, std::span<const uint8_t> bytes, double now_s);
 
     /// Timers: re-announcements, releasing acknowledged fragments, refilling the window.
@@ -74,6 +75,8 @@ class FragmentPublisher {
     int64_t spoolBytes() const { return spool_->memoryBytes() + spool_->diskBytes(); }
     size_t inFlight() const { return in_flight_.size(); }
     const PublisherStats& stats() const { return stats_; }
+    /// The backend's error from the latest "cannot store" backoff (empty: none).
+    std::string lastBackoffMessage() const;
     /// Sender counters summed over sessions.
     messages::FragmentSenderStats senderStats() const;
 

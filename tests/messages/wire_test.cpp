@@ -123,6 +123,10 @@ TEST(Wire, SchemasMatchGeneratedTypes) {
     req.missing_chunks = {1, 5, 9};
     req.num_missing = 3;
     expectSchemaMatches(req);
+    plumb::fragment_backoff_t backoff{};
+    backoff.retry_after_s = 2.0;
+    backoff.message = "No space left on device";
+    expectSchemaMatches(backoff);
     plumb::camera_info_t cam{};
     cam.source = "x";
     expectSchemaMatches(cam);
