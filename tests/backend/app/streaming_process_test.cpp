@@ -411,8 +411,8 @@ TEST(StreamingProcesses, UntilEndWaitsForEveryDeviceSession) {
     const pid_t backend = spawn(backendArgs(dir), dir / "backend.log");
     ASSERT_GT(backend, 0);
     std::this_thread::sleep_for(300ms);
-    auto long_run = deviceArgs(dir / "a", 120);
-    long_run.push_back("--realtime");  // about 4 s of scanning
+    auto long_run = deviceArgs(dir / "a", 240);
+    long_run.push_back("--realtime");  // about 8 s of scanning: B starts and ends meanwhile
     const pid_t a = spawn(long_run, dir / "a.log");
     ASSERT_GT(a, 0);
     const auto deadline = std::chrono::steady_clock::now() + 60s;
@@ -479,7 +479,7 @@ TEST(StreamingProcesses, FullBackendDiskMakesTheDeviceBackOff) {
     EXPECT_GE(m["persist_errors"].get<int>(), 2);
     EXPECT_LE(m["persist_errors"].get<int>(), 10);
     EXPECT_EQ(m["backoffs_sent"], m["persist_errors"]);
-    EXPECT_LE(m["chunks_received"].get<int>(), 2500);  // 16000-byte chunks: about 40 MB at most
+    EXPECT_LE(m["chunks_received"].get<int>(), 4000);  // 16000-byte chunks: 64 MB at most
     EXPECT_LE(countOf(backend_log, "cannot store fragment"), 2u) << backend_log;
     EXPECT_EQ(countPlf(dir / "spool"), 2u);
     fs::remove_all(dir);
