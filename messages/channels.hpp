@@ -14,7 +14,9 @@ inline constexpr const char* kChannelFragmentHeader =
     "PLUMB_FRAGMENT_HEADER";                                                  ///< fragment_header_t
 inline constexpr const char* kChannelFragmentChunk = "PLUMB_FRAGMENT_CHUNK";  ///< fragment_chunk_t
 inline constexpr const char* kChannelFragmentAck = "PLUMB_FRAGMENT_ACK";      ///< fragment_ack_t
-inline constexpr const char* kChannelRetransmit = "PLUMB_RETRANSMIT";   ///< retransmit_request_t
+inline constexpr const char* kChannelRetransmit = "PLUMB_RETRANSMIT";  ///< retransmit_request_t
+inline constexpr const char* kChannelFragmentBackoff =
+    "PLUMB_FRAGMENT_BACKOFF";                                           ///< fragment_backoff_t
 inline constexpr const char* kChannelCameraInfo = "PLUMB_CAMERA_INFO";  ///< camera_info_t
 inline constexpr const char* kChannelDepth = "PLUMB_DEPTH";             ///< depth_frame_t
 inline constexpr const char* kChannelRgbd = "PLUMB_RGBD";               ///< depth_frame2_t

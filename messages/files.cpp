@@ -109,4 +109,13 @@ Status removeFile(const std::filesystem::path& path) {
     return syncDirectory(path.parent_path());
 }
 
+Status moveFile(const std::filesystem::path& from, const std::filesystem::path& to) {
+    if (::rename(from.c_str(), to.c_str()) != 0) {
+        return ioError(fmt::format("cannot move {} to {}: {}", from.string(), to.string(),
+                                   std::strerror(errno)));
+    }
+    PLUMB_RETURN_IF_ERROR(syncDirectory(to.parent_path()));
+    return syncDirectory(from.parent_path());
+}
+
 }  // namespace plumb::messages

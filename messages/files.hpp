@@ -23,6 +23,9 @@ Result<std::vector<uint8_t>> readFile(const std::filesystem::path& path, int64_t
 /// Deletes `path` and fsyncs its directory; a missing file is not an error.
 Status removeFile(const std::filesystem::path& path);
 
+/// Renames `from` to `to` (same file system) and fsyncs both directories. IoError names both.
+Status moveFile(const std::filesystem::path& from, const std::filesystem::path& to);
+
 /// Suffix of temporary files left by an interrupted writeFileAtomic.
 inline constexpr const char* kTempSuffix = ".tmp";
 

@@ -130,6 +130,7 @@ Status FragmentSender::onMessage(const std::string& channel, std::span<const uin
         pending_.erase(it);
         return Status::ok();
     }
+    if (channel == kChannelFragmentBackoff) return onBackoff(bytes, now_s);
     if (channel == kChannelRetransmit) {
         auto req = decodeMessage<plumb::retransmit_request_t>(bytes);
         if (!req.isOk()) {
@@ -164,6 +165,33 @@ Status FragmentSender::onMessage(const std::string& channel, std::span<const uin
         p.last_activity_s = now_s;
         p.attempts = 0;
         return Status::ok();
+    }
+    return Status::ok();
+}
+
+Status FragmentSender::onBackoff(std::span<const uint8_t> bytes, double now_s) {
+    auto msg = decodeMessage<plumb::fragment_backoff_t>(bytes);
+    if (!msg.isOk()) {
+        ++stats_.malformed_messages;
+        return msg.status();
+    }
+    if (!(msg->retry_after_s >= 0.0) ||
+        msg->reason != plumb::fragment_backoff_t::REASON_CANNOT_STORE) {
+        ++stats_.malformed_messages;
+        return corrupt(fmt::format("backoff: retry_after_s {} or reason {} is not valid",
+                                   msg->retry_after_s, msg->reason));
+    }
+    if (msg->session_id != config_.session_id) {
+        ++stats_.stale_messages;
+        return Status::ok();
+    }
+    ++stats_.backoffs_received;
+    last_backoff_message_ = msg->message;
+    // Quiet until then: poll() re-announces once the usual timeout has passed after it.
+    const double until = now_s + std::min(msg->retry_after_s, kMaxBackoffS);
+    for (auto& [id, p] : pending_) {
+        p.last_activity_s = std::max(p.last_activity_s, until);
+        p.attempts = 0;
     }
     return Status::ok();
 }

@@ -45,6 +45,7 @@ struct FragmentSenderStats {
     uint64_t stale_messages = 0;      ///< acks/requests for other sessions or unknown fragments
     uint64_t malformed_messages = 0;  ///< undecodable or inconsistent acks/requests
     uint64_t publish_errors = 0;      ///< transport refused a message (treated as lost)
+    uint64_t backoffs_received = 0;   ///< "cannot store" answers (fragment_backoff_t)
 };
 
 class FragmentSender {
@@ -57,8 +58,11 @@ class FragmentSender {
     /// (sending identical bytes again is a no-op).
     Status send(uint32_t fragment_id, std::vector<uint8_t> encoded, double now_s);
 
-    /// Handles a message received on PLUMB_FRAGMENT_ACK or PLUMB_RETRANSMIT (other channels are
-    /// ignored). Corrupt for malformed messages, which are counted and otherwise ignored.
+    /// Handles a message received on PLUMB_FRAGMENT_ACK, PLUMB_RETRANSMIT or
+    /// PLUMB_FRAGMENT_BACKOFF (other channels are ignored). A backoff ("the backend cannot store
+    /// for now") postpones the next re-announcement of every fragment of this session by its
+    /// retry_after_s (at most kMaxBackoffS); a retransmission request still gets its chunks at
+    /// once. Corrupt for malformed messages, which are counted and otherwise ignored.
     Status onMessage(const std::string& channel, std::span<const uint8_t> bytes, double now_s);
 
     /// Re-announces fragments whose retransmission timeout has expired.
@@ -72,6 +76,10 @@ class FragmentSender {
     /// Fragment ids sent and not yet acknowledged, ascending.
     std::vector<uint32_t> inFlight() const;
     size_t numInFlight() const { return pending_.size(); }
+    /// The backend's error from the latest backoff (empty: none received).
+    const std::string& lastBackoffMessage() const { return last_backoff_message_; }
+    /// Longest back-off honoured, seconds (a larger retry_after_s is clamped to it).
+    static constexpr double kMaxBackoffS = 300.0;
     const FragmentSenderStats& stats() const { return stats_; }
     const FragmentSenderConfig& config() const { return config_; }
 
@@ -85,6 +93,7 @@ class FragmentSender {
     };
 
     void publishHeader(uint32_t fragment_id, const Pending& p, int attempt, double now_s);
+    Status onBackoff(std::span<const uint8_t> bytes, double now_s);
     void publishChunk(uint32_t fragment_id, const Pending& p, int32_t index, double now_s);
     void publishOrCount(const std::string& channel, const Bytes& bytes);
 
@@ -93,6 +102,7 @@ class FragmentSender {
     std::map<uint32_t, Pending> pending_;
     std::vector<uint32_t> acknowledged_;
     std::vector<uint32_t> rejected_;
+    std::string last_backoff_message_;
     FragmentSenderStats stats_;
     int64_t seq_ = 0;
 };

@@ -3,28 +3,59 @@
 
 #include <fmt/format.h>
 
+#include <sys/stat.h>
+
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <random>
+#include <set>
 
+#include "common/core/logging.hpp"
 #include "messages/files.hpp"
 
 namespace plumb::messages {
 
+std::string weakKeyReason(std::span<const uint8_t> key) {
+    if (std::all_of(key.begin(), key.end(), [](uint8_t b) { return b == 0; })) return "all zero";
+    std::set<uint8_t> distinct(key.begin(), key.end());
+    if (distinct.size() == 1) return "every byte the same";
+    if (distinct.size() < kMinDistinctKeyBytes) {
+        return fmt::format("only {} distinct byte values in {} bytes", distinct.size(), key.size());
+    }
+    return {};
+}
+
+std::string keyFileModeWarning(const std::filesystem::path& path, unsigned mode) {
+    if ((mode & 077u) == 0) return {};
+    const char* who = (mode & 007u) != 0 ? "others" : "its group";
+    return fmt::format(
+        "key file {} is accessible by {} (mode {:04o}); anyone who can read it can forge "
+        "messages: chmod 600 {}",
+        path.string(), who, mode & 07777u, path.string());
+}
+
 Result<std::vector<uint8_t>> readKeyFile(const std::filesystem::path& path) {
     auto bytes = readFile(path, 1 << 16);
     if (!bytes.isOk()) return bytes.status();
+    struct stat st {};
+    if (::stat(path.c_str(), &st) == 0) {
+        const std::string warning = keyFileModeWarning(path, st.st_mode);
+        if (!warning.empty()) log::warn("{}", warning);
+    }
     std::vector<uint8_t> key;
     int high = -1;
-    for (uint8_t c : *bytes) {
+    for (size_t i = 0; i < bytes->size(); ++i) {
+        const uint8_t c = (*bytes)[i];
         if (c == ' ' || c == '\n' || c == '\r' || c == '\t') continue;
         const int d = c >= '0' && c <= '9'   ? c - '0'
                       : c >= 'a' && c <= 'f' ? c - 'a' + 10
                       : c >= 'A' && c <= 'F' ? c - 'A' + 10
                                              : -1;
-        if (d < 0) {
+        if (d < 0) {  // the offset only: the file's content is secret
             return invalidArgument(fmt::format(
-                "key file {}: expected hexadecimal text, found byte 0x{:02x}", path.string(), c));
+                "key file {}: expected hexadecimal text, found another character at byte {}",
+                path.string(), i));
         }
         if (high < 0) {
             high = d;
@@ -40,6 +71,12 @@ Result<std::vector<uint8_t>> readKeyFile(const std::filesystem::path& path) {
         return invalidArgument(fmt::format(
             "key file {}: {} bytes, need at least 16 (32 hex digits)", path.string(), key.size()));
     }
+    if (const std::string weak = weakKeyReason(key); !weak.empty()) {
+        return invalidArgument(fmt::format(
+            "key file {}: a weak key ({}); make a random one: head -c 32 /dev/urandom | xxd -p "
+            "-c 64 > plumb.key",
+            path.string(), weak));
+    }
     return key;
 }
 
@@ -53,11 +90,12 @@ int64_t randomSenderId() {
 }
 
 Result<std::unique_ptr<LcmLink>> LcmLink::open(const LinkOptions& options) {
-    if (!options.allow_remote && !keepsTrafficOnHost(options.url)) {
+    if (auto parsed = parseLcmUrl(options.url); !parsed.isOk()) return parsed.status();
+    if (Status s = checkStaysOnHost(options.url); !options.allow_remote && !s.isOk()) {
         return failedPrecondition(fmt::format(
-            "LCM URL '{}' can send packets off this machine; use a udpm:// URL with ttl=0 (the "
-            "default {}) or memq://, or allow it explicitly",
-            options.url, kDefaultLcmUrl));
+            "{}; use a udpm:// URL with ttl=0 (the default {}) or memq://, or allow packets to "
+            "leave this machine with --allow-remote",
+            s.message(), kDefaultLcmUrl));
     }
     AuthConfig auth;
     if (!options.key_file.empty()) {

@@ -11,6 +11,7 @@
 
 #include <filesystem>
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -31,17 +32,31 @@ struct LinkOptions {
     bool allow_remote = false;
 };
 
-/// Reads a key file (hex text). InvalidArgument for non-hex content or fewer than 16 bytes,
-/// NotFound/IoError for an unreadable file.
+/// A key needs at least this many distinct byte values (16 random bytes have about 15).
+inline constexpr size_t kMinDistinctKeyBytes = 8;
+
+/// Reads a key file (hex text). InvalidArgument for non-hex content (the message gives the
+/// offset, never the content), fewer than 16 bytes, or a weak key (weakKeyReason);
+/// NotFound/IoError for an unreadable file. Logs a warning (keyFileModeWarning) when group or
+/// others may access the file, as ssh does for private keys. Never logs key material.
 Result<std::vector<uint8_t>> readKeyFile(const std::filesystem::path& path);
+
+/// Why `key` is too weak to authenticate with: all zero, every byte the same, or fewer than
+/// kMinDistinctKeyBytes distinct byte values. Empty when it is acceptable.
+std::string weakKeyReason(std::span<const uint8_t> key);
+
+/// The warning for a key file whose permission bits are `mode` (st_mode): non-empty when its
+/// group or others have any access.
+std::string keyFileModeWarning(const std::filesystem::path& path, unsigned mode);
 
 /// A fresh sender id for this process (random, non-zero).
 int64_t randomSenderId();
 
 class LcmLink {
   public:
-    /// Opens LCM (and authentication). FailedPrecondition for a URL that can leave the host
-    /// without allow_remote.
+    /// Opens LCM (and authentication). InvalidArgument for a URL parseLcmUrl refuses (e.g. a
+    /// repeated option), whatever allow_remote says; FailedPrecondition for a URL that can leave
+    /// the host (checkStaysOnHost) without allow_remote.
     static Result<std::unique_ptr<LcmLink>> open(const LinkOptions& options);
 
     /// Publish and subscribe here (authenticated when a key is configured).

@@ -4,7 +4,6 @@
 #include <fmt/format.h>
 
 #include <limits>
-#include <string_view>
 
 namespace plumb::messages {
 namespace {
@@ -60,21 +59,5 @@ Result<bool> LcmTransport::handle(int timeout_ms) {
 }
 
 int LcmTransport::fileno() { return lcm_.getFileno(); }
-
-bool keepsTrafficOnHost(const std::string& url) {
-    const std::string_view u(url);
-    if (u.starts_with("memq://")) return true;
-    if (!u.starts_with("udpm://")) return false;
-    const size_t q = u.find('?');
-    if (q == std::string_view::npos) return false;
-    std::string_view options = u.substr(q + 1);
-    while (!options.empty()) {
-        const size_t amp = options.find('&');
-        if (options.substr(0, amp) == "ttl=0") return true;
-        if (amp == std::string_view::npos) break;
-        options.remove_prefix(amp + 1);
-    }
-    return false;
-}
 
 }  // namespace plumb::messages

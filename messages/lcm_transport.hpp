@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "messages/channels.hpp"
+#include "messages/lcm_url.hpp"  // keepsTrafficOnHost
 #include "messages/transport.hpp"
 
 namespace plumb::messages {
@@ -42,9 +43,5 @@ class LcmTransport final : public Transport {
     lcm::LCM lcm_;
     std::vector<std::unique_ptr<Handler>> handlers_;
 };
-
-/// True when `url` cannot send packets off this machine: memq://, or udpm:// with an explicit
-/// ttl=0 option.
-bool keepsTrafficOnHost(const std::string& url);
 
 }  // namespace plumb::messages

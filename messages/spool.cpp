@@ -86,20 +86,31 @@ Status Spool::put(const SpoolKey& key, std::vector<uint8_t> bytes) {
     Entry e;
     e.size = size;
     e.crc = crc;
-    if (memory_bytes_ + size <= config_.memory_budget_bytes) {
-        e.bytes = std::move(bytes);
-        memory_bytes_ += size;
-    } else {
-        if (config_.disk_dir.empty() || disk_bytes_ + size > config_.disk_budget_bytes) {
-            return ioError(
-                fmt::format("spool full: fragment {} ({} bytes) fits neither memory "
-                            "({} of {} used) nor disk ({} of {} used)",
-                            key.fragment_id, size, memory_bytes_, config_.memory_budget_bytes,
-                            disk_bytes_, config_.disk_dir.empty() ? 0 : config_.disk_budget_bytes));
+    const bool fits_memory = memory_bytes_ + size <= config_.memory_budget_bytes;
+    if (config_.disk_dir.empty()) {
+        if (!fits_memory) {
+            return ioError(fmt::format(
+                "spool full: fragment {} ({} bytes) does not fit the memory budget ({} of {} "
+                "bytes used; no spool directory)",
+                key.fragment_id, size, memory_bytes_, config_.memory_budget_bytes));
         }
-        PLUMB_RETURN_IF_ERROR(writeFileAtomic(pathOf(key), bytes));
+    } else {
+        if (disk_bytes_ + size > config_.disk_budget_bytes) {
+            return ioError(fmt::format(
+                "spool full: fragment {} ({} bytes) does not fit the disk budget of {} ({} of {} "
+                "bytes used)",
+                key.fragment_id, size, config_.disk_dir.string(), disk_bytes_,
+                config_.disk_budget_bytes));
+        }
+        // Durable before it counts: written, fsynced, renamed, directory fsynced.
+        Status written = writeFileAtomic(pathOf(key), bytes);
+        if (!written.isOk()) return ioError("spool: " + written.message());
         e.on_disk = true;
         disk_bytes_ += size;
+    }
+    if (fits_memory) {  // the only copy without a directory, else a cache for resending
+        e.bytes = std::move(bytes);
+        memory_bytes_ += size;
     }
     entries_.emplace(key, std::move(e));
     return Status::ok();
@@ -111,7 +122,7 @@ Result<std::vector<uint8_t>> Spool::get(const SpoolKey& key) const {
         return notFound(
             fmt::format("spool: no fragment {} of session {}", key.fragment_id, key.session_id));
     }
-    if (!it->second.on_disk) return it->second.bytes;
+    if (!it->second.bytes.empty()) return it->second.bytes;
     auto bytes = readFile(pathOf(key), it->second.size);
     if (!bytes.isOk()) return bytes.status();
     if (static_cast<int64_t>(bytes->size()) != it->second.size || crc32(*bytes) != it->second.crc) {
@@ -126,9 +137,35 @@ Status Spool::erase(const SpoolKey& key) {
     if (it->second.on_disk) {
         PLUMB_RETURN_IF_ERROR(removeFile(pathOf(key)));
         disk_bytes_ -= it->second.size;
-    } else {
-        memory_bytes_ -= it->second.size;
     }
+    if (!it->second.bytes.empty()) memory_bytes_ -= it->second.size;
+    entries_.erase(it);
+    return Status::ok();
+}
+
+std::filesystem::path Spool::quarantineDir() const {
+    return config_.disk_dir.empty() ? std::filesystem::path() : config_.disk_dir / "quarantine";
+}
+
+Status Spool::quarantine(const SpoolKey& key, const std::string& reason) {
+    auto it = entries_.find(key);
+    if (it == entries_.end()) return Status::ok();
+    if (it->second.on_disk) {
+        const std::filesystem::path dir = quarantineDir();
+        std::error_code ec;
+        std::filesystem::create_directories(dir, ec);
+        if (ec) {
+            return ioError(fmt::format("spool: cannot create {}: {}", dir.string(), ec.message()));
+        }
+        const std::string name = fragmentFileName(key.session_id, key.fragment_id);
+        const std::string text = reason + "\n";
+        PLUMB_RETURN_IF_ERROR(
+            writeFileAtomic(dir / (name + ".reason"),
+                            std::span(reinterpret_cast<const uint8_t*>(text.data()), text.size())));
+        PLUMB_RETURN_IF_ERROR(moveFile(pathOf(key), dir / name));
+        disk_bytes_ -= it->second.size;
+    }
+    if (!it->second.bytes.empty()) memory_bytes_ -= it->second.size;
     entries_.erase(it);
     return Status::ok();
 }

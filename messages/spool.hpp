@@ -1,15 +1,20 @@
 // SPDX-License-Identifier: Apache-2.0
 #pragma once
 
-// Device-side spool of encoded fragments that the backend has not acknowledged yet: kept in
-// memory up to a budget, then written to disk atomically (messages/files.hpp), so a slow or
-// restarting backend costs disk space, not data. Disk entries survive a device restart and are
-// found again by open(). Entries are keyed by (session, fragment id). Not thread-safe.
+// Device-side spool of encoded fragments that the backend has not acknowledged yet. With a disk
+// directory every fragment is on disk (written, fsynced, renamed, directory fsynced:
+// messages/files.hpp) before put() returns, whatever the memory budget, so a crash, SIGKILL or
+// power loss loses nothing the spool took; memory then only caches fragments for resending.
+// Without a directory fragments live in memory up to the budget. Disk entries survive a device
+// restart and are found again by open(); quarantined ones (disk_dir/quarantine/) are not.
+// Entries are keyed by (session, fragment id).
+// Not thread-safe.
 
 #include <cstdint>
 #include <filesystem>
 #include <map>
 #include <memory>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -19,9 +24,10 @@
 namespace plumb::messages {
 
 struct SpoolConfig {
-    /// Bytes of fragments held in memory; further fragments go to disk.
+    /// Bytes of fragments held in memory: without disk_dir the spool's capacity, with it a
+    /// cache of fragments that are on disk anyway.
     int64_t memory_budget_bytes = int64_t{64} << 20;
-    /// Directory for fragments beyond the memory budget; empty = memory only.
+    /// Directory every fragment is written to before put() returns; empty = memory only.
     std::filesystem::path disk_dir;
     /// Bytes allowed on disk; put() fails with IoError beyond it (the caller must stop cutting
     /// fragments or make room), never silently dropping one.
@@ -40,14 +46,21 @@ class Spool {
     /// fragments already spooled there.
     static Result<std::unique_ptr<Spool>> open(SpoolConfig config);
 
-    /// Adds a fragment (memory if it fits, else disk). InvalidArgument for an empty fragment or a
-    /// key already present with other bytes (same bytes: no-op); IoError when full or on disk
-    /// errors (nothing is lost: the fragment simply is not in the spool).
+    /// Adds a fragment: with disk_dir durably on disk (and cached in memory if it fits), else in
+    /// memory. InvalidArgument for an empty fragment or a key already present with other bytes
+    /// (same bytes: no-op); IoError when full or on disk errors such as a full disk (nothing is
+    /// lost: the fragment simply is not in the spool, the message says why).
     Status put(const SpoolKey& key, std::vector<uint8_t> bytes);
     /// NotFound when absent; IoError/Corrupt when the disk copy cannot be read back intact.
     Result<std::vector<uint8_t>> get(const SpoolKey& key) const;
     /// Removes an acknowledged fragment (absent: no-op).
     Status erase(const SpoolKey& key);
+    /// Takes a fragment the backend refused for good out of the spool: with disk_dir its file
+    /// moves to disk_dir/quarantine/ beside "<name>.reason" holding `reason`; without, it is
+    /// dropped. Absent: no-op. IoError when the move fails (the fragment stays in the spool).
+    Status quarantine(const SpoolKey& key, const std::string& reason);
+    /// Where quarantine() puts fragments (empty without disk_dir).
+    std::filesystem::path quarantineDir() const;
 
     bool contains(const SpoolKey& key) const { return entries_.count(key) > 0; }
     /// Keys in ascending order (oldest session and fragment first).
@@ -58,8 +71,8 @@ class Spool {
 
   private:
     struct Entry {
-        std::vector<uint8_t> bytes;  ///< empty when on disk
-        bool on_disk = false;
+        std::vector<uint8_t> bytes;  ///< in memory (empty: on disk only)
+        bool on_disk = false;        ///< a file in disk_dir holds it
         int64_t size = 0;
         uint32_t crc = 0;
     };

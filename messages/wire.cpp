@@ -49,6 +49,12 @@ const WireSchema& wireSchema<plumb::retransmit_request_t>() {
     return kSchema;
 }
 template <>
+const WireSchema& wireSchema<plumb::fragment_backoff_t>() {
+    static const WireSchema kSchema{
+        "fragment_backoff_t", {F::kI64, F::kI64, F::kI64, F::kI32, F::kI8, F::kI64, F::kString}};
+    return kSchema;
+}
+template <>
 const WireSchema& wireSchema<plumb::camera_info_t>() {
     static const WireSchema kSchema{"camera_info_t",
                                     {F::kI64, F::kI64, F::kI32, F::kI32, F::kI64, F::kI64, F::kI64,

@@ -22,6 +22,7 @@
 #include "messages/lcm/plumb/device_status_t.hpp"
 #include "messages/lcm/plumb/envelope_t.hpp"
 #include "messages/lcm/plumb/fragment_ack_t.hpp"
+#include "messages/lcm/plumb/fragment_backoff_t.hpp"
 #include "messages/lcm/plumb/fragment_chunk_t.hpp"
 #include "messages/lcm/plumb/fragment_header_t.hpp"
 #include "messages/lcm/plumb/retransmit_request_t.hpp"
@@ -65,6 +66,8 @@ template <>
 const WireSchema& wireSchema<plumb::fragment_ack_t>();
 template <>
 const WireSchema& wireSchema<plumb::retransmit_request_t>();
+template <>
+const WireSchema& wireSchema<plumb::fragment_backoff_t>();
 template <>
 const WireSchema& wireSchema<plumb::camera_info_t>();
 template <>

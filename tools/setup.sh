@@ -19,8 +19,8 @@ packages=(
     libnanoflann-dev
     # drivers
     libopencv-dev libpng-dev libopenni2-dev libusb-1.0-0-dev libv4l-dev
-    # messages: LCM (lcm.pc requires glib)
-    liblcm-dev liblcm-bin libglib2.0-dev
+    # messages: LCM (lcm.pc requires glib); libcrypto (HMAC-SHA256) and zlib (CRC-32)
+    liblcm-dev liblcm-bin libglib2.0-dev libssl-dev zlib1g-dev
     # backend: PCL (its VTK needs MPI's C bindings), Ceres, Boost graph
     libpcl-dev libopenmpi-dev libceres-dev libboost-graph-dev
     # tests, benchmarks and the peer (Open3D is an oracle and a peer, never on the runtime path)

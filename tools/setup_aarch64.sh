@@ -30,6 +30,7 @@ arm64_packages=(
     libopenni2-dev libopenni2-0 libjpeg62-turbo libusb-1.0-0-dev libusb-1.0-0 libv4l-dev
     libv4l-0 libv4lconvert0
     libpng-dev libpng16-16 zlib1g-dev zlib1g
+    libssl-dev libssl3
     libgtest-dev libgmock-dev
 )
 # Header-only libraries (architecture-independent packages) the device side includes.

@@ -26,12 +26,18 @@ constexpr const char* kUsage =
     " (--live | --log LOG | --fragments DIR) --out DIR [options]\n"
     "\n"
     "  --live               receive fragments from plumb-device over LCM, persist and acknowledge\n"
-    "  --log LOG            process an lcm-logger log deterministically at full speed\n"
+    "  --log LOG            process an lcm-logger log deterministically at full speed; a log\n"
+    "                       that is empty, damaged or cut short, or holds no complete\n"
+    "                       fragment, is an error (exit 1) after what is intact is stored\n"
     "  --fragments DIR      the fragment store (default <out>/fragments); alone: reconstruct\n"
     "                       from an existing store\n"
     "  --out DIR            output directory (metrics.json, camera_info.json, ...)\n"
-    "  --until-end          live: stop when the device announces the end of the scan and every\n"
-    "                       fragment is stored\n"
+    "  --until-end          live: stop when every device session being finished (--session, else\n"
+    "                       every device heard from that did not go silent) announced the end of\n"
+    "                       its scan and has every fragment stored; each session is then listed\n"
+    "  --session ID         the device session to finish (repeatable; plumb-device logs its id)\n"
+    "                       and to reconstruct (default: the newest in the store; the others are\n"
+    "                       named in a warning)\n"
     "  --expect N           live: stop once N fragments are in the store\n"
     "  --timeout S          live: give up after S seconds (exit 1)\n"
     "  --linger S           live: keep acknowledging for S seconds after the end (default 1)\n"
@@ -63,18 +69,20 @@ bool parseDouble(const std::string& text, double* out) {
     return true;
 }
 
-}  // namespace
-
-int runBackendCommand(std::vector<std::string> args, const char* program) {
-    g_program = program;
-    auto config_args = config::extractConfigArgs(args);
-    if (!config_args.isOk()) return usageError(config_args.status().message());
-
+/// The command line of plumb-backend (every option but --config/--set).
+struct BackendArgs {
     bool live = false, finalise = true;
     std::string log_path, fragments_dir, out_dir, gt_dir;
     backend::IngestRunOptions options;
     messages::LinkOptions link_options;
     std::optional<log::Level> level;  // unset: the level the process already runs at
+};
+
+/// Parses `args` into `out`. Returns the exit status when the program is done (--help: 0, a
+/// usage error: 2), nothing when it should run.
+std::optional<int> parseArguments(const std::vector<std::string>& args, BackendArgs* out) {
+    backend::IngestRunOptions& options = out->options;
+    messages::LinkOptions& link_options = out->link_options;
     for (size_t i = 0; i < args.size(); ++i) {
         const std::string& a = args[i];
         auto value = [&](std::string* v) {
@@ -88,15 +96,19 @@ int runBackendCommand(std::vector<std::string> args, const char* program) {
             std::printf("usage: %s%s", g_program, kUsage);
             return 0;
         } else if (a == "--live") {
-            live = true;
+            out->live = true;
         } else if (a == "--log") {
-            if (!value(&log_path)) return usageError("--log needs a file");
+            if (!value(&out->log_path)) return usageError("--log needs a file");
         } else if (a == "--fragments") {
-            if (!value(&fragments_dir)) return usageError("--fragments needs a directory");
+            if (!value(&out->fragments_dir)) return usageError("--fragments needs a directory");
         } else if (a == "--out") {
-            if (!value(&out_dir)) return usageError("--out needs a directory");
+            if (!value(&out->out_dir)) return usageError("--out needs a directory");
         } else if (a == "--until-end") {
             options.until_end = true;
+        } else if (a == "--session") {
+            if (!value(&v) || !parseDouble(v, &d) || d < 1 || d != static_cast<int64_t>(d))
+                return usageError("--session needs a positive integer (a device's session id)");
+            options.sessions.insert(static_cast<int64_t>(d));
         } else if (a == "--expect") {
             if (!value(&v) || !parseDouble(v, &d) || d < 1 || d != static_cast<int64_t>(d))
                 return usageError("--expect needs a positive integer");
@@ -108,9 +120,9 @@ int runBackendCommand(std::vector<std::string> args, const char* program) {
             if (!value(&v) || !parseDouble(v, &options.linger_s))
                 return usageError("--linger needs seconds >= 0");
         } else if (a == "--gt") {
-            if (!value(&gt_dir)) return usageError("--gt needs a directory");
+            if (!value(&out->gt_dir)) return usageError("--gt needs a directory");
         } else if (a == "--no-finalise" || a == "--no-finalize") {
-            finalise = false;
+            out->finalise = false;
         } else if (a == "--lcm-url") {
             if (!value(&link_options.url)) return usageError("--lcm-url needs a value");
         } else if (a == "--allow-remote") {
@@ -126,88 +138,92 @@ int runBackendCommand(std::vector<std::string> args, const char* program) {
             log::Level parsed = log::Level::kInfo;
             if (!value(&v) || !log::parseLevel(v, &parsed))
                 return usageError("--log-level needs trace|debug|info|warn|error|off");
-            level = parsed;
+            out->level = parsed;
         } else {
             return usageError("unknown argument '" + a + "'");
         }
     }
-    const int modes = (live ? 1 : 0) + (log_path.empty() ? 0 : 1);
-    if (modes > 1) return usageError("--live and --log exclude each other");
-    if (modes == 0 && fragments_dir.empty())
+    if (out->live && !out->log_path.empty())
+        return usageError("--live and --log exclude each other");
+    if (!out->live && out->log_path.empty() && out->fragments_dir.empty())
         return usageError("one of --live, --log LOG or --fragments DIR is required");
-    if (out_dir.empty()) return usageError("--out is required");
-    if (live && !options.until_end && options.expect == 0 && options.timeout_s == 0) {
-        log::info("no --until-end, --expect or --timeout: receiving until SIGINT/SIGTERM");
-    }
-    log::setupLogging(g_program, level);
-#ifdef PLUMB_BACKEND_HAS_PIPELINE
-    // Checked before any work: a configuration that does not load is a bad command line.
-    backend::PipelineConfig pipeline_config;
-    if (Status s = config::load(*config_args, pipeline_config); !s.isOk()) {
-        return usageError(s.message());
-    }
-#endif
-    options.out_dir = out_dir;
-    options.fragments_dir = fragments_dir.empty() ? std::filesystem::path(out_dir) / "fragments"
-                                                  : std::filesystem::path(fragments_dir);
+    if (out->out_dir.empty()) return usageError("--out is required");
+    options.out_dir = out->out_dir;
+    options.fragments_dir = out->fragments_dir.empty()
+                                ? std::filesystem::path(out->out_dir) / "fragments"
+                                : std::filesystem::path(out->fragments_dir);
+    return std::nullopt;
+}
 
-    struct sigaction sa {};
-    sa.sa_handler = onSignal;
-    sigemptyset(&sa.sa_mask);
-    sigaction(SIGINT, &sa, nullptr);
-    sigaction(SIGTERM, &sa, nullptr);
-
-    int code = 0;
-    if (modes == 1) {
-        Result<backend::IngestRunResult> result = Status(StatusCode::kInternal, "not run");
-        if (live) {
-            auto link = messages::LcmLink::open(link_options);
-            if (!link.isOk()) {
-                log::error("{}", link.status().toString());
-                return 1;
-            }
-            log::info("listening on {}{}; store {}", (*link)->url(),
-                      (*link)->authenticated() ? " (authenticated)" : "",
-                      options.fragments_dir.string());
-            result = backend::runLiveIngest(**link, options, g_stop_requests);
-        } else {
-            messages::AuthConfig auth;
-            if (!link_options.key_file.empty()) {
-                auto key = messages::readKeyFile(link_options.key_file);
-                if (!key.isOk()) {
-                    log::error("{}", key.status().toString());
-                    return 1;
-                }
-                auth.key = std::move(key).value();
-                auth.key_id = link_options.key_id;
-            }
-            result = backend::runLogIngest(log_path, options, auth);
-        }
-        if (!result.isOk()) {
-            log::error("{}", result.status().toString());
+/// Live or log ingest; returns the exit status (0, or 1 with the reason logged).
+int ingest(const BackendArgs& a) {
+    const backend::IngestRunOptions& options = a.options;
+    Result<backend::IngestRunResult> result = Status(StatusCode::kInternal, "not run");
+    if (a.live) {
+        auto link = messages::LcmLink::open(a.link_options);
+        if (!link.isOk()) {
+            log::error("{}", link.status().toString());
             return 1;
         }
-        const nlohmann::json& m = result->metrics;
-        log::info(
-            "ingest: {} fragment(s) in store, {} received, {} duplicate, {} rejected; "
-            "chunks lost {} recovered {}; messages rejected {}",
-            result->fragments_in_store, m["fragments_received"].get<uint64_t>(),
-            m["fragments_duplicate"].get<uint64_t>(), m["fragments_rejected"].get<uint64_t>(),
-            m["chunks_lost"].get<uint64_t>(), m["chunks_recovered"].get<uint64_t>(),
-            m["messages_rejected"].dump());
-        if (result->timed_out) {
-            log::error("timed out before the scan was complete");
-            code = 1;
+        log::info("listening on {}{}; store {}", (*link)->url(),
+                  (*link)->authenticated() ? " (authenticated)" : "",
+                  options.fragments_dir.string());
+        result = backend::runLiveIngest(**link, options, g_stop_requests);
+    } else {
+        messages::AuthConfig auth;
+        if (!a.link_options.key_file.empty()) {
+            auto key = messages::readKeyFile(a.link_options.key_file);
+            if (!key.isOk()) {
+                log::error("{}", key.status().toString());
+                return 1;
+            }
+            auth.key = std::move(key).value();
+            auth.key_id = a.link_options.key_id;
         }
+        result = backend::runLogIngest(a.log_path, options, auth);
     }
-    if (!finalise || code != 0) return code;
+    if (!result.isOk()) {
+        log::error("{}", result.status().toString());
+        return 1;
+    }
+    const nlohmann::json& m = result->metrics;
+    log::info(
+        "ingest: {} fragment(s) in store, {} received, {} duplicate, {} rejected; "
+        "chunks lost {} recovered {}; messages rejected {}",
+        result->fragments_in_store, m["fragments_received"].get<uint64_t>(),
+        m["fragments_duplicate"].get<uint64_t>(), m["fragments_rejected"].get<uint64_t>(),
+        m["chunks_lost"].get<uint64_t>(), m["chunks_recovered"].get<uint64_t>(),
+        m["messages_rejected"].dump());
+    int code = 0;
+    if (result->timed_out) {
+        log::error("timed out before the scan was complete");
+        code = 1;
+    }
+    if (!result->log_damage.isOk()) {
+        log::error("{}", result->log_damage.message());
+        code = 1;
+    }
+    return code;
+}
+
 #ifdef PLUMB_BACKEND_HAS_PIPELINE
+/// Reconstructs one session of the store (chooseSession) into the output directory; returns
+/// the exit status.
+int finalise(const BackendArgs& a, const backend::PipelineConfig& pipeline_config) {
+    const backend::IngestRunOptions& options = a.options;
     auto store = messages::FragmentStore::open(options.fragments_dir);
     if (!store.isOk()) {
         log::error("{}", store.status().toString());
         return 1;
     }
-    auto fragments = backend::loadStoredFragments(**store);
+    std::string others;
+    auto session = backend::chooseSession(**store, options.sessions, &others);
+    if (!session.isOk()) {
+        log::error("{}", session.status().toString());
+        return 1;
+    }
+    if (!others.empty()) log::warn("{}", others);
+    auto fragments = backend::loadStoredFragments(**store, *session);
     if (!fragments.isOk()) {
         log::error("{}", fragments.status().toString());
         return 1;
@@ -216,8 +232,8 @@ int runBackendCommand(std::vector<std::string> args, const char* program) {
     input.fragments = std::move(fragments).value();
     input.description = options.fragments_dir.string();
     input.config_toml = config::toToml(pipeline_config, "plumb-backend configuration");
-    if (!gt_dir.empty()) {
-        auto gt = backend::loadGroundTruth(gt_dir);
+    if (!a.gt_dir.empty()) {
+        auto gt = backend::loadGroundTruth(a.gt_dir);
         if (!gt.isOk()) {
             log::error("{}", gt.status().toString());
             return 1;
@@ -225,7 +241,7 @@ int runBackendCommand(std::vector<std::string> args, const char* program) {
         input.ground_truth = std::move(gt).value();
     }
     auto camera =
-        backend::readCameraInfo({std::filesystem::path(out_dir) / "camera_info.json",
+        backend::readCameraInfo({std::filesystem::path(a.out_dir) / "camera_info.json",
                                  options.fragments_dir.parent_path() / "camera_info.json"});
     if (camera.isOk()) {
         input.camera = *camera;
@@ -233,16 +249,52 @@ int runBackendCommand(std::vector<std::string> args, const char* program) {
         log::warn("{}; assuming the primesense intrinsics", camera.status().toString());
         input.camera = *cameraPreset("primesense");
     }
-    auto ran = backend::runPipeline(input, pipeline_config, out_dir, true);
+    auto ran = backend::runPipeline(input, pipeline_config, a.out_dir, true);
     if (!ran.isOk()) {
         log::error("{}", ran.status().toString());
         return 1;
     }
     std::fputs(backend::summarize(*ran).c_str(), stdout);
+    return 0;
+}
+#endif
+
+}  // namespace
+
+int runBackendCommand(std::vector<std::string> args, const char* program) {
+    g_program = program;
+    auto config_args = config::extractConfigArgs(args);
+    if (!config_args.isOk()) return usageError(config_args.status().message());
+    BackendArgs a;
+    if (const std::optional<int> exit_code = parseArguments(args, &a)) return *exit_code;
+    const backend::IngestRunOptions& options = a.options;
+    if (a.live && !options.until_end && options.expect == 0 && options.timeout_s == 0) {
+        log::info("no --until-end, --expect or --timeout: receiving until SIGINT/SIGTERM");
+    }
+    log::setupLogging(g_program, a.level);
+#ifdef PLUMB_BACKEND_HAS_PIPELINE
+    // Checked before any work: a configuration that does not load is a bad command line.
+    backend::PipelineConfig pipeline_config;
+    if (Status s = config::load(*config_args, pipeline_config); !s.isOk()) {
+        return usageError(s.message());
+    }
+#endif
+    struct sigaction sa {};
+    sa.sa_handler = onSignal;
+    sigemptyset(&sa.sa_mask);
+    sigaction(SIGINT, &sa, nullptr);
+    sigaction(SIGTERM, &sa, nullptr);
+
+    if (a.live || !a.log_path.empty()) {
+        if (const int code = ingest(a); code != 0) return code;
+    }
+    if (!a.finalise) return 0;
+#ifdef PLUMB_BACKEND_HAS_PIPELINE
+    return finalise(a, pipeline_config);
 #else
     log::info("no reconstruction pipeline in this build; stopping after ingest");
+    return 0;
 #endif
-    return code;
 }
 
 }  // namespace plumb::backend

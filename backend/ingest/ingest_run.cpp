@@ -3,13 +3,14 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <chrono>
-#include <lcm/lcm-cpp.hpp>
 #include <map>
 #include <vector>
 
 #include "common/core/logging.hpp"
 #include "messages/files.hpp"
+#include "messages/lcm_log.hpp"
 
 namespace plumb::backend {
 namespace {
@@ -55,6 +56,48 @@ class LogFeed final : public messages::Transport {
     std::map<std::string, std::vector<Handler>> handlers_;
 };
 
+/// Why a session is not finished, or empty when it is.
+std::string unfinishedReason(const SessionReport& r, const IngestRunOptions& options, double now) {
+    if (!options.sessions.empty() && options.sessions.count(r.session_id) == 0) {
+        return "not waited for: not named by --session";
+    }
+    if (options.sessions.empty() && !r.heard) {
+        return "not waited for: no heartbeat, only fragments (resent from a spool of an earlier "
+               "run?)";
+    }
+    if (r.complete) return {};
+    if (!r.fragments_announced) {
+        return r.heard ? fmt::format(
+                             "incomplete: no end of scan announced (last heartbeat {:.0f} "
+                             "s before the end)",
+                             now - r.last_heard_s)
+                       : "incomplete: nothing received";
+    }
+    return fmt::format("incomplete: {} of {} fragment(s) stored", r.fragments_stored,
+                       *r.fragments_announced);
+}
+
+/// One line per session: what was stored, and whether it is finished (a warning if not).
+void logSessions(const Ingestor& ingestor, const IngestRunOptions& options, double now) {
+    std::vector<SessionReport> sessions = ingestor.sessions();
+    for (int64_t wanted : options.sessions) {  // named but never heard of
+        if (std::none_of(sessions.begin(), sessions.end(),
+                         [&](const SessionReport& r) { return r.session_id == wanted; })) {
+            sessions.push_back(SessionReport{.session_id = wanted});
+        }
+    }
+    for (const SessionReport& r : sessions) {
+        const std::string reason = unfinishedReason(r, options, now);
+        const std::string what =
+            fmt::format("session {}: {} fragment(s) stored", r.session_id, r.fragments_stored);
+        if (reason.empty()) {
+            log::info("{}, complete", what);
+        } else {
+            log::warn("{}; {}", what, reason);
+        }
+    }
+}
+
 }  // namespace
 
 Result<IngestRunResult> runLiveIngest(messages::LcmLink& link, const IngestRunOptions& options,
@@ -94,7 +137,8 @@ Result<IngestRunResult> runLiveIngest(messages::LcmLink& link, const IngestRunOp
             last_metrics = now;
         }
         if (stop_requests.load() > 0) break;
-        const bool done = (options.until_end && ingestor.scanComplete()) ||
+        const bool done = (options.until_end && ingestor.scanComplete(options.sessions, now,
+                                                                      options.session_silence_s)) ||
                           (options.expect > 0 &&
                            static_cast<int64_t>(ingestor.fragmentsInStore()) >= options.expect);
         if (done && done_at < 0) {
@@ -108,6 +152,7 @@ Result<IngestRunResult> runLiveIngest(messages::LcmLink& link, const IngestRunOp
             break;
         }
     }
+    logSessions(ingestor, options, now);
     result.metrics = ingestor.metrics(link.authStats());
     result.fragments_in_store = ingestor.fragmentsInStore();
     PLUMB_RETURN_IF_ERROR(writeMetrics(options.out_dir, result.metrics));
@@ -117,13 +162,8 @@ Result<IngestRunResult> runLiveIngest(messages::LcmLink& link, const IngestRunOp
 Result<IngestRunResult> runLogIngest(const std::filesystem::path& log_path,
                                      const IngestRunOptions& options,
                                      const messages::AuthConfig& auth) {
-    if (!std::filesystem::is_regular_file(log_path)) {
-        return notFound(fmt::format("LCM log {} does not exist", log_path.string()));
-    }
-    lcm::LogFile log_file(log_path.string(), "r");
-    if (!log_file.good()) {
-        return ioError(fmt::format("cannot read LCM log {}", log_path.string()));
-    }
+    auto reader = messages::LcmLogReader::open(log_path);
+    if (!reader.isOk()) return reader.status();
     PLUMB_RETURN_IF_ERROR(makeDirs(options));
     LogFeed feed;
     messages::AuthenticatedTransport transport(feed, auth);
@@ -137,22 +177,32 @@ Result<IngestRunResult> runLogIngest(const std::filesystem::path& log_path,
                 ingestor.onMessage(ch, bytes, now);
             }));
     }
-    uint64_t events = 0;
-    while (const lcm::LogEvent* event = log_file.readNextEvent()) {
-        ++events;
-        now = static_cast<double>(event->timestamp) * 1e-6;
-        transport.setTime(event->timestamp);
-        if (event->datalen < 0) continue;
-        feed.feed(event->channel, std::span<const uint8_t>(static_cast<const uint8_t*>(event->data),
-                                                           static_cast<size_t>(event->datalen)));
+    while (const std::optional<messages::LcmLogEvent> event = (*reader)->next()) {
+        now = static_cast<double>(event->timestamp_us) * 1e-6;
+        transport.setTime(event->timestamp_us);
+        feed.feed(event->channel, event->data);
         ingestor.poll(now);
     }
     ingestor.poll(now);
     IngestRunResult result;
     result.complete = true;
     result.metrics = ingestor.metrics(transport.stats());
-    result.metrics["log_events"] = events;
+    const messages::LcmLogStats& log_stats = (*reader)->stats();
+    result.metrics["log_events"] = log_stats.events;
+    result.metrics["log"] = {{"bytes", log_stats.file_bytes},
+                             {"events", log_stats.events},
+                             {"events_lost", log_stats.events_lost},
+                             {"damaged_events", log_stats.damaged_events},
+                             {"skipped_bytes", log_stats.skipped_bytes},
+                             {"truncated", log_stats.truncated}};
     result.fragments_in_store = ingestor.fragmentsInStore();
+    result.log_damage = (*reader)->verdict();
+    const IngestCounters& c = ingestor.counters();
+    if (result.log_damage.isOk() && c.fragments_received + c.fragments_duplicate == 0) {
+        result.log_damage =
+            corrupt(fmt::format("LCM log {} holds {} intact event(s) but not one complete fragment",
+                                log_path.string(), log_stats.events));
+    }
     PLUMB_RETURN_IF_ERROR(writeMetrics(options.out_dir, result.metrics));
     return result;
 }

@@ -3,10 +3,13 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+
 #include "common/core/logging.hpp"
 #include "messages/channels.hpp"
 #include "messages/files.hpp"
 #include "messages/fragment_codec.hpp"
+#include "messages/fragment_sender.hpp"  // toUtime
 #include "messages/wire.hpp"
 
 namespace plumb::backend {
@@ -81,7 +84,7 @@ void Ingestor::onMessage(const std::string& channel, std::span<const uint8_t> by
     } else if (channel == messages::kChannelFragmentHeader) {
         (void)assembler_->onMessage(channel, bytes, now_s);
     } else if (channel == messages::kChannelStatus) {
-        onStatus(bytes);
+        onStatus(bytes, now_s);
     } else if (channel == messages::kChannelCameraInfo) {
         onCameraInfo(bytes);
     } else if (channel == messages::kChannelConfig) {
@@ -105,7 +108,7 @@ void Ingestor::onChunk(std::span<const uint8_t> bytes, double now_s) {
     }
 }
 
-void Ingestor::onStatus(std::span<const uint8_t> bytes) {
+void Ingestor::onStatus(std::span<const uint8_t> bytes, double now_s) {
     auto msg = messages::decodeMessage<plumb::device_status_t>(bytes);
     if (!msg.isOk()) {
         ++counters_.malformed_other;
@@ -118,6 +121,7 @@ void Ingestor::onStatus(std::span<const uint8_t> bytes) {
     }
     ++counters_.status_messages;
     status_[status->session_id] = *status;
+    last_heard_[status->session_id] = now_s;
     if (status->tracking == messages::TrackingState::kStopped) {
         end_of_scan_[status->session_id] = status->fragments_cut;
     }
@@ -203,9 +207,7 @@ void Ingestor::poll(double now_s) {
         auto put = store_->put(c.session_id, c.fragment_id, c.bytes);
         if (!put.isOk()) {
             if (put.status().code() == StatusCode::kIoError) {
-                log::error("ingest: cannot persist fragment {}: {}", c.fragment_id,
-                           put.status().toString());
-                ++counters_.persist_errors;
+                onCannotStore(c, put.status(), now_s);
                 assembler_->release(c.session_id, c.fragment_id);
             } else {
                 log::warn("ingest: fragment {} of session {} rejected: {}", c.fragment_id,
@@ -216,6 +218,7 @@ void Ingestor::poll(double now_s) {
             }
             continue;
         }
+        onStored();
         if (*put) {
             ++counters_.fragments_received;
             log::debug("ingest: fragment {} of session {} stored ({} bytes)", c.fragment_id,
@@ -227,16 +230,83 @@ void Ingestor::poll(double now_s) {
     }
 }
 
-bool Ingestor::scanComplete() const {
-    for (const auto& [session, count] : end_of_scan_) {
-        bool all = true;
-        for (int32_t id = 0; id < count && all; ++id) {
-            const Key key{session, static_cast<uint32_t>(id)};
-            all = store_->contains(session, key.second) || rejected_.count(key) > 0;
-        }
-        if (all) return true;
+void Ingestor::onCannotStore(const messages::CompletedFragment& c, const Status& error,
+                             double now_s) {
+    ++counters_.persist_errors;
+    ++failed_since_stored_;
+    backoff_s_ = backoff_s_ == 0.0 ? config_.cannot_store_backoff_s
+                                   : std::min(2.0 * backoff_s_, config_.max_cannot_store_backoff_s);
+    if (failed_since_stored_ == 1 || now_s - last_error_log_s_ >= 60.0) {
+        log::error(
+            "ingest: cannot store fragment {} of session {}: {}; asking the device to wait {:.0f} "
+            "s ({} failed attempt(s) since the last fragment stored)",
+            c.fragment_id, c.session_id, error.message(), backoff_s_, failed_since_stored_);
+        last_error_log_s_ = now_s;
     }
-    return false;
+    plumb::fragment_backoff_t b{};
+    b.utime = messages::toUtime(now_s);
+    b.seq = ++backoff_seq_;
+    b.session_id = c.session_id;
+    b.fragment_id = static_cast<int32_t>(c.fragment_id);
+    b.reason = plumb::fragment_backoff_t::REASON_CANNOT_STORE;
+    b.retry_after_s = backoff_s_;
+    b.message = error.message();
+    if (out_->publish(messages::kChannelFragmentBackoff, messages::encodeMessage(b)).isOk()) {
+        ++counters_.backoffs_sent;
+    }
+}
+
+void Ingestor::onStored() {
+    if (failed_since_stored_ > 0) {
+        log::info("ingest: storing again after {} failed attempt(s)", failed_since_stored_);
+    }
+    failed_since_stored_ = 0;
+    backoff_s_ = 0.0;
+}
+
+bool Ingestor::sessionComplete(int64_t session) const {
+    auto end = end_of_scan_.find(session);
+    if (end == end_of_scan_.end()) return false;
+    for (int32_t id = 0; id < end->second; ++id) {
+        const Key key{session, static_cast<uint32_t>(id)};
+        if (!store_->contains(session, key.second) && rejected_.count(key) == 0) return false;
+    }
+    return true;
+}
+
+bool Ingestor::scanComplete(const std::set<int64_t>& wanted, double now_s, double silence_s) const {
+    if (!wanted.empty()) {
+        return std::all_of(wanted.begin(), wanted.end(),
+                           [&](int64_t s) { return sessionComplete(s); });
+    }
+    bool any = false;
+    for (const auto& [session, heard_s] : last_heard_) {
+        if (sessionComplete(session)) {
+            any = true;
+        } else if (now_s - heard_s < silence_s) {
+            return false;  // a live device still scanning or sending
+        }
+    }
+    return any;
+}
+
+std::vector<SessionReport> Ingestor::sessions() const {
+    std::map<int64_t, SessionReport> by_id;
+    for (const messages::StoredFragment& f : store_->fragments()) {
+        ++by_id[f.session_id].fragments_stored;
+    }
+    for (const auto& [session, heard_s] : last_heard_) {
+        by_id[session].heard = true;
+        by_id[session].last_heard_s = heard_s;
+    }
+    for (const auto& [session, count] : end_of_scan_) by_id[session].fragments_announced = count;
+    std::vector<SessionReport> out;
+    for (auto& [session, r] : by_id) {
+        r.session_id = session;
+        r.complete = sessionComplete(session);
+        out.push_back(r);
+    }
+    return out;
 }
 
 nlohmann::json Ingestor::metrics(const messages::AuthStats& auth) const {
@@ -263,6 +333,7 @@ nlohmann::json Ingestor::metrics(const messages::AuthStats& auth) const {
     j["fragments_rejected"] = counters_.fragments_rejected;
     j["fragments_incomplete"] = assembler_->numPartial();
     j["persist_errors"] = counters_.persist_errors;
+    j["backoffs_sent"] = counters_.backoffs_sent;
     j["chunks_received"] = a.chunks_received;
     j["chunks_duplicate"] = a.duplicate_chunks;
     j["chunks_lost"] = counters_.chunks_lost;
@@ -284,7 +355,52 @@ nlohmann::json Ingestor::metrics(const messages::AuthStats& auth) const {
         {"inconsistent", a.inconsistent_chunks},
     };
     j["devices"] = devices;
+    nlohmann::json sessions = nlohmann::json::array();
+    for (const SessionReport& r : this->sessions()) {
+        sessions.push_back(
+            {{"session_id", r.session_id},
+             {"fragments_stored", r.fragments_stored},
+             {"fragments_announced", r.fragments_announced ? nlohmann::json(*r.fragments_announced)
+                                                           : nlohmann::json(nullptr)},
+             {"heard", r.heard},
+             {"complete", r.complete}});
+    }
+    j["sessions"] = sessions;
     return j;
+}
+
+Result<int64_t> chooseSession(const messages::FragmentStore& store, const std::set<int64_t>& wanted,
+                              std::string* note) {
+    std::map<int64_t, size_t> counts;
+    for (const messages::StoredFragment& f : store.fragments()) ++counts[f.session_id];
+    if (counts.empty()) return notFound("no fragments in " + store.dir().string());
+    auto list = [&](int64_t except) {
+        std::string text;
+        for (const auto& [session, n] : counts) {
+            if (session == except) continue;
+            text += fmt::format("{}{} ({} fragment(s))", text.empty() ? "" : ", ", session, n);
+        }
+        return text;
+    };
+    int64_t chosen = counts.rbegin()->first;
+    if (!wanted.empty()) {
+        chosen = *wanted.rbegin();
+        if (counts.count(chosen) == 0) {
+            return notFound(fmt::format("no fragments of session {} in {} (it holds {})", chosen,
+                                        store.dir().string(), list(chosen)));
+        }
+    }
+    if (note != nullptr) {
+        note->clear();
+        if (counts.size() > 1) {
+            *note = fmt::format(
+                "{} holds {} sessions; reconstructing session {} ({} fragment(s), {}) and not "
+                "{}; choose with --session ID",
+                store.dir().string(), counts.size(), chosen, counts[chosen],
+                wanted.empty() ? "the newest" : "named by --session", list(chosen));
+        }
+    }
+    return chosen;
 }
 
 Result<std::vector<Fragment>> loadStoredFragments(const messages::FragmentStore& store,

@@ -5,7 +5,9 @@
 // `plumb-backend --log` and `plumb replay`: reassembles fragments from their chunks
 // (messages/fragment_assembler.hpp), verifies them (chunk and fragment CRC-32, then a full
 // decode), persists each one atomically into the fragment store (messages/fragment_store.hpp)
-// and only then acknowledges it. On open() it resumes from the store: fragments already there are
+// and only then acknowledges it; one it cannot store (a full disk) is answered with a
+// fragment_backoff_t, so the device waits instead of re-sending at once. On open() it resumes
+// from the store: fragments already there are
 // acknowledged again when announced and never stored twice. It also keeps the device's latest
 // heartbeat, camera info and configuration snapshot, and notices the end of a scan (a heartbeat
 // with TRACKING_STOPPED carries the final fragment count). Raw frames (depth_frame2_t on
@@ -41,6 +43,11 @@ struct IngestConfig {
     messages::FragmentAssemblerConfig assembler;
     /// Decode every reassembled fragment before persisting it (rejects undecodable ones).
     bool verify_decode = true;
+    /// A fragment that cannot be stored (e.g. a full disk) is answered with a fragment_backoff_t
+    /// asking the device to wait this long before re-sending, seconds; doubled per further
+    /// failure up to max_cannot_store_backoff_s, reset by the next fragment stored.
+    double cannot_store_backoff_s = 2.0;
+    double max_cannot_store_backoff_s = 30.0;
 };
 
 struct IngestCounters {
@@ -49,6 +56,7 @@ struct IngestCounters {
     uint64_t fragments_duplicate = 0;   ///< reassembled again although stored (ignored)
     uint64_t fragments_rejected = 0;    ///< reassembled but undecodable or conflicting
     uint64_t persist_errors = 0;        ///< disk errors (the fragment is received again)
+    uint64_t backoffs_sent = 0;         ///< "cannot store" answers (fragment_backoff_t)
     uint64_t chunks_lost = 0;           ///< distinct chunks requested again (lost or late)
     uint64_t chunks_recovered = 0;      ///< of these, received afterwards
     uint64_t status_messages = 0;       ///< device heartbeats
@@ -56,6 +64,17 @@ struct IngestCounters {
     uint64_t raw_frames = 0;            ///< raw frames decoded (depth_frame2_t and depth_frame_t)
     uint64_t raw_frames_colour = 0;     ///< of these, with colour
     uint64_t raw_frames_malformed = 0;  ///< raw frames that did not decode
+};
+
+/// What the ingest knows about one device session (a run of plumb-device).
+struct SessionReport {
+    int64_t session_id = 0;
+    size_t fragments_stored = 0;  ///< in the store (this process or earlier ones)
+    /// The fragment count of its end-of-scan heartbeat (TRACKING_STOPPED); none: not announced.
+    std::optional<int32_t> fragments_announced;
+    bool heard = false;         ///< it sent heartbeats to this process (a live device)
+    double last_heard_s = 0.0;  ///< time of its latest heartbeat
+    bool complete = false;      ///< end announced and every fragment stored or rejected
 };
 
 class Ingestor {
@@ -78,9 +97,14 @@ class Ingestor {
     /// Persists and acknowledges completed fragments, requests stalled chunks.
     void poll(double now_s);
 
-    /// True when some session announced its end (TRACKING_STOPPED) and every one of its
-    /// fragments is stored (or was rejected for good).
-    bool scanComplete() const;
+    /// Whether the scans being finished are complete. With `wanted` sessions: each of them
+    /// announced its end (TRACKING_STOPPED) and has every fragment stored (or rejected for good).
+    /// Without: at least one session did, and so did every session that sent heartbeats, except
+    /// those silent for `silence_s` (a device that died: SessionReport says so). Sessions seen
+    /// only through resent fragments (a spool of a crashed run) are never waited for.
+    bool scanComplete(const std::set<int64_t>& wanted, double now_s, double silence_s) const;
+    /// Every session in the store or heard from, ascending.
+    std::vector<SessionReport> sessions() const;
     /// Fragments in the store.
     size_t fragmentsInStore() const { return store_->fragments().size(); }
     const messages::FragmentStore& store() const { return *store_; }
@@ -100,7 +124,10 @@ class Ingestor {
     class CountingTransport;
     Ingestor() = default;
     void onChunk(std::span<const uint8_t> bytes, double now_s);
-    void onStatus(std::span<const uint8_t> bytes);
+    void onStatus(std::span<const uint8_t> bytes, double now_s);
+    void onCannotStore(const messages::CompletedFragment& c, const Status& error, double now_s);
+    void onStored();
+    bool sessionComplete(int64_t session) const;
     void onCameraInfo(std::span<const uint8_t> bytes);
     void onConfig(std::span<const uint8_t> bytes);
     void onRawFrame(std::span<const uint8_t> bytes);
@@ -116,10 +143,22 @@ class Ingestor {
     std::set<std::pair<int64_t, uint32_t>> rejected_;
     std::map<int64_t, messages::DeviceStatus> status_;
     std::map<int64_t, int32_t> end_of_scan_;  ///< session -> final fragment count
+    std::map<int64_t, double> last_heard_;    ///< session -> time of its latest heartbeat
+    double backoff_s_ = 0.0;                  ///< current "cannot store" back-off (0: storing)
+    uint64_t failed_since_stored_ = 0;        ///< persist failures since the last success
+    double last_error_log_s_ = 0.0;
+    int64_t backoff_seq_ = 0;
     std::optional<messages::CameraInfo> camera_;
     std::optional<messages::RawRgbdFrame> last_raw_;
     std::string device_config_;
 };
+
+/// The session to reconstruct from `store`: the one `wanted` names (the newest of them when it
+/// names several), else the newest in the store. `note` (when not null) is set to a warning
+/// listing the store's other sessions and their fragment counts when there are any (empty
+/// otherwise). NotFound for an empty store or a wanted session without fragments there.
+Result<int64_t> chooseSession(const messages::FragmentStore& store, const std::set<int64_t>& wanted,
+                              std::string* note);
 
 /// Loads every fragment of one session from a store (the newest session, or `session_id` when
 /// set), decoded, in id order. NotFound for an empty store, Corrupt for a damaged fragment.

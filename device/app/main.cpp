@@ -28,7 +28,9 @@ constexpr const char* kUsage =
     "Captures depth frames, tracks and fuses them into fragments and sends every fragment to\n"
     "plumb-backend over LCM until it is acknowledged. Exits 0 when the source ended and every\n"
     "fragment was acknowledged; 1 when fragments remain unacknowledged (they stay in the spool\n"
-    "directory and are sent first by the next run); 2 for a bad command line.\n"
+    "directory and are sent first by the next run) or were lost (the spool stayed full: the\n"
+    "message names them) or were rejected by the backend (moved to <spool-dir>/quarantine with\n"
+    "the reason, not sent again); 2 for a bad command line.\n"
     "\n"
     "  --source URI         sim:<scene> | dataset:<dir> | any source drivers/source.hpp opens\n"
     "  --list-devices       print the depth cameras found (OpenNI2, V4L2, USB) and exit\n"
@@ -183,17 +185,28 @@ std::optional<int> parseArguments(const std::vector<std::string>& args, DeviceAr
     return std::nullopt;
 }
 
-/// Logs what the run did and returns plumb-device's exit status: 1 when the source failed or
-/// fragments stayed unacknowledged, else 0.
+/// "3, 4, 7" (at most 20 ids, then "and N more").
+std::string formatIds(const std::vector<uint32_t>& ids) {
+    std::string out;
+    for (size_t i = 0; i < ids.size() && i < 20; ++i) {
+        out += (i > 0 ? ", " : "") + std::to_string(ids[i]);
+    }
+    if (ids.size() > 20) out += " and " + std::to_string(ids.size() - 20) + " more";
+    return out;
+}
+
+/// Logs what the run did and returns plumb-device's exit status: 1 when the source failed, or
+/// fragments stayed unacknowledged or were lost, else 0.
 int summarise(const plumb::device::DeviceRunReport& r, const DeviceArgs& a,
               const plumb::RecordingSource* recorder, const plumb::messages::LcmLink& link) {
     using namespace plumb;
     log::info(
         "frames: {} captured, {} processed ({:.0f} %), {} dropped; fragments: {} cut, {} "
-        "acknowledged",
+        "acknowledged, {} kept unacknowledged, {} lost, {} rejected by the backend",
         r.frames_captured, r.frames_processed,
         100.0 * messages::processedFraction(r.frames_processed, r.frames_dropped), r.frames_dropped,
-        r.fragments_cut, r.fragments_acked);
+        r.fragments_cut, r.fragments_acked, r.unacknowledged.size(), r.lost.size(),
+        r.quarantined.size());
     if (recorder != nullptr) {
         log::info("recorded {} frame(s) to {}", recorder->recorded(), a.record_dir);
     }
@@ -213,10 +226,27 @@ int summarise(const plumb::device::DeviceRunReport& r, const DeviceArgs& a,
                 r.unacknowledged.size());
         } else {
             log::error(
-                "{} fragment(s) were not acknowledged by a backend; they stay in {} and "
+                "{} fragment(s) were not acknowledged by a backend; they are kept in {} and "
                 "are sent first by the next run",
                 r.unacknowledged.size(), a.spool_dir);
         }
+        code = 1;
+    }
+    if (!r.quarantined.empty()) {
+        if (r.quarantine_dir.empty()) {
+            log::error("{} fragment(s) were rejected for good by the backend and dropped",
+                       r.quarantined.size());
+        } else {
+            log::error(
+                "{} fragment(s) were rejected for good by the backend and moved to {} (the reason "
+                "beside each); they are not sent again",
+                r.quarantined.size(), r.quarantine_dir.string());
+        }
+        code = 1;
+    }
+    if (!r.lost.empty()) {
+        log::error("{} fragment(s) of this run never entered the spool and are lost: {} ({})",
+                   r.lost.size(), formatIds(r.lost), r.spool_error);
         code = 1;
     }
     return code;

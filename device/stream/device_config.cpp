@@ -48,7 +48,9 @@ void describe(config::Schema& s, StreamConfig& c) {
     s.field("max_in_flight", c.max_in_flight, "fragments on the wire at once", "fragments")
         .range(1, 1024);
     s.field("spool_memory_bytes", c.spool_memory_bytes,
-            "unacknowledged fragments kept in memory before going to disk", "bytes")
+            "unacknowledged fragments kept in memory (without --spool-dir: the spool's "
+            "capacity; with it: a cache, every fragment is on disk first)",
+            "bytes")
         .min(0);
     s.field("spool_disk_bytes", c.spool_disk_bytes, "bytes allowed in the disk spool", "bytes")
         .min(0);

@@ -61,7 +61,8 @@ struct StreamConfig {
     double max_retransmit_timeout_s = 4.0;
     /// Fragments on the wire at once; the rest wait in the spool.
     int max_in_flight = 8;
-    /// Encoded fragments kept in memory until acknowledged, bytes; beyond it they go to disk.
+    /// Encoded fragments kept in memory until acknowledged, bytes: without --spool-dir the
+    /// spool's capacity; with it a cache (every fragment is written to the directory first).
     int64_t spool_memory_bytes = int64_t{64} << 20;
     /// Bytes allowed in the disk spool; when full, fusion waits (and capture drops frames).
     int64_t spool_disk_bytes = int64_t{4} << 30;

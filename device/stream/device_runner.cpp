@@ -193,6 +193,243 @@ void fusionLoop(const PinholeCamera& camera, const DeviceConfig& config,
     out.close();
 }
 
+/// Fragments on their way from fusion into the spool. A fragment counts as kept once the
+/// publisher's spool took it (only then is it written to the dump folder); one the spool never
+/// takes is lost at exit. While kMaxWaiting fragments wait for room, no more are taken from
+/// fusion, which then waits (and capture drops or waits), so a full spool costs frames, not memory.
+class SpoolFeeder {
+  public:
+    static constexpr size_t kMaxWaiting = 2;
+
+    SpoolFeeder(FragmentPublisher& publisher, const DeviceRunOptions& options)
+        : publisher_(publisher), options_(options) {}
+
+    /// Takes fragments from `fragments` (all of them when `take_all`, else while fewer than
+    /// kMaxWaiting wait) and submits them in order.
+    void feed(BoundedQueue<EncodedFragment>& fragments, bool take_all, double now_s) {
+        while (take_all || waiting_.size() < kMaxWaiting) {
+            auto f = fragments.tryPop();
+            if (!f) break;
+            waiting_.push_back(std::move(*f));
+            submitWaiting(now_s);
+        }
+        submitWaiting(now_s);
+    }
+    void add(EncodedFragment f) { waiting_.push_back(std::move(f)); }
+    /// Fragments cut but not (yet) in the spool.
+    size_t waiting() const { return waiting_.size(); }
+    /// Submits what still waits one last time; what the spool refuses is lost.
+    void finish(double now_s) {
+        submitWaiting(now_s);
+        for (const EncodedFragment& f : waiting_) lost_.push_back(f.id);
+        waiting_.clear();
+    }
+    const std::vector<uint32_t>& lost() const { return lost_; }
+    /// Why the spool last refused a fragment (empty: it never did).
+    const std::string& spoolError() const { return spool_error_; }
+
+  private:
+    void submitWaiting(double now_s) {
+        while (!waiting_.empty()) {
+            EncodedFragment& f = waiting_.front();
+            const Status s = publisher_.submit(f.id, f.bytes, now_s);
+            if (s.code() == StatusCode::kIoError) {  // no room: retried on the next call
+                if (!stalled_) {
+                    log::warn(
+                        "device: fragment {} waits for room in the spool ({}); fusion is held "
+                        "back until the backend acknowledges",
+                        f.id, s.message());
+                }
+                stalled_ = true;
+                spool_error_ = s.message();
+                return;
+            }
+            if (stalled_) log::info("device: the spool has room again");
+            stalled_ = false;
+            if (s.isOk()) {
+                dump(f);
+            } else {
+                log::error("device: fragment {}: {}", f.id, s.toString());
+                spool_error_ = s.message();
+                lost_.push_back(f.id);
+            }
+            waiting_.pop_front();
+        }
+    }
+    void dump(const EncodedFragment& f) const {
+        if (options_.dump_dir.empty()) return;
+        const auto path = options_.dump_dir / messages::fragmentFileName(options_.session_id, f.id);
+        const Status s = messages::writeFileAtomic(path, f.bytes);
+        if (!s.isOk()) log::warn("device: dump: {}", s.toString());
+    }
+
+    FragmentPublisher& publisher_;
+    const DeviceRunOptions& options_;
+    std::deque<EncodedFragment> waiting_;
+    std::vector<uint32_t> lost_;
+    std::string spool_error_;
+    bool stalled_ = false;
+};
+
+/// Logs the backend's "cannot store" answers: the first one, then at most one line a minute.
+class BackoffLog {
+  public:
+    void note(const FragmentPublisher& publisher, double now_s) {
+        const uint64_t n = publisher.senderStats().backoffs_received;
+        if (n == seen_) return;
+        if (seen_ == 0 || now_s - logged_s_ >= 60.0) {
+            log::warn(
+                "device: the backend cannot store fragments ({}); re-sending only after its "
+                "back-off ({} answer(s) so far)",
+                publisher.lastBackoffMessage(), n);
+            logged_s_ = now_s;
+        }
+        seen_ = n;
+    }
+
+  private:
+    uint64_t seen_ = 0;
+    double logged_s_ = 0.0;
+};
+
+/// The publisher of this run, resuming what earlier runs left in the spool directory; creates
+/// the dump folder.
+Result<std::unique_ptr<FragmentPublisher>> openPublisher(const DeviceRunOptions& options,
+                                                         messages::Transport& transport) {
+    const StreamConfig& sc = options.config.stream;
+    PublisherConfig pc;
+    pc.session_id = options.session_id;
+    pc.sender.chunk_payload_bytes = sc.chunk_payload_bytes;
+    pc.sender.retransmit_timeout_s = sc.retransmit_timeout_s;
+    pc.sender.max_retransmit_timeout_s = sc.max_retransmit_timeout_s;
+    pc.max_in_flight = sc.max_in_flight;
+    pc.spool.memory_budget_bytes = sc.spool_memory_bytes;
+    pc.spool.disk_budget_bytes = sc.spool_disk_bytes;
+    pc.spool.disk_dir = options.spool_dir;
+    auto created = FragmentPublisher::create(pc, transport);
+    if (!created.isOk()) return created.status();
+    if ((*created)->unacknowledged() > 0) {
+        log::info("device: {} unacknowledged fragment(s) of earlier runs found in {}; resending",
+                  (*created)->unacknowledged(), options.spool_dir.string());
+    }
+    if (!options.dump_dir.empty()) {
+        std::error_code ec;
+        std::filesystem::create_directories(options.dump_dir, ec);
+        if (ec) {
+            return ioError(fmt::format("device: cannot create dump dir {}: {}",
+                                       options.dump_dir.string(), ec.message()));
+        }
+    }
+    return created;
+}
+
+/// What the network thread publishes besides fragments: camera info and the configuration
+/// snapshot, the status heartbeat, raw frames. Owns the sequence number of these messages.
+class Announcer {
+  public:
+    Announcer(const DeviceRunOptions& options, messages::Transport& transport,
+              const FrameSource& source, const Shared& shared)
+        : options_(options), transport_(transport), shared_(shared) {
+        info_.camera = source.camera();
+        info_.depth_scale = 1000.0;
+        info_.source = source.description();
+        last_fps_time_ = wallSeconds();
+    }
+
+    void config(double now) {
+        const int64_t utime = messages::toUtime(now);
+        publish(messages::kChannelCameraInfo,
+                messages::encodeMessage(messages::toMessage(info_, utime, ++seq_)));
+        publish(messages::kChannelConfig,
+                messages::encodeMessage(messages::toMessage("plumb-device", options_.version,
+                                                            options_.config_toml, utime, ++seq_)));
+    }
+
+    /// The heartbeat; `stopped`: the end of the scan (TRACKING_STOPPED, final fragment count).
+    void status(double now, bool stopped, const FragmentPublisher& publisher, size_t waiting) {
+        const int64_t processed = shared_.processed.load();
+        if (now > last_fps_time_) fps_ = (processed - last_processed_) / (now - last_fps_time_);
+        last_processed_ = processed;
+        last_fps_time_ = now;
+        messages::DeviceStatus st;
+        st.session_id = options_.session_id;
+        st.fps = fps_;
+        // While the camera is gone the heartbeat says so (tracking resumes when it returns).
+        st.tracking = stopped ? messages::TrackingState::kStopped
+                      : shared_.camera_gone.load()
+                          ? messages::TrackingState::kNoCamera
+                          : static_cast<messages::TrackingState>(shared_.tracking.load());
+        st.frames_processed = processed;
+        st.frames_dropped = shared_.dropped.load();
+        st.fragments_cut = static_cast<int32_t>(shared_.cut.load());
+        st.fragments_acked = static_cast<int32_t>(publisher.stats().fragments_acked);
+        st.spool_fragments = static_cast<int32_t>(publisher.unacknowledged() + waiting);
+        st.spool_bytes = publisher.spoolBytes();
+        st.memory_bytes = residentMemoryBytes();
+        publish(messages::kChannelStatus,
+                messages::encodeMessage(messages::toMessage(st, messages::toUtime(now), ++seq_)));
+    }
+
+    /// Publishes the raw frames captured since the last call; returns how many.
+    int64_t rawFrames(BoundedQueue<Frame>& raw_frames) {
+        int64_t n = 0;
+        const StreamConfig& sc = options_.config.stream;
+        while (auto raw = raw_frames.tryPop()) {
+            auto bytes = encodeRawFrame(*raw, sc.raw_frame_colour, ++seq_);
+            if (!bytes.isOk()) {
+                log::warn("device: raw frame {}: {}", raw->index, bytes.status().toString());
+                continue;
+            }
+            publish(messages::kChannelRgbd, *bytes);
+            ++n;
+        }
+        return n;
+    }
+
+  private:
+    void publish(const char* channel, const messages::Bytes& bytes) {
+        const Status s = transport_.publish(channel, bytes);
+        if (!s.isOk()) log::warn("device: {}", s.toString());
+    }
+
+    const DeviceRunOptions& options_;
+    messages::Transport& transport_;
+    const Shared& shared_;
+    messages::CameraInfo info_;
+    int64_t seq_ = 0;
+    int64_t last_processed_ = 0;
+    double last_fps_time_ = 0.0;
+    double fps_ = 0.0;
+};
+
+/// The counters and errors of a finished run.
+void fillReport(Shared& shared, const FragmentPublisher& publisher, const SpoolFeeder& feeder,
+                DeviceRunReport& report) {
+    report.frames_captured = shared.captured.load();
+    report.frames_processed = shared.processed.load();
+    report.frames_dropped = shared.dropped.load();
+    report.fragments_cut = shared.cut.load();
+    report.raw_frames_published = shared.raw_published.load();
+    report.raw_frames_dropped = shared.raw_dropped.load();
+    if (report.raw_frames_dropped > 0) {
+        log::info("device: {} raw frames published, {} dropped (the network thread lagged)",
+                  report.raw_frames_published, report.raw_frames_dropped);
+    }
+    report.fragments_acked = static_cast<int64_t>(publisher.stats().fragments_acked);
+    report.unacknowledged = publisher.unacknowledgedKeys();
+    report.lost = feeder.lost();
+    report.spool_error = feeder.spoolError();
+    report.quarantined = publisher.quarantined();
+    report.quarantine_dir = publisher.quarantineDir();
+    std::lock_guard<std::mutex> lock(shared.error_mutex);
+    report.source_error = !shared.source_error.empty();
+    report.source_message = shared.source_error;
+    if (!shared.fusion_error.empty()) {
+        report.source_error = true;
+        report.source_message = "fusion: " + shared.fusion_error;
+    }
+}
+
 }  // namespace
 
 int64_t residentMemoryBytes() {
@@ -208,56 +445,16 @@ Result<DeviceRunReport> runDevice(FrameSource& source, const DeviceRunOptions& o
     PLUMB_RETURN_IF_ERROR(toFusionConfig(options.config.fusion).validate());
     const StreamConfig& sc = options.config.stream;
     messages::Transport& transport = *link.transport;
-
-    PublisherConfig pc;
-    pc.session_id = options.session_id;
-    pc.sender.chunk_payload_bytes = sc.chunk_payload_bytes;
-    pc.sender.retransmit_timeout_s = sc.retransmit_timeout_s;
-    pc.sender.max_retransmit_timeout_s = sc.max_retransmit_timeout_s;
-    pc.max_in_flight = sc.max_in_flight;
-    pc.spool.memory_budget_bytes = sc.spool_memory_bytes;
-    pc.spool.disk_budget_bytes = sc.spool_disk_bytes;
-    pc.spool.disk_dir = options.spool_dir;
-    auto created = FragmentPublisher::create(pc, transport);
-    if (!created.isOk()) return created.status();
-    std::unique_ptr<FragmentPublisher> publisher = std::move(created).value();
-    if (publisher->unacknowledged() > 0) {
-        log::info("device: {} unacknowledged fragment(s) of earlier runs found in {}; resending",
-                  publisher->unacknowledged(), options.spool_dir.string());
-    }
-    if (!options.dump_dir.empty()) {
-        std::error_code ec;
-        std::filesystem::create_directories(options.dump_dir, ec);
-        if (ec) {
-            return ioError(fmt::format("device: cannot create dump dir {}: {}",
-                                       options.dump_dir.string(), ec.message()));
-        }
-    }
-
-    for (const char* channel : {messages::kChannelFragmentAck, messages::kChannelRetransmit}) {
+    auto opened = openPublisher(options, transport);
+    if (!opened.isOk()) return opened.status();
+    std::unique_ptr<FragmentPublisher> publisher = std::move(opened).value();
+    for (const char* channel : {messages::kChannelFragmentAck, messages::kChannelRetransmit,
+                                messages::kChannelFragmentBackoff}) {
         PLUMB_RETURN_IF_ERROR(transport.subscribe(
             channel, [&](const std::string& ch, std::span<const uint8_t> bytes) {
                 publisher->onMessage(ch, bytes, wallSeconds());
             }));
     }
-
-    int64_t seq = 0;
-    auto publish = [&](const char* channel, const messages::Bytes& bytes) {
-        const Status s = transport.publish(channel, bytes);
-        if (!s.isOk()) log::warn("device: {}", s.toString());
-    };
-    messages::CameraInfo info;
-    info.camera = source.camera();
-    info.depth_scale = 1000.0;
-    info.source = source.description();
-    auto publishConfig = [&](double now) {
-        const int64_t utime = messages::toUtime(now);
-        publish(messages::kChannelCameraInfo,
-                messages::encodeMessage(messages::toMessage(info, utime, ++seq)));
-        publish(messages::kChannelConfig,
-                messages::encodeMessage(messages::toMessage("plumb-device", options.version,
-                                                            options.config_toml, utime, ++seq)));
-    };
 
     Shared shared;
     BoundedQueue<Frame> frames(static_cast<size_t>(options.config.capture.queue_frames));
@@ -271,139 +468,67 @@ Result<DeviceRunReport> runDevice(FrameSource& source, const DeviceRunOptions& o
     std::thread fusion(
         [&] { fusionLoop(source.camera(), options.config, frames, fragments, shared); });
 
-    auto publishRawFrames = [&] {
-        while (auto raw = raw_frames.tryPop()) {
-            auto bytes = encodeRawFrame(*raw, sc.raw_frame_colour, ++seq);
-            if (!bytes.isOk()) {
-                log::warn("device: raw frame {}: {}", raw->index, bytes.status().toString());
-                continue;
-            }
-            publish(messages::kChannelRgbd, *bytes);
-            ++shared.raw_published;
-        }
-    };
-
+    Announcer announce(options, transport, source, shared);
+    SpoolFeeder feeder(*publisher, options);
+    BackoffLog backoffs;
     DeviceRunReport report;
-    std::deque<EncodedFragment> pending;  // cut, not yet in the spool (spool full)
-    int64_t last_processed = 0;
-    double last_status = -1e300, last_config = -1e300, last_fps_time = wallSeconds();
-    double fps = 0.0;
-    double wait_start = -1.0;
-    bool stop_seen = false;
+    double last_status = -1e300, last_config = -1e300, wait_start = -1.0;
     Status failure;
-    auto publishStatus = [&](double now, bool stopped) {
-        const int64_t processed = shared.processed.load();
-        if (now > last_fps_time) fps = (processed - last_processed) / (now - last_fps_time);
-        last_processed = processed;
-        last_fps_time = now;
-        messages::DeviceStatus st;
-        st.session_id = options.session_id;
-        st.fps = fps;
-        // While the camera is gone the heartbeat says so (tracking resumes when it returns).
-        st.tracking = stopped ? messages::TrackingState::kStopped
-                      : shared.camera_gone.load()
-                          ? messages::TrackingState::kNoCamera
-                          : static_cast<messages::TrackingState>(shared.tracking.load());
-        st.frames_processed = processed;
-        st.frames_dropped = shared.dropped.load();
-        st.fragments_cut = static_cast<int32_t>(shared.cut.load());
-        st.fragments_acked = static_cast<int32_t>(publisher->stats().fragments_acked);
-        st.spool_fragments = static_cast<int32_t>(publisher->unacknowledged() + pending.size());
-        st.spool_bytes = publisher->spoolBytes();
-        st.memory_bytes = residentMemoryBytes();
-        publish(messages::kChannelStatus,
-                messages::encodeMessage(messages::toMessage(st, messages::toUtime(now), ++seq)));
-        last_status = now;
-    };
-
+    // The network loop. A stop request ends capture; once fusion is done the device waits up
+    // to ack_wait_s for acknowledgements (and for room in the spool); a second request ends it.
     while (true) {
-        const Status pumped = link.pump(10);
-        if (!pumped.isOk()) {
-            failure = pumped;
-            break;
-        }
+        failure = link.pump(10);
+        if (!failure.isOk()) break;
         const double now = wallSeconds();
-        if (stop_requests.load() > 0 && !stop_seen) {
-            stop_seen = true;
+        if (stop_requests.load() > 0 && !report.stopped_by_signal) {
             report.stopped_by_signal = true;
             log::info("device: stop requested; closing the open fragment and flushing");
             capture_stop = 1;
         }
-        publishRawFrames();
-        while (auto f = fragments.tryPop()) {
-            if (!options.dump_dir.empty()) {
-                const auto path =
-                    options.dump_dir / messages::fragmentFileName(options.session_id, f->id);
-                const Status s = messages::writeFileAtomic(path, f->bytes);
-                if (!s.isOk()) log::warn("device: dump: {}", s.toString());
-            }
-            pending.push_back(std::move(*f));
-        }
-        while (!pending.empty()) {
-            const Status s = publisher->submit(pending.front().id, pending.front().bytes, now);
-            if (s.code() == StatusCode::kIoError) break;  // spool full: retry later
-            if (!s.isOk()) log::error("device: fragment {}: {}", pending.front().id, s.toString());
-            pending.pop_front();
-        }
+        shared.raw_published += announce.rawFrames(raw_frames);
+        const bool fusion_done = shared.fusion_done.load();
+        feeder.feed(fragments, report.stopped_by_signal || fusion_done, now);
         publisher->poll(now);
-        const bool fusion_done = shared.fusion_done.load() && fragments.drained();
+        backoffs.note(*publisher, now);
+        const bool scan_done = fusion_done && fragments.drained();
         if (now - last_config >= sc.config_period_s) {
-            publishConfig(now);
+            announce.config(now);
             last_config = now;
         }
-        if (now - last_status >= sc.status_period_s) publishStatus(now, fusion_done);
-        if (fusion_done && pending.empty()) {
-            if (wait_start < 0) {
-                wait_start = now;
-                publishStatus(now, true);  // end of scan: the final fragment count
-                log::info(
-                    "device: capture finished ({} frames, {} dropped, {} fragments); "
-                    "waiting up to {} s for {} acknowledgement(s)",
-                    shared.processed.load(), shared.dropped.load(), shared.cut.load(),
-                    sc.ack_wait_s, publisher->unacknowledged());
-            }
-            if (publisher->unacknowledged() == 0) break;
-            if (now - wait_start >= sc.ack_wait_s) break;
-            if (stop_requests.load() > 1) break;
+        if (now - last_status >= sc.status_period_s) {
+            announce.status(now, scan_done, *publisher, feeder.waiting());
+            last_status = now;
         }
+        if (!scan_done) continue;
+        if (wait_start < 0) {
+            wait_start = now;
+            announce.status(now, true, *publisher, feeder.waiting());  // the final count
+            log::info(
+                "device: capture finished ({} frames, {} dropped, {} fragments); waiting up to "
+                "{} s for {} acknowledgement(s){}",
+                shared.processed.load(), shared.dropped.load(), shared.cut.load(), sc.ack_wait_s,
+                publisher->unacknowledged(),
+                feeder.waiting() > 0
+                    ? fmt::format(" and for room in the spool for {} fragment(s)", feeder.waiting())
+                    : "");
+        }
+        if (publisher->unacknowledged() == 0 && feeder.waiting() == 0) break;
+        if (now - wait_start >= sc.ack_wait_s || stop_requests.load() > 1) break;
     }
     capture_stop = 1;
     frames.close();
     raw_frames.close();  // capture may wait on it (recorded sources)
+    // Fusion finishes the frames it holds; what it still emits goes to the spool if it can.
+    while (!shared.fusion_done.load()) {
+        if (auto f = fragments.pop(std::chrono::milliseconds(20))) feeder.add(std::move(*f));
+    }
     capture.join();
     fusion.join();
-    // Anything fusion emitted after the loop ended still goes to the spool.
-    while (auto f = fragments.tryPop()) pending.push_back(std::move(*f));
-    for (auto& f : pending) (void)publisher->submit(f.id, std::move(f.bytes), wallSeconds());
+    while (auto f = fragments.tryPop()) feeder.add(std::move(*f));
+    feeder.finish(wallSeconds());
     if (!failure.isOk()) return failure;
-    publishRawFrames();  // the last ones captured while the loop was ending
-
-    report.frames_captured = shared.captured.load();
-    report.frames_processed = shared.processed.load();
-    report.frames_dropped = shared.dropped.load();
-    report.fragments_cut = shared.cut.load();
-    report.raw_frames_published = shared.raw_published.load();
-    report.raw_frames_dropped = shared.raw_dropped.load();
-    if (report.raw_frames_dropped > 0) {
-        log::info("device: {} raw frames published, {} dropped (the network thread lagged)",
-                  report.raw_frames_published, report.raw_frames_dropped);
-    }
-    report.fragments_acked = static_cast<int64_t>(publisher->stats().fragments_acked);
-    report.unacknowledged = publisher->unacknowledgedKeys();
-    {
-        std::lock_guard<std::mutex> lock(shared.error_mutex);
-        report.source_error = !shared.source_error.empty();
-        report.source_message = shared.source_error;
-        if (!shared.fusion_error.empty()) {
-            report.source_error = true;
-            report.source_message = "fusion: " + shared.fusion_error;
-        }
-    }
-    if (!report.unacknowledged.empty()) {
-        auto written = publisher->persistToDisk();
-        if (!written.isOk()) return written.status();
-        report.written_to_spool_dir = *written;
-    }
+    shared.raw_published += announce.rawFrames(raw_frames);  // the last ones captured
+    fillReport(shared, *publisher, feeder, report);
     return report;
 }
 

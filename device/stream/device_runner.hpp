@@ -16,7 +16,13 @@
 // request (SIGINT/SIGTERM), the open fragment is closed and sent, a final heartbeat says
 // TRACKING_STOPPED with the final fragment count (the backend's end-of-scan signal), and the
 // device waits up to stream.ack_wait_s for the remaining acknowledgements. A second stop request
-// ends the wait at once. Unacknowledged fragments are left in the spool directory.
+// ends the wait at once. Unacknowledged fragments are left in the spool directory, where each
+// one was written (and fsynced) when it was cut, so even SIGKILL loses none of them.
+//
+// A fragment counts as kept once the spool took it. When the spool is full (no backend answers
+// and the memory or disk budget is used up), the next fragments wait for room and fusion is held
+// back (capture drops frames, or waits for a recorded source); stop requests are honoured all
+// the same, and at exit the fragments that never got into the spool are reported as lost.
 
 #include <atomic>
 #include <cstdint>
@@ -64,9 +70,18 @@ struct DeviceRunReport {
     bool stopped_by_signal = false;
     bool source_error = false;   ///< the source failed (not a normal end)
     std::string source_message;  ///< its error
-    /// Fragments still unacknowledged at exit (left in the spool directory when there is one).
+    /// Fragments still unacknowledged at exit: kept (in the spool directory when there is one,
+    /// else lost with the process).
     std::vector<messages::SpoolKey> unacknowledged;
-    size_t written_to_spool_dir = 0;  ///< of these, written to disk at exit
+    /// Fragments of this session that were cut but never entered the spool (it stayed full
+    /// until the end, or refused them): lost.
+    std::vector<uint32_t> lost;
+    /// Why the spool last refused a fragment (empty: never).
+    std::string spool_error;
+    /// Fragments the backend rejected for good in this run, moved to `quarantine_dir` (each with
+    /// a .reason file; empty dir: no spool directory, dropped).
+    std::vector<messages::SpoolKey> quarantined;
+    std::filesystem::path quarantine_dir;
 };
 
 /// Runs the pipeline until the source ends or `stop_requests` becomes non-zero, then flushes.

@@ -43,7 +43,8 @@ Status FragmentPublisher::submit(uint32_t fragment_id, std::vector<uint8_t> enco
 
 void FragmentPublisher::onMessage(const std::string& channel, std::span<const uint8_t> bytes,
                                   double now_s) {
-    if (channel != messages::kChannelFragmentAck && channel != messages::kChannelRetransmit) {
+    if (channel != messages::kChannelFragmentAck && channel != messages::kChannelRetransmit &&
+        channel != messages::kChannelFragmentBackoff) {
         return;
     }
     // Acks and requests name their session; every sender ignores other sessions' messages.
@@ -63,8 +64,18 @@ void FragmentPublisher::collect() {
         for (uint32_t id : sender->takeRejected()) {
             const SpoolKey key{session, id};
             in_flight_.erase(key);
-            rejected_.insert(key);
             ++stats_.fragments_rejected;
+            const std::string reason = fmt::format(
+                "fragment {} of session {} was rejected for good by the backend (fragment_ack_t "
+                "STATUS_REJECTED: it did not decode or conflicts with a stored fragment; the "
+                "backend's log names the cause)",
+                id, session);
+            if (spool_->quarantine(key, reason).isOk()) {
+                quarantined_.push_back(key);
+            } else {
+                rejected_.insert(key);  // kept, but never sent again by this run
+                ++stats_.spool_errors;
+            }
         }
     }
 }
@@ -93,19 +104,11 @@ void FragmentPublisher::poll(double now_s) {
     fill(now_s);
 }
 
-Result<size_t> FragmentPublisher::persistToDisk() {
-    if (config_.spool.disk_dir.empty()) return size_t{0};
-    size_t written = 0;
-    for (const SpoolKey& key : spool_->keys()) {
-        const auto path =
-            config_.spool.disk_dir / messages::fragmentFileName(key.session_id, key.fragment_id);
-        if (std::filesystem::exists(path)) continue;  // already on disk
-        auto bytes = spool_->get(key);
-        if (!bytes.isOk()) return bytes.status();
-        PLUMB_RETURN_IF_ERROR(messages::writeFileAtomic(path, *bytes));
-        ++written;
+std::string FragmentPublisher::lastBackoffMessage() const {
+    for (const auto& [session, sender] : senders_) {
+        if (!sender->lastBackoffMessage().empty()) return sender->lastBackoffMessage();
     }
-    return written;
+    return {};
 }
 
 messages::FragmentSenderStats FragmentPublisher::senderStats() const {
@@ -119,6 +122,7 @@ messages::FragmentSenderStats FragmentPublisher::senderStats() const {
         sum.stale_messages += s.stale_messages;
         sum.malformed_messages += s.malformed_messages;
         sum.publish_errors += s.publish_errors;
+        sum.backoffs_received += s.backoffs_received;
     }
     return sum;
 }

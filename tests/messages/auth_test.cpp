@@ -87,6 +87,22 @@ TEST(HmacSha256, ConstantTimeEqual) {
     EXPECT_TRUE(constantTimeEqual(Bytes{}, Bytes{}));
 }
 
+// The envelope on the wire must not change with the HMAC implementation (issue 32, item 10):
+// these bytes were produced by plumb's own SHA-256/HMAC before libcrypto replaced them.
+TEST(Authentication, SealedEnvelopeBytesAreStable) {
+    Bytes payload(100);
+    for (size_t i = 0; i < payload.size(); ++i) payload[i] = static_cast<uint8_t>(i * 13 + 1);
+    const Bytes sealed =
+        sealMessage("PLUMB_FRAGMENT_CHUNK", payload, asBytes("0123456789abcdef0123456789abcdef"), 7,
+                    0x1122334455667788, 42, 1700000000000000);
+    EXPECT_EQ(hex(sealed),
+              "8f5f23e4a0e7d1ff00060a24181e4000000000000000002a11223344556677880000000700000064"
+              "010e1b2835424f5c697683909daab7c4d1deebf805121f2c394653606d7a8794a1aebbc8d5e2effc"
+              "091623303d4a5764717e8b98a5b2bfccd9e6f3000d1a2734414e5b6875828f9ca9b6c3d0ddeaf704"
+              "111e2b3845525f6c798693a0adbac7d4e1eefb0800000020d901ddf319ca38d86306994000ca2370"
+              "ab6602587ecc9cd2c697438f9a5544af");
+}
+
 AuthConfig authConfig(const std::string& key, int64_t sender) {
     AuthConfig c;
     c.key.assign(key.begin(), key.end());

@@ -18,6 +18,7 @@
 #include "messages/conversions.hpp"
 #include "messages/fragment_assembler.hpp"
 #include "messages/fragment_codec.hpp"
+#include "messages/fragment_sender.hpp"
 #include "messages/wire.hpp"
 
 namespace {
@@ -45,7 +46,7 @@ void decodeAndConvert(std::span<const uint8_t> bytes) {
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     if (size < 1) return 0;
     const std::span<const uint8_t> bytes(data + 1, size - 1);
-    switch (data[0] % 14) {
+    switch (data[0] % 15) {
         case 0:
             decodeAndConvert<plumb::device_status_t>(bytes);
             break;
@@ -82,6 +83,14 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
         case 13:
             (void)decodeRawFrame(bytes);
             break;
+        case 14: {
+            // The sender's handling of "cannot store" answers (checked values, no state kept).
+            NullTransport net;
+            FragmentSenderConfig config;
+            FragmentSender sender(config, net);
+            (void)sender.onMessage(kChannelFragmentBackoff, bytes, 0.0);
+            break;
+        }
         case 10: {
             static const std::vector<uint8_t> key(32, 0x42);
             ReplayGuard guard(64, 4);

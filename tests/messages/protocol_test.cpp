@@ -279,18 +279,62 @@ TEST(FragmentProtocol, SenderRejectsBadAcksAndRequests) {
     EXPECT_EQ(sender.takeAcknowledged(), std::vector<uint32_t>{1});
 }
 
-TEST(FragmentProtocol, RetransmissionBacksOffWithoutBackend) {
-    LossyHub hub;
+// Re-announcements after 0.5 s, doubling up to 4 s.
+FragmentSenderConfig backOffConfig(int64_t session_id) {
     FragmentSenderConfig sc;
+    sc.session_id = session_id;
     sc.retransmit_timeout_s = 0.5;
     sc.max_retransmit_timeout_s = 4.0;
-    FragmentSender sender(sc, hub);
+    return sc;
+}
+
+TEST(FragmentProtocol, RetransmissionBacksOffWithoutBackend) {
+    LossyHub hub;
+    FragmentSender sender(backOffConfig(0), hub);
     ASSERT_TRUE(sender.send(0, Bytes(10, 1), 0.0).isOk());
     const uint64_t first = sender.stats().headers_sent;
     // Timeouts 0.5, 1, 2, 4, 4, 4 ... => announcements at 0.5, 1.5, 3.5, 7.5, 11.5, 15.5, 19.5.
     for (double t = 0.0; t <= 20.0; t += 0.01) sender.poll(t);
     EXPECT_EQ(sender.stats().headers_sent - first, 7u);
     EXPECT_EQ(sender.numInFlight(), 1u);  // kept until acknowledged, whatever happens
+}
+
+// Issue 32, item 7: "cannot store" (fragment_backoff_t) keeps the sender quiet for retry_after_s;
+// a retransmission request is still answered; other sessions' and malformed backoffs change
+// nothing.
+TEST(FragmentProtocol, BackoffPostponesReannouncements) {
+    LossyHub hub;
+    FragmentSender sender(backOffConfig(9), hub);
+    ASSERT_TRUE(sender.send(0, Bytes(10, 1), 0.0).isOk());
+    plumb::fragment_backoff_t b{};
+    b.session_id = 9;
+    b.fragment_id = 0;
+    b.reason = plumb::fragment_backoff_t::REASON_CANNOT_STORE;
+    b.retry_after_s = 20.0;
+    b.message = "No space left on device";
+    ASSERT_TRUE(sender.onMessage(kChannelFragmentBackoff, encodeMessage(b), 0.1).isOk());
+    EXPECT_EQ(sender.lastBackoffMessage(), "No space left on device");
+    const uint64_t first = sender.stats().headers_sent;
+    for (double t = 0.1; t < 20.0; t += 0.01) sender.poll(t);
+    EXPECT_EQ(sender.stats().headers_sent, first);  // quiet (without it: 5 announcements)
+    for (double t = 20.0; t <= 21.0; t += 0.01) sender.poll(t);
+    EXPECT_EQ(sender.stats().headers_sent, first + 1);  // the usual timeout after the back-off
+    b.session_id = 8;                                   // another session's
+    ASSERT_TRUE(sender.onMessage(kChannelFragmentBackoff, encodeMessage(b), 21.0).isOk());
+    b.session_id = 9;
+    b.retry_after_s = -1.0;
+    EXPECT_FALSE(sender.onMessage(kChannelFragmentBackoff, encodeMessage(b), 21.0).isOk());
+    EXPECT_EQ(sender.stats().backoffs_received, 1u);
+    b.retry_after_s = 1e9;  // clamped to kMaxBackoffS
+    ASSERT_TRUE(sender.onMessage(kChannelFragmentBackoff, encodeMessage(b), 21.0).isOk());
+    plumb::retransmit_request_t req{};
+    req.session_id = 9;
+    req.fragment_id = 0;
+    req.missing_chunks = {0};
+    req.num_missing = 1;
+    ASSERT_TRUE(sender.onMessage(kChannelRetransmit, encodeMessage(req), 22.0).isOk());
+    EXPECT_EQ(sender.stats().chunks_resent, 1u);  // the backend asked: answered at once
+    EXPECT_EQ(sender.numInFlight(), 1u);
 }
 
 TEST(FragmentProtocol, AssemblerMemoryIsBounded) {

@@ -21,6 +21,16 @@ TEST(Crc32, MatchesKnownVectors) {
     EXPECT_EQ(crc32(asBytes("123456789")), 0xCBF43926u);
     EXPECT_EQ(crc32(asBytes("a")), 0xE8B7BE43u);
     EXPECT_EQ(crc32(asBytes("The quick brown fox jumps over the lazy dog")), 0x414FA339u);
+    // A long buffer fed in uneven pieces; the value is what plumb's own table-driven CRC gave
+    // before zlib's crc32() replaced it (issue 32, item 10).
+    std::vector<uint8_t> big(1 << 20);
+    for (size_t i = 0; i < big.size(); ++i) big[i] = static_cast<uint8_t>((i * 2654435761u) >> 13);
+    uint32_t pieces = 0;
+    for (size_t at = 0, n = 1; at < big.size(); at += n, n = n * 7 % 4093 + 1) {
+        pieces = crc32(std::span(big).subspan(at, std::min(n, big.size() - at)), pieces);
+    }
+    EXPECT_EQ(pieces, crc32(big));
+    EXPECT_EQ(crc32(big), 0x4091419Du);  // also Python's zlib.crc32
     // Incremental use equals one pass.
     const std::string s = "The quick brown fox jumps over the lazy dog";
     EXPECT_EQ(crc32(asBytes(s.substr(10)), crc32(asBytes(s.substr(0, 10)))), 0x414FA339u);
@@ -113,6 +123,10 @@ TEST(Wire, SchemasMatchGeneratedTypes) {
     req.missing_chunks = {1, 5, 9};
     req.num_missing = 3;
     expectSchemaMatches(req);
+    plumb::fragment_backoff_t backoff{};
+    backoff.retry_after_s = 2.0;
+    backoff.message = "No space left on device";
+    expectSchemaMatches(backoff);
     plumb::camera_info_t cam{};
     cam.source = "x";
     expectSchemaMatches(cam);

@@ -220,9 +220,7 @@ int MonitorServer::port() const { return impl_->port; }
 std::string MonitorServer::url() const {
     const std::string& host = impl_->config.bind;
     const std::string shown = host == "0.0.0.0" ? "127.0.0.1" : host;
-    std::string url = fmt::format("http://{}:{}/", shown, impl_->port);
-    if (!impl_->config.token.empty()) url += "?token=" + impl_->config.token;
-    return url;
+    return fmt::format("http://{}:{}/", shown, impl_->port);  // never the token: a secret
 }
 
 }  // namespace plumb::monitor

@@ -54,7 +54,8 @@ class MonitorServer {
     void stop();
     /// The bound port (the chosen one when config.port was 0).
     int port() const;
-    /// "http://<bind>:<port>/" (with "?token=..." when a token is set).
+    /// "http://<bind>:<port>/", never with the token (it is a secret: `plumb monitor` prints
+    /// this URL; whoever set the token adds "?token=..." to open the page).
     std::string url() const;
 
   private:

@@ -28,6 +28,7 @@
 #include "messages/crc32.hpp"
 #include "messages/files.hpp"
 #include "messages/fragment_codec.hpp"
+#include "messages/fragment_store.hpp"
 #include "messages/wire.hpp"
 #include "tests/messages/lossy_transport.hpp"
 
@@ -319,11 +320,41 @@ TEST(StreamingInProcess, RecordedLogReplaysToTheSameStoreTwice) {
     auto rb = runLogIngest(log_path, b, {});
     ASSERT_TRUE(ra.isOk()) << ra.status().toString();
     ASSERT_TRUE(rb.isOk()) << rb.status().toString();
+    EXPECT_TRUE(ra->log_damage.isOk()) << ra->log_damage.toString();  // an intact log
     const auto fa = readDir(a.fragments_dir), fb = readDir(b.fragments_dir);
     EXPECT_EQ(fa.size(), 5u);
     EXPECT_TRUE(fa == fb);
     EXPECT_TRUE(readDir(a.out_dir)["metrics.json"] == readDir(b.out_dir)["metrics.json"]);
     EXPECT_TRUE(fa == readDir(dir / "live"));  // the same store the live backend built
+    fs::remove_all(dir);
+}
+
+// Issue 32, item 4: a store with fragments of two sessions reconstructs one of them, says which
+// and names the other instead of ignoring it without a word.
+TEST(StreamingInProcess, ChoosingASessionNamesTheOthers) {
+    const fs::path dir = tempDir("sessions");
+    auto store = messages::FragmentStore::open(dir);
+    ASSERT_TRUE(store.isOk());
+    const auto& fragments = deviceFragments();
+    for (uint32_t i = 0; i < 3; ++i) ASSERT_TRUE((*store)->put(111, i, fragments[i]).isOk());
+    ASSERT_TRUE((*store)->put(222, 0, fragments[3]).isOk());
+    std::string note;
+    auto newest = chooseSession(**store, {}, &note);
+    ASSERT_TRUE(newest.isOk());
+    EXPECT_EQ(*newest, 222);
+    EXPECT_NE(note.find("holds 2 sessions; reconstructing session 222 (1 fragment(s), the "
+                        "newest) and not 111 (3 fragment(s))"),
+              std::string::npos)
+        << note;
+    auto named = chooseSession(**store, {111}, &note);
+    ASSERT_TRUE(named.isOk());
+    EXPECT_EQ(*named, 111);
+    EXPECT_NE(note.find("named by --session) and not 222 (1 fragment(s))"), std::string::npos)
+        << note;
+    auto loaded = loadStoredFragments(**store, *named);
+    ASSERT_TRUE(loaded.isOk());
+    EXPECT_EQ(loaded->size(), 3u);
+    EXPECT_EQ(chooseSession(**store, {333}, &note).status().code(), StatusCode::kNotFound);
     fs::remove_all(dir);
 }
 

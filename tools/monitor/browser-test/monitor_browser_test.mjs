@@ -83,8 +83,9 @@ try {
     const timer = setTimeout(() => reject(new Error("plumb monitor printed no URL within 30 s")), 30000);
     const lines = readline.createInterface({ input: monitor.stdout });
     lines.on("line", (line) => {
+      if (line.includes(TOKEN)) reject(new Error("plumb monitor printed its token: " + line));
       const m = line.match(/serving (http:\/\/\S+)/);
-      if (m) { clearTimeout(timer); resolve(m[1]); }
+      if (m) { clearTimeout(timer); resolve(m[1] + "?token=" + TOKEN); }  // we know the token
     });
     monitor.on("exit", (code) => reject(new Error("plumb monitor exited with " + code)));
   });
