@@ -83,7 +83,9 @@ void logSessions(const Ingestor& ingestor, const IngestRunOptions& options, doub
     for (int64_t wanted : options.sessions) {  // named but never heard of
         if (std::none_of(sessions.begin(), sessions.end(),
                          [&](const SessionReport& r) { return r.session_id == wanted; })) {
-            sessions.push_back(SessionReport{.session_id = wanted});
+            SessionReport never_heard;
+            never_heard.session_id = wanted;
+            sessions.push_back(never_heard);
         }
     }
     for (const SessionReport& r : sessions) {
