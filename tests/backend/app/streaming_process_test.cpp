@@ -375,7 +375,7 @@ TEST(StreamingProcesses, DeviceSpoolOnFullTmpfsReportsKeptAndLost) {
         fs::remove_all(dir);
         GTEST_SKIP() << "cannot mount a tmpfs here: " << std::strerror(errno);
     }
-    auto args = deviceArgs(dir, 40);
+    auto args = deviceArgs(dir, 80);
     args.insert(args.end(), {"--set", "stream.ack_wait_s=2"});
     const pid_t device = spawn(args, dir / "device.log");
     ASSERT_GT(device, 0);
@@ -460,28 +460,31 @@ TEST(StreamingProcesses, FullBackendDiskMakesTheDeviceBackOff) {
     const pid_t backend = spawn(backend_args, dir / "backend.log");
     ASSERT_GT(backend, 0);
     std::this_thread::sleep_for(300ms);
-    auto args = deviceArgs(dir, 40);
+    auto args = deviceArgs(dir, 80);
     args.insert(args.end(), {"--set", "stream.ack_wait_s=15"});
     const pid_t device = spawn(args, dir / "device.log");
     ASSERT_GT(device, 0);
     const int device_rc = waitExit(device, 120s);
-    kill(backend, SIGINT);  // two fragments never fit: stopped here
+    kill(backend, SIGINT);  // the fragments that never fit: stopped here
     waitExit(backend, 60s);
     const std::string device_log = readText(dir / "device.log");
     const std::string backend_log = readText(dir / "backend.log");
     ::umount2((dir / "store").c_str(), MNT_DETACH);
-    EXPECT_EQ(device_rc, 1) << device_log;  // two fragments stay unacknowledged, in its spool
+    EXPECT_EQ(device_rc, 1) << device_log;  // fragments stay unacknowledged, in its spool
     EXPECT_NE(device_log.find("the backend cannot store fragments"), std::string::npos)
         << device_log;
     const auto m = nlohmann::json::parse(readText(dir / "out" / "metrics.json"));
     std::printf("full backend disk: %s\n", m.dump().c_str());
-    EXPECT_EQ(m["fragments_received"], 2);
+    // The store holds what fit; the rest stays in the device spool, nothing is lost.
+    const size_t spooled = countPlf(dir / "spool");
+    EXPECT_GE(spooled, 1u);
+    EXPECT_GE(m["fragments_received"].get<size_t>(), 1u);
+    EXPECT_EQ(m["fragments_received"].get<size_t>() + spooled, 8u);
     EXPECT_GE(m["persist_errors"].get<int>(), 2);
     EXPECT_LE(m["persist_errors"].get<int>(), 10);
     EXPECT_EQ(m["backoffs_sent"], m["persist_errors"]);
     EXPECT_LE(m["chunks_received"].get<int>(), 4000);  // 16000-byte chunks: 64 MB at most
-    EXPECT_LE(countOf(backend_log, "cannot store fragment"), 2u) << backend_log;
-    EXPECT_EQ(countPlf(dir / "spool"), 2u);
+    EXPECT_LE(countOf(backend_log, "cannot store fragment"), spooled) << backend_log;
     fs::remove_all(dir);
 }
 
