@@ -307,6 +307,24 @@ std::string inlineSvg(const fs::path& path) {
     return svg;
 }
 
+/// Between stages: kCancelled when the caller asked to stop (`after`: the stage just done).
+Status stopIfRequested(const PipelineInput& input, const char* after) {
+    if (input.stop_requested && input.stop_requested())
+        return cancelled(std::string("stopped on request after ") + after);
+    return Status::ok();
+}
+
+/// metrics.json, report.html (with the floor plan inlined) and config.toml.
+Status writeDocuments(const fs::path& out_dir, const PipelineInput& input,
+                      const nlohmann::json& metrics, ReportFigures& figures) {
+    figures.floorplan_svg = inlineSvg(out_dir / "floorplan.svg");
+    PLUMB_RETURN_IF_ERROR(writeText(out_dir / "metrics.json", metrics.dump(2) + "\n"));
+    PLUMB_RETURN_IF_ERROR(writeText(out_dir / "report.html", renderReportHtml(metrics, figures)));
+    if (!input.config_toml.empty())
+        PLUMB_RETURN_IF_ERROR(writeText(out_dir / "config.toml", input.config_toml));
+    return Status::ok();
+}
+
 }  // namespace
 
 Result<PipelineResult> runPipeline(const PipelineInput& input, const PipelineConfig& config,
@@ -324,12 +342,7 @@ Result<PipelineResult> runPipeline(const PipelineInput& input, const PipelineCon
 
     StageTimer timer;
     const std::vector<Fragment>& fragments = input.fragments;
-    // Between stages: has the caller asked to stop? (`after`: the stage just done.)
-    auto stop = [&input](const char* after) -> Status {
-        if (input.stop_requested && input.stop_requested())
-            return cancelled(std::string("stopped on request after ") + after);
-        return Status::ok();
-    };
+    auto stop = [&input](const char* after) { return stopIfRequested(input, after); };
 
     // 1. Preparation (§3.1).
     std::vector<registration::PreparedFragment> prepared;
@@ -454,11 +467,7 @@ Result<PipelineResult> runPipeline(const PipelineInput& input, const PipelineCon
     if (!layout_diagnostics.is_null()) metrics["layout_diagnostics"] = layout_diagnostics;
     metrics["stages"] = stagesJson(timer);
     metrics["total_seconds"] = timer.totalSeconds();
-    figures.floorplan_svg = inlineSvg(out_dir / "floorplan.svg");
-    PLUMB_RETURN_IF_ERROR(writeText(out_dir / "metrics.json", metrics.dump(2) + "\n"));
-    PLUMB_RETURN_IF_ERROR(writeText(out_dir / "report.html", renderReportHtml(metrics, figures)));
-    if (!input.config_toml.empty())
-        PLUMB_RETURN_IF_ERROR(writeText(out_dir / "config.toml", input.config_toml));
+    PLUMB_RETURN_IF_ERROR(writeDocuments(out_dir, input, metrics, figures));
     result.metrics = std::move(metrics);
     return result;
 }
