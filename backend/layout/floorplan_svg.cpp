@@ -57,6 +57,14 @@ std::string floorplanSvg(const Layout& layout, const std::vector<Outline2>& outl
     lo -= Eigen::Vector2d(margin, margin);
     hi += Eigen::Vector2d(margin, margin);
     const double scale = 100.0;  // px per metre
+    // At least 7 m wide (the warning's width), the drawing centred; 0.4 m more on top for it.
+    const double min_width_m = 7.0;
+    if (hi.x() - lo.x() < min_width_m) {
+        const double grow_x = 0.5 * (min_width_m - (hi.x() - lo.x()));
+        lo.x() -= grow_x;
+        hi.x() += grow_x;
+    }
+    hi.y() += 0.4;
     const double width = (hi.x() - lo.x()) * scale, height = (hi.y() - lo.y()) * scale;
     // L's y points up; SVG's y points down.
     auto X = [&](const Eigen::Vector2d& p) { return (p.x() - lo.x()) * scale; };
@@ -81,11 +89,28 @@ std::string floorplanSvg(const Layout& layout, const std::vector<Outline2>& outl
         if (o.size() >= 3) svg += fmt::format("<polygon points=\"{}\"/>\n", points(o));
     }
     svg += "</g>\n";
-    if (layout.room_polygon_L.size() >= 3) {
-        svg += fmt::format(
-            "<polygon id=\"room\" points=\"{}\" fill=\"#f3efe4\" stroke=\"#555\" "
-            "stroke-width=\"1.5\"/>\n",
-            points(layout.room_polygon_L));
+    const std::vector<Eigen::Vector2d>& poly = layout.room_polygon_L;
+    if (poly.size() >= 3) {
+        svg +=
+            fmt::format("<polygon id=\"room\" points=\"{}\" fill=\"#f3efe4\" stroke=\"none\"/>\n",
+                        points(poly));
+        // The outline edge by edge: solid where a wall bounds it, dashed where it was inferred
+        // (the edge of the seen floor, a step joining two walls).
+        const std::vector<int> edge_walls = polygonEdgeWalls(layout);
+        svg += "<g id=\"outline\" stroke=\"#555\" stroke-width=\"1.5\">\n";
+        for (size_t k = 0; k < poly.size(); ++k) {
+            const Eigen::Vector2d& a = poly[k];
+            const Eigen::Vector2d& b = poly[(k + 1) % poly.size()];
+            const bool seen = edge_walls[k] >= 0;
+            svg += fmt::format(
+                "<line class=\"{}\" x1=\"{:.1f}\" y1=\"{:.1f}\" x2=\"{:.1f}\" y2=\"{:.1f}\"{}>"
+                "<title>{}, {:.2f} m</title></line>\n",
+                seen ? "seen" : "inferred", X(a), Y(a), X(b), Y(b),
+                seen ? "" : " stroke-dasharray=\"6 4\"",
+                seen ? fmt::format("on wall {}", edge_walls[k]) : std::string("inferred"),
+                (b - a).norm());
+        }
+        svg += "</g>\n";
     }
     svg += "<g id=\"walls\" stroke-width=\"6\" stroke-linecap=\"round\">\n";
     for (const LayoutPlane* w : layout.walls()) {
@@ -115,6 +140,14 @@ std::string floorplanSvg(const Layout& layout, const std::vector<Outline2>& outl
             "<text x=\"{:.1f}\" y=\"{:.1f}\" font-family=\"sans-serif\" font-size=\"14\">"
             "ceiling {:.2f} m</text>\n",
             X(s1) + 20, Y(s0) + 5, layout.ceiling_height_m);
+    }
+    const double on_walls = wallBoundedFraction(layout);
+    if (poly.size() >= 3 && on_walls < kClosedRoomWallFraction) {
+        svg += fmt::format(
+            "<text id=\"partial\" x=\"10\" y=\"24\" font-family=\"sans-serif\" font-size=\"14\" "
+            "font-weight=\"bold\" fill=\"#b7791f\">partial scan: {:.0f} % of the outline lies on "
+            "seen walls; dashed edges are inferred</text>\n",
+            100.0 * on_walls);
     }
     svg += "</svg>\n";
     return svg;

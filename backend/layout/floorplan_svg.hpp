@@ -1,8 +1,10 @@
 // SPDX-License-Identifier: Apache-2.0
 #pragma once
 
-// The floor plan (`floorplan.svg`): the room polygon, the walls (snapped walls in one colour,
-// free-angle walls in another), optional fragment outlines and a 1 m scale bar, seen from above
+// The floor plan (`floorplan.svg`): the room polygon with its outline solid where a wall bounds
+// it and dashed where it was inferred (polygonEdgeWalls), the walls (snapped walls in one colour,
+// free-angle walls in another), optional fragment outlines, a 1 m scale bar and, when less than
+// kClosedRoomWallFraction of the outline lies on walls, a "partial scan" warning; seen from above
 // in the layout frame L (x right, y up on the page).
 
 #include <Eigen/Geometry>

@@ -69,6 +69,45 @@ const LayoutPlane* Layout::firstOf(LayoutPlaneKind kind) const {
     return nullptr;
 }
 
+std::vector<int> polygonEdgeWalls(const Layout& layout, double tolerance_m) {
+    const std::vector<Eigen::Vector2d>& poly = layout.room_polygon_L;
+    std::vector<int> out(poly.size(), -1);
+    const std::vector<const LayoutPlane*> walls = layout.walls();
+    for (size_t k = 0; k < poly.size(); ++k) {
+        const Eigen::Vector2d& a = poly[k];
+        const Eigen::Vector2d& b = poly[(k + 1) % poly.size()];
+        double best = tolerance_m;
+        for (const LayoutPlane* w : walls) {
+            const Eigen::Vector2d n = w->normal_L.head<2>();
+            if (n.norm() < 0.5) continue;  // not a vertical plane
+            const double da = std::abs(n.dot(a) + w->d_L), db = std::abs(n.dot(b) + w->d_L);
+            if (std::max(da, db) > best) continue;
+            const Eigen::Vector2d along = w->end_L - w->start_L;
+            const double length = along.norm();
+            if (length > 0.0) {
+                const double t = along.dot(0.5 * (a + b) - w->start_L) / length;
+                if (t < -tolerance_m || t > length + tolerance_m) continue;
+            }
+            best = std::max(da, db);
+            out[k] = w->id;
+        }
+    }
+    return out;
+}
+
+double wallBoundedFraction(const Layout& layout, double tolerance_m) {
+    const std::vector<Eigen::Vector2d>& poly = layout.room_polygon_L;
+    if (poly.size() < 3) return 0.0;
+    const std::vector<int> edge_walls = polygonEdgeWalls(layout, tolerance_m);
+    double on_walls = 0.0, perimeter = 0.0;
+    for (size_t k = 0; k < poly.size(); ++k) {
+        const double length = (poly[(k + 1) % poly.size()] - poly[k]).norm();
+        perimeter += length;
+        if (edge_walls[k] >= 0) on_walls += length;
+    }
+    return perimeter > 0.0 ? on_walls / perimeter : 0.0;
+}
+
 HessianPlane transformPlane(const HessianPlane& plane_A, const Eigen::Isometry3d& T_B_A) {
     HessianPlane plane_B;
     plane_B.normal = T_B_A.linear() * plane_A.normal;

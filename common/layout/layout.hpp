@@ -63,6 +63,21 @@ HessianPlane planeInWorld(const Layout& layout, const LayoutPlane& plane);
 /// Parses "floor" | "ceiling" | "wall".
 Result<LayoutPlaneKind> parseLayoutPlaneKind(const std::string& text);
 
+/// Which wall bounds each edge of the room polygon: element k is for edge k (vertex k -> k+1,
+/// wrapping) and holds the id of the wall plane the edge lies on, or -1 when no wall does (the
+/// boundary there was inferred: the edge of the seen floor, or a step joining two walls). An edge
+/// lies on a wall when both its ends are within `tolerance_m` of the wall's line and its midpoint
+/// is within the wall's segment (start_L..end_L, widened by `tolerance_m`).
+std::vector<int> polygonEdgeWalls(const Layout& layout, double tolerance_m = 0.05);
+
+/// The fraction of the room polygon's perimeter that lies on walls (polygonEdgeWalls != -1); 0
+/// for a polygon with fewer than 3 vertices.
+double wallBoundedFraction(const Layout& layout, double tolerance_m = 0.05);
+
+/// A room counts as closed when at least this fraction of its outline lies on walls; below it
+/// the outline is mostly the edge of the seen floor (the scan saw only part of the room).
+inline constexpr double kClosedRoomWallFraction = 0.8;
+
 /// Builds the layout of a prism-shaped room from its floor outline and height, with T_W_L =
 /// identity:
 ///  - id 0: floor, n = (0, 0, 1), d = 0;

@@ -174,7 +174,9 @@ nlohmann::json layoutToJson(const Layout& layout) {
     const Eigen::Matrix4d M = layout.T_W_L.matrix();
     for (int r = 0; r < 4; ++r) T.push_back(json::array({M(r, 0), M(r, 1), M(r, 2), M(r, 3)}));
     out["T_W_L"] = T;
-    out["ceiling_height_m"] = layout.ceiling_height_m;
+    // An unseen ceiling has no height: null, not 0.
+    out["ceiling_height_m"] =
+        layout.ceiling_height_m > 0.0 ? json(layout.ceiling_height_m) : json(nullptr);
     json polygon = json::array();
     for (const Eigen::Vector2d& v : layout.room_polygon_L) polygon.push_back(vectorJson(v));
     out["room_polygon_L"] = polygon;
@@ -207,7 +209,13 @@ Result<Layout> layoutFromJson(const nlohmann::json& json_doc, const std::string&
     const json* T = nullptr;
     PLUMB_ASSIGN_OR_RETURN_STATUS(T, r.field("T_W_L"));
     PLUMB_ASSIGN_OR_RETURN_STATUS(layout.T_W_L, readTransform(*T, r.path("T_W_L")));
-    PLUMB_ASSIGN_OR_RETURN_STATUS(layout.ceiling_height_m, r.number("ceiling_height_m"));
+    const json* ceiling = nullptr;
+    PLUMB_ASSIGN_OR_RETURN_STATUS(ceiling, r.field("ceiling_height_m"));
+    if (ceiling->is_null()) {
+        layout.ceiling_height_m = 0.0;
+    } else {
+        PLUMB_ASSIGN_OR_RETURN_STATUS(layout.ceiling_height_m, r.number("ceiling_height_m"));
+    }
     if (layout.ceiling_height_m < 0.0) {
         return corrupt(fmt::format("{}: must not be negative", r.path("ceiling_height_m")));
     }

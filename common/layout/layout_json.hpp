@@ -6,7 +6,7 @@
 //   {
 //     "format": "plumb-layout-1",
 //     "T_W_L": [[r00, r01, r02, tx], [r10, r11, r12, ty], [r20, r21, r22, tz], [0, 0, 0, 1]],
-//     "ceiling_height_m": 2.5,
+//     "ceiling_height_m": 2.5,                       // null when the ceiling was not seen
 //     "room_polygon_L": [[x, y], ...],               // counter-clockwise seen from above, metres
 //     "planes": [
 //       {"id": 0, "kind": "floor" | "ceiling" | "wall", "normal_L": [nx, ny, nz], "d_L": d,
@@ -14,9 +14,10 @@
 //     ]
 //   }
 //
-// Every field is required. Numbers are written with round-trip precision, so write + read gives
-// back the same doubles bit for bit. Reading checks types, finiteness, unit normals (1e-6) and a
-// rigid T_W_L; errors name the source and the field ("layout.json: planes[2].normal_L: ...").
+// Every field is required ("ceiling_height_m" may be null: 0 in Layout; older files wrote 0).
+// Numbers are written with round-trip precision, so write + read gives back the same doubles bit
+// for bit. Reading checks types, finiteness, unit normals (1e-6) and a rigid T_W_L; errors name the
+// source and the field ("layout.json: planes[2].normal_L: ...").
 
 #include <nlohmann/json_fwd.hpp>
 

@@ -78,6 +78,33 @@ TEST(Layout, RoomFromPolygonRejectsBadInput) {
     EXPECT_NE(repeated.status().message().find("shorter than 1 mm"), std::string::npos);
 }
 
+TEST(Layout, PolygonEdgesKnowTheWallsThatBoundThem) {
+    // The full room: every edge on its own wall (ids 2 + k), the whole perimeter bounded.
+    Layout room = makeRoomLayout(lShapedRoom(), 2.6).value();
+    const std::vector<int> all = polygonEdgeWalls(room);
+    ASSERT_EQ(all.size(), 6u);
+    for (size_t k = 0; k < all.size(); ++k) EXPECT_EQ(all[k], static_cast<int>(2 + k));
+    EXPECT_DOUBLE_EQ(wallBoundedFraction(room), 1.0);
+
+    // Only the walls along y = 0 and x = 4 were seen: the two edges on them are bounded, the
+    // rest of the outline (the seen floor's edge) is not. Perimeter 14 m, 4 + 3 m on walls.
+    Layout partial = room;
+    partial.planes.erase(partial.planes.begin() + 4, partial.planes.end());
+    const std::vector<int> seen = polygonEdgeWalls(partial);
+    EXPECT_EQ(seen, (std::vector<int>{2, 3, -1, -1, -1, -1}));
+    EXPECT_NEAR(wallBoundedFraction(partial), 7.0 / 14.0, 1e-12);
+
+    // A wall's line alone is not enough: an edge beyond the wall's segment is not on it, nor
+    // is one 10 cm off the line.
+    Layout shifted = room;
+    shifted.planes[2].end_L = {1.0, 0.0};  // the y = 0 wall spans x in [0, 1] only
+    shifted.planes[3].d_L -= 0.10;         // the x = 4 wall moved 10 cm
+    const std::vector<int> off = polygonEdgeWalls(shifted);
+    EXPECT_EQ(off[0], -1);  // the edge's midpoint, x = 2, lies beyond the wall's [0, 1]
+    EXPECT_EQ(off[1], -1);
+    EXPECT_EQ(off[2], 4);  // the others keep their walls
+}
+
 TEST(Layout, PlaneTransformKeepsPointsOnThePlane) {
     const HessianPlane plane_A{Eigen::Vector3d(1, 2, 2).normalized(), -0.7};
     Vector6d xi;
@@ -138,6 +165,24 @@ TEST(LayoutJson, RoundTripIsBitExact) {
     const auto doc = nlohmann::json::parse(in);
     EXPECT_EQ(doc.at("format"), "plumb-layout-1");
     EXPECT_EQ(doc.at("planes").at(0).at("kind"), "floor");
+}
+
+TEST(LayoutJson, AnUnseenCeilingIsNullNotZero) {
+    Layout layout = awkwardLayout();
+    layout.ceiling_height_m = 0.0;  // the ceiling was never seen
+    const nlohmann::json doc = io::layoutToJson(layout);
+    EXPECT_TRUE(doc.at("ceiling_height_m").is_null()) << doc.at("ceiling_height_m");
+    auto back = io::layoutFromJson(doc, "test.json");
+    ASSERT_TRUE(back.isOk()) << back.status().toString();
+    expectSameLayout(layout, *back);
+    // Files written before null was used (0 for unknown) still read.
+    nlohmann::json old = doc;
+    old["ceiling_height_m"] = 0.0;
+    auto old_back = io::layoutFromJson(old, "old.json");
+    ASSERT_TRUE(old_back.isOk()) << old_back.status().toString();
+    EXPECT_EQ(old_back->ceiling_height_m, 0.0);
+    // A seen ceiling is a number.
+    EXPECT_EQ(io::layoutToJson(awkwardLayout()).at("ceiling_height_m"), 2.6);
 }
 
 /// Parses `doc` after `edit` and returns the error.

@@ -221,6 +221,35 @@ TEST(MonitorState, CoverageGrowsAsFragmentsArrive) {
     }
 }
 
+TEST(MonitorState, ARoomTheLayoutHasNotClosedHasNoRoomCoverage) {
+    // The layout of a scan that saw two walls: its outline follows them for half its length
+    // and the seen floor's edge for the rest. Coverage against that outline would read complete
+    // for any scan, so the room's coverage is unknown; holes in the seen area are still gaps.
+    MonitorState state;
+    Layout partial = testing::roomLayout();
+    std::vector<LayoutPlane> kept;
+    for (const LayoutPlane& p : partial.planes) {
+        if (p.kind != LayoutPlaneKind::kWall || kept.size() < 4) kept.push_back(p);
+    }
+    partial.planes = kept;  // floor, ceiling and the first two walls
+    ASSERT_EQ(partial.walls().size(), 2u);
+    state.setLayout(partial);
+    for (int k = 0; k < 8; ++k) state.addFragment(testing::roomFragment(k), 1, "store");
+    json j = state.toJson();
+    EXPECT_EQ(j["coverage"]["room_closed"], false);
+    EXPECT_TRUE(j["coverage"]["room_fraction"].is_null());
+    EXPECT_EQ(j["coverage"]["region"], "convex_hull");
+    EXPECT_NEAR(j["coverage"]["wall_bounded_fraction"].get<double>(), 0.5, 1e-9);  // 4 + 3 of 14 m
+
+    // The whole room closed by its four walls: coverage against it.
+    state.setLayout(testing::roomLayout());
+    j = state.toJson();
+    EXPECT_EQ(j["coverage"]["room_closed"], true);
+    EXPECT_EQ(j["coverage"]["region"], "room_polygon");
+    EXPECT_DOUBLE_EQ(j["coverage"]["room_fraction"].get<double>(),
+                     j["coverage"]["fraction"].get<double>());
+}
+
 TEST(MonitorState, WaitForChangeWakesOnUpdate) {
     MonitorState state;
     const uint64_t v = state.version();

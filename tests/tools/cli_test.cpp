@@ -257,6 +257,20 @@ TEST(PlumbCli, HelpIsCompleteExitsZeroAndStatesEveryDefault) {
     }
 }
 
+TEST(PlumbCli, MonitorRefusesAFolderThatIsNotThere) {
+    const fs::path logs = testing::freshTempDir("plumb_cli_monitor_dir");
+    const ProcessRun missing = plumb(logs, "monitor", {"--dir", "/nonexistent/plumb-out"});
+    if (contains(missing.err, "this build has no monitor")) GTEST_SKIP() << missing.err;
+    EXPECT_EQ(missing.exit_code, 1) << missing.err;
+    EXPECT_TRUE(contains(missing.err, "--dir /nonexistent/plumb-out: no such directory"))
+        << missing.err;
+    EXPECT_FALSE(contains(missing.out, "serving")) << missing.out;
+    { std::ofstream(logs / "a-file") << "x"; }
+    const ProcessRun file = plumb(logs, "monitor", {"--dir", (logs / "a-file").string()});
+    EXPECT_EQ(file.exit_code, 1) << file.err;
+    EXPECT_TRUE(contains(file.err, "not a directory")) << file.err;
+}
+
 TEST(PlumbCli, LogLevelBeforeOrAfterTheCommandSilencesInfoLines) {
     const fs::path logs = testing::freshTempDir("plumb_cli_log_level");
     const ProcessRun normal = plumb(logs, "fuse", smallFuse(logs / "normal"));

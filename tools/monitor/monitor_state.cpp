@@ -19,6 +19,11 @@ void describe(config::Schema& s, MonitorStateConfig& c) {
     s.field("coverage_cell_m", c.coverage_cell_m, "coverage grid cell edge", "m")
         .positive()
         .max(10.0);
+    s.field("closed_room_wall_fraction", c.closed_room_wall_fraction,
+            "coverage is measured against the layout's room only when this fraction of its "
+            "outline lies on walls; else the room's coverage is unknown")
+        .min(0.0)
+        .max(1.0);
     s.field("device_stale_after_s", c.device_stale_after_s,
             "a heartbeat older than this marks the device stale", "s")
         .positive();
@@ -439,8 +444,12 @@ json MonitorState::buildJsonLocked() const {
 
     CoverageConfig cc;
     cc.cell_m = config_.coverage_cell_m;
+    // Against the room only when the layout has closed it with walls: an outline that is the
+    // seen floor's own edge would call any scan complete.
+    const double wall_fraction = layout_ ? wallBoundedFraction(*layout_) : 0.0;
+    const bool room_closed = layout_ && wall_fraction >= config_.closed_room_wall_fraction;
     const CoverageGrid grid = computeCoverage(
-        all_points_V, layout_ ? layout_->room_polygon_L : std::vector<Eigen::Vector2d>{}, cc);
+        all_points_V, room_closed ? layout_->room_polygon_L : std::vector<Eigen::Vector2d>{}, cc);
     json gaps = json::array();
     for (size_t i = 0; i < grid.gaps.size() && i < static_cast<size_t>(config_.max_gap_cells);
          ++i) {
@@ -451,9 +460,12 @@ json MonitorState::buildJsonLocked() const {
                      {"width", grid.width},
                      {"height", grid.height},
                      {"region", grid.room_polygon ? "room_polygon" : "convex_hull"},
+                     {"room_closed", room_closed},
+                     {"wall_bounded_fraction", layout_ ? json(wall_fraction) : json(nullptr)},
                      {"cells_of_interest", grid.cells_of_interest},
                      {"covered_cells", grid.covered_of_interest},
                      {"fraction", grid.coverageFraction()},
+                     {"room_fraction", room_closed ? json(grid.coverageFraction()) : json(nullptr)},
                      {"num_gaps", grid.gaps.size()},
                      {"gaps", std::move(gaps)}};
     j["errors"] = errors_;

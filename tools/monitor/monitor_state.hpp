@@ -35,6 +35,10 @@ struct MonitorStateConfig {
     int sample_points_per_fragment = 4000;
     /// Coverage grid cell edge, metres.
     double coverage_cell_m = 0.25;
+    /// Coverage is measured against the layout's room only when at least this fraction of the
+    /// room outline lies on walls (a closed room); below it the outline is mostly the edge of the
+    /// seen floor, against which any scan is complete, and the room's coverage is unknown.
+    double closed_room_wall_fraction = kClosedRoomWallFraction;
     /// A heartbeat older than this marks the device stale, seconds.
     double device_stale_after_s = 3.0;
     /// Gap cells listed in the JSON at most (the counts are always complete).

@@ -5,6 +5,7 @@
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <memory>
 #include <string>
 #include <vector>
@@ -37,8 +38,9 @@ constexpr const char* kUsage =
     "The monitor only listens: it never acknowledges fragments or asks for retransmissions.\n"
     "\n"
     "sources (--dir may be combined with --live or --log: the backend's output beside the wire):\n"
-    "  --dir OUT       an output directory (default: none): fragments/ (fragment store),\n"
-    "                  pose_graph.json, layout.json, trajectory.txt; watched for changes\n"
+    "  --dir OUT       an output directory of plumb-backend or plumb reconstruct (default:\n"
+    "                  none; must exist): fragments/ (fragment store), pose_graph.json,\n"
+    "                  layout.json, trajectory.txt; watched for changes\n"
     "  --live          LCM heartbeats and fragments as they are sent\n"
     "  --lcm-url U     LCM URL for --live (default udpm://239.255.76.67:7667?ttl=0)\n"
     "  --log LOG       replay an LCM log (lcm-logger format; default: none)\n"
@@ -47,9 +49,11 @@ constexpr const char* kUsage =
     "options:\n"
     "  --port P        TCP port (default 8765; 0 picks a free one)\n"
     "  --bind A        address to listen on (default 127.0.0.1: this machine only)\n"
-    "  --token T       require T on every request (?token=T or 'Authorization: Bearer T');\n"
-    "                  also read from PLUMB_MONITOR_TOKEN (default: none). Required when\n"
-    "                  --bind is not loopback\n"
+    "  --token T       require T on every data request, /api/... (?token=T in the page's\n"
+    "                  address, or 'Authorization: Bearer T'); the page and its script carry\n"
+    "                  no data and load without it, then show 'token required'. Also read\n"
+    "                  from PLUMB_MONITOR_TOKEN (default: none). Required when --bind is not\n"
+    "                  loopback. The token is never printed\n"
     "  --config FILE   configuration (schema 'monitor', see plumb config doc monitor; default:\n"
     "                  none, every key at its default)\n"
     "  --set K=V       override one configuration key (repeatable)\n"
@@ -128,6 +132,15 @@ int runMonitor(const std::vector<std::string>& raw_args) {
                      "(use ttl=0 or memq://)\n",
                      cfg.lcm_url.c_str());
     }
+    if (!dir.empty()) {
+        std::error_code ec;
+        if (!std::filesystem::is_directory(dir, ec)) {
+            std::fprintf(
+                stderr, "plumb monitor: --dir %s: %s\n", dir.c_str(),
+                std::filesystem::exists(dir, ec) ? "not a directory" : "no such directory");
+            return kExitFailure;
+        }
+    }
     if (!monitor::isLoopbackAddress(cfg.server.bind) && cfg.server.token.empty()) {
         return usageError(kCommand,
                           "--bind " + cfg.server.bind +
@@ -170,6 +183,12 @@ int runMonitor(const std::vector<std::string>& raw_args) {
     if (!server.isOk()) return failure(kCommand, server.status());
     std::fprintf(stdout, "plumb monitor: serving %s\n", (*server)->url().c_str());
     std::fflush(stdout);
+    if (!cfg.server.token.empty()) {
+        std::fprintf(stderr,
+                     "plumb monitor: open %s?token=<token> (the token given with --token or "
+                     "PLUMB_MONITOR_TOKEN)\n",
+                     (*server)->url().c_str());
+    }
 
     int signal_number = 0;
     sigwait(&signals, &signal_number);

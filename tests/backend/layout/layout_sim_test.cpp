@@ -8,6 +8,8 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <fstream>
+#include <iterator>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <numbers>
@@ -169,7 +171,44 @@ TEST_P(SimLayout, GroundTruthPosesGiveTheRoom) {
     ASSERT_TRUE(writeFloorplanSvg(dir / "floorplan.svg", est->layout,
                                   fragmentOutlines(room.fragments, room.T_W_F, est->layout))
                     .isOk());
-    EXPECT_GT(std::filesystem::file_size(dir / "floorplan.svg"), 500u);
+    // A loop round the whole room closes it with walls: the outline lies on them, the plan
+    // warns of nothing and draws every fragment's outline.
+    EXPECT_GE(wallBoundedFraction(est->layout), kClosedRoomWallFraction);
+    std::ifstream in(dir / "floorplan.svg");
+    const std::string svg((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    EXPECT_EQ(svg.find("partial scan"), std::string::npos);
+    size_t outlines = 0;
+    const size_t group = svg.find("<g id=\"fragments\"");
+    ASSERT_NE(group, std::string::npos);
+    for (size_t at = svg.find("<polygon", group); at < svg.find("</g>", group);
+         at = svg.find("<polygon", at + 1)) {
+        ++outlines;
+    }
+    EXPECT_EQ(outlines, room.fragments.size());
+}
+
+TEST(Floorplan, APartialScanIsSaidAndItsInferredOutlineDashed) {
+    // Two of four walls seen: half the outline is the seen floor's edge.
+    Layout room = makeRoomLayout({{0, 0}, {4, 0}, {4, 3}, {0, 3}}, 2.5).value();
+    const std::string whole = floorplanSvg(room);
+    EXPECT_EQ(whole.find("partial scan"), std::string::npos);
+    EXPECT_EQ(whole.find("class=\"inferred\""), std::string::npos);
+    room.planes.erase(room.planes.begin() + 4, room.planes.end());
+    room.ceiling_height_m = 0.0;
+    const std::string partial = floorplanSvg(room);
+    EXPECT_NE(partial.find("partial scan: 50 % of the outline"), std::string::npos) << partial;
+    size_t inferred = 0, seen = 0;
+    for (size_t at = partial.find("class=\"inferred\""); at != std::string::npos;
+         at = partial.find("class=\"inferred\"", at + 1)) {
+        ++inferred;
+    }
+    for (size_t at = partial.find("class=\"seen\""); at != std::string::npos;
+         at = partial.find("class=\"seen\"", at + 1)) {
+        ++seen;
+    }
+    EXPECT_EQ(seen, 2u);
+    EXPECT_EQ(inferred, 2u);
+    EXPECT_EQ(partial.find("ceiling"), std::string::npos);  // an unseen ceiling has no height
 }
 
 TEST_P(SimLayout, PerturbedPosesStillGiveTheRoom) {

@@ -120,7 +120,7 @@ try {
     document.querySelectorAll("#map polygon.fragment-outline").length >= n &&
     document.querySelectorAll("#map line.edge.odometry").length >= n - 1 &&
     document.querySelector("#map polygon.room") !== null &&
-    document.getElementById("connection").textContent === "live",
+    /^replay/.test(document.getElementById("connection").textContent),
     FRAGMENTS, { timeout: 120000, polling: 100 });
   const before = await page.locator("#map line.edge.loop").count();
   if (before !== 0) fail("loop edges before the pose graph was written: " + before);
@@ -156,6 +156,18 @@ try {
   const loopColours = await page.evaluate(() =>
     [...document.querySelectorAll("#map line.edge.loop")].map((e) => e.getAttribute("stroke")));
   if (!loopColours.some((c) => c.startsWith("hsl(108"))) fail("loop edge colours " + loopColours.join(", "));
+
+  // A replayed log is not "live": the badge names what is shown.
+  const badge = await page.locator("#connection").textContent();
+  if (badge !== "replaying" && badge !== "replay finished") fail("connection badge of a replay reads '" + badge + "'");
+
+  // The page without the token loads (it carries no data) but says why it shows nothing.
+  const bare = await browser.newPage();
+  await bare.goto(url.replace("?token=" + TOKEN, ""));
+  await bare.waitForFunction(() => document.getElementById("connection").textContent.startsWith("token required"),
+                             null, { timeout: 30000, polling: 100 });
+  if (await bare.locator("#fragment-list tr.fragment").count() !== 0) fail("the page without the token shows fragments");
+  await bare.close();
 
   const shot = path.join(work, "monitor.png");
   await page.screenshot({ path: shot, fullPage: true });

@@ -83,11 +83,20 @@
     clear(cov);
     const c = s.coverage;
     cov.className = "";
-    cov.append(dl([
-      ["covered", c.cells_of_interest ? (100 * c.fraction).toFixed(1) + " %" : "—"],
-      ["gaps", c.num_gaps + " cells of " + c.cell_m.toFixed(2) + " m"],
+    // The room's coverage is known only once the layout has closed the room with walls; before
+    // that the fraction is of the hull of what was seen, which says nothing about the rest.
+    let covered = "—";
+    if (c.cells_of_interest && c.room_closed) covered = (100 * c.room_fraction).toFixed(1) + " % of the room";
+    else if (c.cells_of_interest) covered = "unknown: room not closed";
+    const rows = [
+      ["covered", covered, c.room_closed ? "" : "badge warn"],
+      ["gaps", c.num_gaps + " cells of " + c.cell_m.toFixed(2) + " m" + (c.room_closed ? "" : " (inside the seen area)")],
       ["region", c.region === "room_polygon" ? "room (layout)" : "hull of points"],
-    ]));
+    ];
+    if (c.wall_bounded_fraction !== null && c.wall_bounded_fraction !== undefined) {
+      rows.push(["outline on walls", (100 * c.wall_bounded_fraction).toFixed(0) + " %"]);
+    }
+    cov.append(dl(rows));
     const lay = $("layout");
     clear(lay);
     if (s.layout) {
@@ -96,7 +105,7 @@
       lay.append(dl([
         ["walls", String(walls.length)],
         ["snapped", String(walls.filter((w) => w.manhattan_snapped).length)],
-        ["ceiling", s.layout.ceiling_height_m.toFixed(2) + " m"],
+        ["ceiling", s.layout.ceiling_height_m === null ? "not seen" : s.layout.ceiling_height_m.toFixed(2) + " m"],
         ["polygon", s.layout.room_polygon_V.length + " corners"],
       ]));
     } else { lay.className = "muted"; lay.textContent = "no layout yet"; }
@@ -223,24 +232,44 @@
     document.body.dataset.version = s.version;
   }
 
-  function setConnection(ok, text) {
+  function setConnection(cls, text) {
     const c = $("connection");
     c.textContent = text;
-    c.className = "badge " + (ok ? "good" : "bad");
+    c.className = "badge " + cls;
   }
+
+  // What the connected page shows: "live" only for a live source; a folder under review or a
+  // replayed log says so.
+  function connectedBadge(s) {
+    if (s.source.mode === "live") return ["good", "live"];
+    if (s.source.replay && s.source.replay.finished) return ["info", "replay finished"];
+    if (s.source.mode === "replay") return ["good", "replaying"];
+    return ["info", "reviewing folder"];
+  }
+
+  const refusal = (status) =>
+    status === 401 ? (token ? "wrong token" : "token required: add ?token=… to the address") : "HTTP " + status;
 
   async function poll() {
     try {
       const r = await fetch(withToken("api/state"));
-      if (r.ok) render(await r.json());
-      else setConnection(false, "HTTP " + r.status);
-    } catch (err) { setConnection(false, "offline"); }
+      if (r.ok) { const s = await r.json(); setConnection(...connectedBadge(s)); render(s); }
+      else setConnection("bad", refusal(r.status));
+    } catch (err) { setConnection("bad", "offline"); }
   }
 
   function connect() {
     const es = new EventSource(withToken("api/events"));
-    es.addEventListener("state", (ev) => { setConnection(true, "live"); render(JSON.parse(ev.data)); });
-    es.onerror = () => { setConnection(false, "reconnecting"); };
+    es.addEventListener("state", (ev) => { const s = JSON.parse(ev.data); setConnection(...connectedBadge(s)); render(s); });
+    // An event stream cannot tell why it failed: ask the server, so that a refused token reads
+    // as such and not as a connection that keeps retrying.
+    es.onerror = async () => {
+      try {
+        const r = await fetch(withToken("api/health"));
+        if (r.status === 401) { es.close(); setConnection("bad", refusal(401)); return; }
+        setConnection("bad", "reconnecting");
+      } catch (err) { setConnection("bad", "offline, reconnecting"); }
+    };
   }
 
   poll();
