@@ -271,6 +271,20 @@ TEST(PlumbCli, MonitorRefusesAFolderThatIsNotThere) {
     EXPECT_TRUE(contains(file.err, "not a directory")) << file.err;
 }
 
+TEST(PlumbCli, MonitorRefusesAnLcmUrlWithARepeatedOption) {
+    // LCM keeps the last of a repeated option: "ttl=0&ttl=255" would listen as a ttl=255 URL
+    // while reading as an on-host one. Refused before anything is served, as by the device and
+    // the backend.
+    const fs::path logs = testing::freshTempDir("plumb_cli_monitor_url");
+    const ProcessRun r =
+        plumb(logs, "monitor",
+              {"--live", "--port", "0", "--lcm-url", "udpm://239.255.76.67:7807?ttl=0&ttl=255"});
+    if (contains(r.err, "this build has no monitor")) GTEST_SKIP() << r.err;
+    EXPECT_EQ(r.exit_code, 2) << r.err;
+    EXPECT_TRUE(contains(r.err, "option 'ttl' is given more than once")) << r.err;
+    EXPECT_FALSE(contains(r.out, "serving")) << r.out;
+}
+
 TEST(PlumbCli, LogLevelBeforeOrAfterTheCommandSilencesInfoLines) {
     const fs::path logs = testing::freshTempDir("plumb_cli_log_level");
     const ProcessRun normal = plumb(logs, "fuse", smallFuse(logs / "normal"));

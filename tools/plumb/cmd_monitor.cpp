@@ -16,6 +16,7 @@
 
 #if defined(PLUMB_HAVE_MONITOR)
 #include "messages/lcm_transport.hpp"
+#include "messages/lcm_url.hpp"
 #include "tools/monitor/monitor_config.hpp"
 #include "tools/monitor/monitor_state.hpp"
 #include "tools/monitor/server.hpp"
@@ -125,6 +126,13 @@ int runMonitor(const std::vector<std::string>& raw_args) {
     if (live && !log.empty()) return usageError(kCommand, "--live and --log exclude each other");
     if (!live && log.empty() && dir.empty()) {
         return usageError(kCommand, "name a source: --dir OUT, --live or --log LOG");
+    }
+    // A URL LCM would read differently from what it says (a repeated option, an option without
+    // key or value) is refused, as plumb-device and plumb-backend refuse it. A monitor only
+    // listens, so a URL that could reach other machines is a warning, not an error.
+    if (live) {
+        if (Result<messages::LcmUrl> url = messages::parseLcmUrl(cfg.lcm_url); !url.isOk())
+            return usageError(kCommand, url.status().message());
     }
     if (live && !messages::keepsTrafficOnHost(cfg.lcm_url)) {
         std::fprintf(stderr,
