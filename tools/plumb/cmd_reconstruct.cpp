@@ -14,7 +14,6 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 #include <optional>
-#include <span>
 #include <string>
 #include <vector>
 
@@ -30,13 +29,13 @@
 #include "drivers/sim/scene.hpp"
 #include "drivers/sim/sim_source.hpp"
 #include "drivers/source.hpp"
-#include "messages/files.hpp"
 #include "tools/plumb/calibration_aligner.hpp"
 #include "tools/plumb/command.hpp"
 #include "tools/plumb/interrupt.hpp"
 #include "tools/plumb/output_folder.hpp"
 #include "tools/plumb/pose_lookup.hpp"
 #include "tools/plumb/reconstruct_fusion.hpp"
+#include "tools/plumb/run_record.hpp"
 
 namespace plumb::tools {
 
@@ -147,6 +146,8 @@ constexpr const char* kUsage =
     "command line, 130 interrupted (the work so far kept; see --resume).\n";
 
 constexpr const char* kCommand = "reconstruct";
+/// The run record's note that a run is --self-calibrate (which --resume does not continue).
+constexpr const char* kSelfCalibrateKey = "self_calibrate";
 
 struct Options {
     std::string source;
@@ -163,8 +164,6 @@ struct Options {
     int threads = 0;
     bool quiet = false;
     bool force = false;
-    /// --resume: continue the run interrupted in this folder.
-    std::filesystem::path resume;
 };
 
 std::string normaliseUri(const std::string& source) {
@@ -218,11 +217,8 @@ Status writeInterrupted(const std::filesystem::path& out, const FusionPass& pass
     m["fragments_stored"] = pass.fragmentsStored();
     m["trajectory"] = fmt::format("trajectory.txt: the odometry of the {} frames tracked so far",
                                   pass.tracked().size());
-    m["resume"] = "plumb reconstruct --resume " + out.string();
-    const std::string text = m.dump(2) + "\n";
-    return messages::writeFileAtomic(
-        out / "metrics.json",
-        std::span(reinterpret_cast<const uint8_t*>(text.data()), text.size()));
+    m["resume"] = resumeCommand(kCommand, out);
+    return writeTextFileAtomic(out / "metrics.json", m.dump(2) + "\n");
 }
 
 /// Fusion of `source` (opened from `uri` with `source_options`) into fragments, then the backend
@@ -460,118 +456,31 @@ std::optional<int> parseOptions(const std::vector<std::string>& args, Options* o
     return std::nullopt;
 }
 
-/// `--resume DIR [--quiet] [--threads N]`, into `*o` (resume, quiet, threads).
-std::optional<int> parseResume(const std::vector<std::string>& args, Options* o) {
-    for (size_t i = 0; i < args.size(); ++i) {
-        const std::string& a = args[i];
-        if (a == "--resume" && i + 1 < args.size() && o->resume.empty()) {
-            o->resume = args[++i];
-        } else if (a == "--quiet") {
-            o->quiet = true;
-        } else if (a == "--threads" && i + 1 < args.size()) {
-            if (!parseNumber(args[++i], &o->threads) || o->threads < 1)
-                return usageError(kCommand, "--threads needs a positive integer");
-        } else if (a == "-h" || a == "--help") {
-            std::cout << kUsage;
-            return kExitOk;
-        } else {
-            return usageError(kCommand,
-                              "--resume DIR takes only --quiet and --threads besides (the "
-                              "rest is the interrupted run's); not " +
-                                  a);
-        }
-    }
-    if (o->resume.empty()) return usageError(kCommand, "--resume needs a folder");
-    return std::nullopt;
-}
-
-/// What --resume needs of a run: its command line, working folder and configuration, in
-/// DIR/resume/run.json (written before any work, removed when the run completes).
-struct RunRecord {
-    std::vector<std::string> arguments;
-    std::filesystem::path cwd;
-    std::string config_toml;
-    bool self_calibrate = false;
-};
-
-Status writeRunRecord(const std::filesystem::path& out, const RunRecord& r) {
-    std::error_code ec;
-    std::filesystem::create_directories(out / "resume", ec);
-    if (ec)
-        return ioError(
-            fmt::format("{}: cannot create: {}", (out / "resume").string(), ec.message()));
-    const nlohmann::json j = {{"format", "plumb-reconstruct-run-1"},
-                              {"arguments", r.arguments},
-                              {"cwd", r.cwd.string()},
-                              {"config_toml", r.config_toml},
-                              {"self_calibrate", r.self_calibrate}};
-    const std::string text = j.dump(2) + "\n";
-    return messages::writeFileAtomic(
-        out / "resume" / "run.json",
-        std::span(reinterpret_cast<const uint8_t*>(text.data()), text.size()));
-}
-
-Result<RunRecord> readRunRecord(const std::filesystem::path& dir) {
-    const std::filesystem::path path = dir / "resume" / "run.json";
-    std::error_code ec;
-    if (!std::filesystem::exists(path, ec)) {
-        return notFound(
-            fmt::format("--resume {}: no interrupted run there (no {}; a run that "
-                        "completed keeps none)",
-                        dir.string(), path.string()));
-    }
-    Result<std::vector<uint8_t>> bytes = messages::readFile(path, int64_t{1} << 24);
-    if (!bytes.isOk()) return bytes.status();
-    const nlohmann::json j = nlohmann::json::parse(bytes->begin(), bytes->end(), nullptr, false);
-    RunRecord r;
-    if (j.is_discarded() || j.value("format", "") != "plumb-reconstruct-run-1" ||
-        !j.contains("arguments") || !j["arguments"].is_array()) {
-        return corrupt(path.string() + ": not a plumb run record");
-    }
-    try {
-        r.arguments = j["arguments"].get<std::vector<std::string>>();
-        r.cwd = j.at("cwd").get<std::string>();
-        r.config_toml = j.at("config_toml").get<std::string>();
-        r.self_calibrate = j.at("self_calibrate").get<bool>();
-    } catch (const nlohmann::json::exception& e) {
-        return corrupt(path.string() + ": " + e.what());
-    }
-    return r;
-}
-
 }  // namespace
 
 int runReconstruct(const std::vector<std::string>& arguments) {
     std::vector<std::string> args = arguments;
     // --resume DIR: the interrupted run's own command line, in its working folder.
-    Options resumed;
+    ResumeArguments resumed;
     std::optional<RunRecord> record;
     if (std::find(args.begin(), args.end(), "--resume") != args.end()) {
-        if (std::optional<int> rc = parseResume(args, &resumed)) return *rc;
-        resumed.resume = std::filesystem::absolute(resumed.resume);
-        Result<RunRecord> r = readRunRecord(resumed.resume);
-        if (!r.isOk()) return usageError(kCommand, r.status().message());
-        if (r->self_calibrate) {
+        RunRecord r;
+        if (std::optional<int> rc = beginResume(kCommand, kUsage, args, &resumed, &r)) return *rc;
+        if (const auto sc = r.details.find(kSelfCalibrateKey);
+            sc != r.details.end() && *sc == true) {
             return usageError(kCommand,
                               "--resume does not continue a --self-calibrate run; run it "
                               "again (with --force)");
         }
-        std::error_code ec;
-        std::filesystem::current_path(r->cwd, ec);
-        if (ec) {
-            return usageError(kCommand, fmt::format("--resume: cannot enter {}, the interrupted "
-                                                    "run's working folder: {}",
-                                                    r->cwd.string(), ec.message()));
-        }
-        args = r->arguments;
-        record = std::move(*r);
+        args = r.arguments;
+        record = std::move(r);
     }
     Result<config::ConfigArgs> config_args = config::extractConfigArgs(args);
     if (!config_args.isOk()) return usageError(kCommand, config_args.status().message());
     Options o;
     if (std::optional<int> rc = parseOptions(args, &o)) return *rc;
     if (record) {
-        o.out = resumed.resume;
+        o.out = resumed.dir;
         o.quiet = o.quiet || resumed.quiet;
         if (resumed.threads > 0) o.threads = resumed.threads;
     }
@@ -606,8 +515,11 @@ int runReconstruct(const std::vector<std::string>& arguments) {
     if (!record) {
         if (Status s = prepareOutputFolder(o.out, o.force); !s.isOk())
             return usageError(kCommand, s.message());
-        RunRecord r{arguments, std::filesystem::current_path(), config_toml, o.self_calibrate};
-        if (Status s = writeRunRecord(o.out, r); !s.isOk()) return failure(kCommand, s);
+        RunRecord r{arguments,
+                    std::filesystem::current_path(),
+                    config_toml,
+                    {{kSelfCalibrateKey, o.self_calibrate}}};
+        if (Status s = writeRunRecord(o.out, kCommand, r); !s.isOk()) return failure(kCommand, s);
     }
     InterruptScope interrupt("plumb reconstruct");
     SourceOptions first_options = o.source_options;
@@ -644,12 +556,11 @@ int runReconstruct(const std::vector<std::string>& arguments) {
             "plumb reconstruct: interrupted {}; the work so far is kept in {}{}\n",
             result.status().message(), o.out.string(),
             o.self_calibrate ? " (a --self-calibrate run cannot be resumed)"
-                             : "; continue with: plumb reconstruct --resume " + o.out.string());
+                             : "; continue with: " + resumeCommand(kCommand, o.out));
         return kExitInterrupted;
     }
     if (!result.isOk()) return failure(kCommand, result.status());
-    std::error_code ec;
-    std::filesystem::remove_all(o.out / "resume", ec);  // complete: nothing left to resume
+    removeResumeFolder(o.out);  // complete: nothing left to resume
     if (o.self_calibrate) {
         const nlohmann::json& sc = result->metrics["self_calibration"];
         const nlohmann::json before = sc.value("before", nlohmann::json::object());
