@@ -37,7 +37,12 @@ void describe(config::Schema& s, GlobalConfig& c) {
         .min(0.0);
     s.field("pair_weight", c.pair_weight,
             "w2: weight of the mean pairwise-prior term E_pair relative to the mean layout term "
-            "(lambda2 = w2 N_L / N_P)")
+            "(lambda2 = w2 N_L / N_P), for the priors of loops and of odometry edges registered "
+            "by ICP")
+        .min(0.0);
+    s.field("tracked_pair_weight", c.tracked_pair_weight,
+            "w2 of the pairwise priors whose information is the device tracker's (odometry edges "
+            "within one tracking segment)")
         .min(0.0);
     s.field("use_layout", c.use_layout,
             "use the layout term E_layout (false: the Choi-style baseline E_frag + E_pair)");
@@ -539,7 +544,7 @@ Matrix6d normalisedInformation(const PairPrior& prior) {
 struct Problem {
     const std::vector<GlobalCloud>* clouds = nullptr;
     const std::vector<PairPrior>* priors = nullptr;
-    std::vector<Matrix6d> info_hat;  // per prior
+    std::vector<Matrix6d> info_hat;  // per prior: its w2 times Λ / n
     const PreparedLayout* layout = nullptr;
     const GlobalConfig* config = nullptr;
 };
@@ -635,7 +640,8 @@ EnergyTerms evaluate(const Problem& pb, const Correspondences& c,
     e.num_pair = n_prior_groups;
     const double s_layout = e.num_layout > 0 ? 1.0 / static_cast<double>(e.num_layout) : 0.0;
     const double s_frag = e.num_frag > 0 ? cfg.frag_weight / static_cast<double>(e.num_frag) : 0.0;
-    const double s_pair = e.num_pair > 0 ? cfg.pair_weight / static_cast<double>(e.num_pair) : 0.0;
+    // Each prior's w2 is in its Λ̂ (makeProblem).
+    const double s_pair = e.num_pair > 0 ? 1.0 / static_cast<double>(e.num_pair) : 0.0;
     for (size_t k = 0; k < groups.size(); ++k) {
         const double s = k < n_layout_groups                   ? s_layout
                          : k < n_layout_groups + n_pair_groups ? s_frag
@@ -772,7 +778,10 @@ Result<Problem> makeProblem(const std::vector<GlobalCloud>& clouds,
     pb.priors = &priors;
     pb.layout = prepared->has_value() ? &**prepared : nullptr;
     pb.config = &config;
-    for (const PairPrior& p : priors) pb.info_hat.push_back(normalisedInformation(p));
+    for (const PairPrior& p : priors) {
+        const double w2 = p.tracked ? config.tracked_pair_weight : config.pair_weight;
+        pb.info_hat.push_back(w2 * normalisedInformation(p));
+    }
     return pb;
 }
 

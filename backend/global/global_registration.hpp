@@ -20,11 +20,12 @@
 //  - E_pair (Eq. 10): the pairwise-transform prior of the pose graph's kept edges,
 //    e = Log(T_i_j^-1 T_i^-1 T_j), cost e^T Λ̂ e with Λ̂ = Λ / n, n the edge's correspondence
 //    count (PairPrior::count; trace(Λ_translation)/3 for Choi's Λ = Σ G^T G), so e^T Λ̂ e is the
-//    mean squared displacement of the edge's points, in m², like a point residual.
+//    mean squared displacement of the edge's points, in m², like a point residual. A prior whose
+//    information is the device tracker's has a weight of its own (tracked_pair_weight).
 //
 // Weights ("λ1, λ2 depending on the numbers of points and fragment pairs", paper §3.3; reference
 // §5.5): every term is normalised by its count,
-//   E = (1/N_L) Σ ρ(r_L) + w1 (1/N_F) Σ ρ(r_F) + w2 (1/N_P) Σ e^T Λ̂ e,
+//   E = (1/N_L) Σ ρ(r_L) + w1 (1/N_F) Σ ρ(r_F) + (1/N_P) Σ w2 e^T Λ̂ e,
 // i.e. λ1 = w1 N_L / N_F, λ2 = w2 N_L / N_P up to the common factor 1/N_L; ρ is the Huber
 // kernel (squared below huber_delta_m). A term without correspondences drops out.
 //
@@ -64,6 +65,9 @@ struct PairPrior {
     /// frame's pixels) gives its count here, so that E_pair weighs it against the other priors
     /// as the pose graph does.
     double count = 0.0;
+    /// The information is the device tracker's (an odometry edge within one tracking segment):
+    /// the prior is weighed by GlobalConfig::tracked_pair_weight instead of pair_weight.
+    bool tracked = false;
 };
 
 struct GlobalConfig {
@@ -82,8 +86,16 @@ struct GlobalConfig {
     // new information.
     /// w1: weight of the mean fragment-to-fragment term relative to the mean layout term.
     double frag_weight = 0.5;
-    /// w2: weight of the mean pairwise-prior term relative to the mean layout term.
+    /// w2: weight of the mean pairwise-prior term relative to the mean layout term, for the
+    /// priors of loops and of odometry edges registered by ICP.
     double pair_weight = 0.01;
+    // A tracked odometry prior is as certain as the tracker was, direction by direction (with
+    // colour, about a millimetre where the tracking observed the motion), while a loop's prior
+    // can be wrong (corridors keep a few wrong guided loops): the two get their own w2. With one
+    // w2 for both, 0.01 let the coarse E_frag move fragments off their tracked odometry, and 0.1
+    // held the wrong loops too (BENCHMARKS.md, "The pairwise prior's weight").
+    /// w2 of the priors whose information is the device tracker's (PairPrior::tracked).
+    double tracked_pair_weight = 1.0;
     /// Use E_layout (false = the Choi-style baseline: E_frag + E_pair only).
     bool use_layout = true;
     /// Huber threshold of the point residuals (E_layout, E_frag), metres.
@@ -130,7 +142,7 @@ void describe(config::Schema& s, GlobalConfig& c);
 struct EnergyTerms {
     double layout = 0.0;    ///< (1/N_L) Σ ρ(r_L), m²
     double frag = 0.0;      ///< w1 (1/N_F) Σ ρ(r_F), m²
-    double pair = 0.0;      ///< w2 (1/N_P) Σ e^T Λ̂ e, m²
+    double pair = 0.0;      ///< (1/N_P) Σ w2 e^T Λ̂ e (each prior's w2), m²
     double total = 0.0;     ///< layout + frag + pair
     size_t num_layout = 0;  ///< N_L, fragment-layout correspondences
     size_t num_frag = 0;    ///< N_F, fragment-fragment correspondences
@@ -156,7 +168,8 @@ struct GlobalResult {
     int rounds = 0;
     bool converged = false;     ///< the last round ended on the step tolerance
     size_t num_frag_pairs = 0;  ///< fragment pairs with E_frag correspondences (last round)
-    /// The paper's λ1 = w1 N_L / N_F and λ2 = w2 N_L / N_P (0 when a count is 0), last round.
+    /// The paper's λ1 = w1 N_L / N_F and λ2 = w2 N_L / N_P (0 when a count is 0), last round;
+    /// λ2 with pair_weight, the w2 of the priors that are not the tracker's.
     double lambda1 = 0.0;
     double lambda2 = 0.0;
 };

@@ -70,9 +70,11 @@ std::vector<global::PairPrior> pairPriors(const posegraph::PoseGraph& graph) {
     std::vector<global::PairPrior> priors;
     for (const auto& e : graph.edges) {
         if (!e.kept) continue;
-        const bool choi = e.information_source == posegraph::PoseGraphEdge::Information::kChoi;
+        using Information = posegraph::PoseGraphEdge::Information;
+        const bool choi = e.information_source == Information::kChoi;
         priors.push_back({e.source, e.target, e.T_source_target, e.information,
-                          choi ? 0.0 : e.num_correspondences});
+                          choi ? 0.0 : e.num_correspondences,
+                          e.information_source == Information::kTracker});
     }
     return priors;
 }

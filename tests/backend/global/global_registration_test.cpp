@@ -25,6 +25,12 @@ const SimFragments& livingRoom() {
     return sim;
 }
 
+std::vector<GlobalCloud> clouds(const std::vector<Fragment>& fragments, const GlobalConfig& c) {
+    Result<std::vector<GlobalCloud>> r = prepareClouds(fragments, c);
+    EXPECT_TRUE(r.isOk()) << r.status().toString();
+    return r.isOk() ? std::move(r).value() : std::vector<GlobalCloud>{};
+}
+
 const std::vector<GlobalCloud>& livingRoomClouds() {
     static const std::vector<GlobalCloud> clouds = [] {
         Result<std::vector<GlobalCloud>> c = prepareClouds(livingRoom().fragments, GlobalConfig{});
@@ -296,6 +302,36 @@ TEST(GlobalRegistration, WithoutLayoutItStillAlignsFragments) {
     EXPECT_LT(rec_layout, rec1);
     EXPECT_LT(testing::cameraPositionRmse(sim, with->T_W_F),
               testing::cameraPositionRmse(sim, r->T_W_F));
+}
+
+TEST(GlobalRegistration, TrackedPriorsAreWeighedByTheirOwnWeight) {
+    // Two fragments without points, held only by two priors on the same pair that disagree: a
+    // tracked odometry prior puts fragment 1 at x = 0.1 m, a loop prior at x = 0. E_pair is
+    // (1/2) (w_t |x - 0.1|^2 + w_l |x|^2), minimal at x = 0.1 w_t / (w_t + w_l).
+    const std::vector<Fragment> empty(2);
+    const std::vector<Eigen::Isometry3d> T(2, Eigen::Isometry3d::Identity());
+    PairPrior tracked;
+    tracked.i = 0;
+    tracked.j = 1;
+    tracked.T_i_j.translation() = Eigen::Vector3d(0.1, 0.0, 0.0);
+    tracked.count = 1.0;
+    tracked.tracked = true;
+    PairPrior loop = tracked;
+    loop.T_i_j = Eigen::Isometry3d::Identity();
+    loop.tracked = false;
+    for (const double w_t : {0.01, 1.0}) {
+        GlobalConfig cfg;
+        cfg.pair_weight = 0.01;
+        cfg.tracked_pair_weight = w_t;
+        Result<EnergyTerms> e = evaluateEnergy(clouds(empty, cfg), T, {tracked, loop}, {}, cfg);
+        ASSERT_TRUE(e.isOk()) << e.status().toString();
+        EXPECT_NEAR(e->pair, 0.5 * w_t * 0.01, 1e-12) << "only the tracked prior is off at x = 0";
+        Result<GlobalResult> r = refinePoses(empty, T, {tracked, loop}, {}, cfg);
+        ASSERT_TRUE(r.isOk()) << r.status().toString();
+        const double x = 0.1 * w_t / (w_t + cfg.pair_weight);
+        EXPECT_NEAR(r->T_W_F[1].translation().x(), x, 1e-6) << "w_t " << w_t;
+        EXPECT_NEAR(r->T_W_F[1].translation().tail<2>().norm(), 0.0, 1e-9);
+    }
 }
 
 TEST(GlobalRegistration, BadInputGivesSpecificErrors) {
