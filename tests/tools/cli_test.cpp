@@ -240,9 +240,12 @@ TEST(PlumbCli, HelpIsCompleteExitsZeroAndStatesEveryDefault) {
     }
 
     // Every option that takes a value says what it is when not given.
-    for (const char* command :
-         {"fuse", "sim", "demo", "monitor", "replay", "eval traj", "eval recon", "eval layout"}) {
-        const ProcessRun help = plumb(logs, std::string(command) + " --help");
+    std::vector<std::string> commands = {"fuse",   "sim",       "demo",       "monitor",
+                                         "replay", "eval traj", "eval recon", "eval layout"};
+    if (hasBackend(logs)) commands.emplace_back("reconstruct");
+    if (contains(top.out, "  calibrate ")) commands.emplace_back("calibrate");
+    for (const std::string& command : commands) {
+        const ProcessRun help = plumb(logs, command + " --help");
         ASSERT_EQ(help.exit_code, 0) << command << ": " << help.err;
         EXPECT_TRUE(contains(help.out, "exit status")) << command;
         const std::vector<std::string> blocks = optionBlocks(help.out);
