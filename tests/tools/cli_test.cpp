@@ -46,6 +46,12 @@ std::vector<std::string> smallFuse(const fs::path& out) {
             "--noise",         "parametric", "--out", out.string()};
 }
 
+/// A small simulated scan for `plumb reconstruct` (one fragment, no baseline).
+std::vector<std::string> smallReconstruct(const fs::path& out) {
+    return {"sim:living_room", "--frames",      "20",    "--intrinsics", "ci", "--noise",
+            "parametric",      "--no-baseline", "--out", out.string()};
+}
+
 /// True when this build has the backend commands (reconstruct, replay).
 bool hasBackend(const fs::path& log_dir) {
     return contains(plumb(log_dir, "--help").out, "  reconstruct ");
@@ -105,6 +111,24 @@ TEST(PlumbCli, BadConfigurationIntrinsicsOrSceneExitTwoBeforeAnyWork) {
             plumb(logs, "replay",
                   {(logs / "scan.lcmlog").string(), "--out", out.string(), "--set", "nosuchkey=1"}),
             "replay", "unknown key 'nosuchkey'", out);
+    }
+
+    if (hasBackend(logs)) {  // the same checks in the command with the whole pipeline behind it
+        args = smallReconstruct(out);
+        args.insert(args.end(), {"--set", "nosuchkey=1"});
+        expectUsageError(plumb(logs, "reconstruct", args), "reconstruct", "unknown key 'nosuchkey'",
+                         out);
+        args = smallReconstruct(out);
+        args.insert(args.end(), {"--set", "fusion.tsdf.voxel_size_m=abc"});
+        expectUsageError(plumb(logs, "reconstruct", args), "reconstruct",
+                         "'abc' is not a valid float value", out);
+        args = smallReconstruct(out);
+        args[4] = "no-such-camera";  // --intrinsics
+        expectUsageError(plumb(logs, "reconstruct", args), "reconstruct", "no-such-camera", out);
+        args = smallReconstruct(out);
+        args[0] = "sim:no_such_room";
+        expectUsageError(plumb(logs, "reconstruct", args), "reconstruct",
+                         "no built-in scene 'no_such_room'", out);
     }
 
     const ProcessRun level = plumb(logs, "--log-level loud fuse", smallFuse(out));
