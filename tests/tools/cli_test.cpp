@@ -339,6 +339,15 @@ TEST(PlumbCli, LogLevelBeforeOrAfterTheCommandSilencesInfoLines) {
     // The same for a command with its own logger and a whole pipeline behind it (in builds with
     // the backend).
     if (hasBackend(logs)) {
+        const ProcessRun loud = plumb(logs, "reconstruct", smallReconstruct(logs / "r_normal"));
+        ASSERT_EQ(loud.exit_code, 0) << loud.err;
+        EXPECT_TRUE(contains(loud.err, "plumb reconstruct info: ")) << loud.err;
+        const ProcessRun quiet =
+            plumb(logs, "--log-level error reconstruct", smallReconstruct(logs / "r_before"));
+        ASSERT_EQ(quiet.exit_code, 0) << quiet.err;
+        EXPECT_EQ(quiet.err, "") << "no info lines, no progress";
+        EXPECT_EQ(slurp(logs / "r_normal/trajectory.txt"), slurp(logs / "r_before/trajectory.txt"));
+
         const ProcessRun reconstruct =
             plumb(logs, "reconstruct",
                   {"sim:living_room", "--frames", "40", "--intrinsics", "ci", "--noise",
