@@ -666,4 +666,74 @@ TEST(StreamingProcesses, LcmLoggerRecordingReplaysToTheSameStoreTwice) {
     fs::remove_all(dir);
 }
 
+// Runs plumb-backend on the fragment store `fragments` into `out` (with `extra` arguments);
+// returns the exit code and the output.
+std::pair<int, std::string> rebuild(const fs::path& fragments, const fs::path& out,
+                                    const std::vector<std::string>& extra = {}) {
+    std::vector<std::string> args = {PLUMB_BACKEND_EXE, "--fragments", fragments.string(), "--out",
+                                     out.string()};
+    args.insert(args.end(), extra.begin(), extra.end());
+    const fs::path text = out.string() + ".log";
+    const pid_t pid = spawn(args, text);
+    const int rc = waitExit(pid, 60s);
+    return {rc, readText(text)};
+}
+
+// Issue 32, item 4, as processes: sessions are explicit. A live backend finishing --session 111
+// also stores session 222, which it was not asked to finish, lists both and warns about 222;
+// the rebuild from that store reconstructs the newest session, or the one --session names, and
+// names the other in a warning.
+TEST(StreamingProcesses, SessionsNotFinishedOrNotReconstructedAreNamedInAWarning) {
+    const fs::path dir = tempDir("session_choice");
+    auto backend_args = backendArgs(dir);
+    backend_args.insert(backend_args.end(), {"--session", "111"});
+    const pid_t backend = spawn(backend_args, dir / "backend.log");
+    ASSERT_GT(backend, 0);
+    std::this_thread::sleep_for(300ms);
+    // 222 first (one fragment), then 111 (two): the backend ends once 111 is complete.
+    for (const auto& [session, frames] : {std::pair{222, 10}, std::pair{111, 20}}) {
+        const std::string id = std::to_string(session);
+        auto args = deviceArgs(dir / id, frames);
+        args.insert(args.end(), {"--session-id", id});
+        const pid_t device = spawn(args, dir / (id + ".log"));
+        ASSERT_GT(device, 0);
+        EXPECT_EQ(waitExit(device, 100s), 0) << readText(dir / (id + ".log"));
+    }
+    const int backend_rc = waitExit(backend, 30s);
+    const std::string log = readText(dir / "backend.log");
+    EXPECT_EQ(backend_rc, 0) << log;
+    EXPECT_NE(log.find("plumb-backend info: session 111: 2 fragment(s) stored, complete"),
+              std::string::npos)
+        << log;
+    EXPECT_NE(log.find("plumb-backend warning: session 222: 1 fragment(s) stored; not waited "
+                       "for: not named by --session"),
+              std::string::npos)
+        << log;
+    const fs::path store = dir / "out" / "fragments";
+    ASSERT_EQ(countPlf(store), 3u) << log;
+
+    const auto [newest_rc, newest] = rebuild(store, dir / "newest");
+    EXPECT_EQ(newest_rc, 0) << newest;
+    EXPECT_NE(newest.find("plumb-backend warning: " + store.string() +
+                          " holds 2 sessions; reconstructing session 222 (1 fragment(s), the "
+                          "newest) and not 111 (2 fragment(s)); choose with --session ID"),
+              std::string::npos)
+        << newest;
+    const auto m_newest = nlohmann::json::parse(readText(dir / "newest" / "metrics.json"));
+    EXPECT_EQ(m_newest["fragments"], 1);
+    EXPECT_EQ(m_newest["frames"], 10);
+
+    const auto [named_rc, named] = rebuild(store, dir / "named", {"--session", "111"});
+    EXPECT_EQ(named_rc, 0) << named;
+    EXPECT_NE(named.find("plumb-backend warning: " + store.string() +
+                         " holds 2 sessions; reconstructing session 111 (2 fragment(s), named by "
+                         "--session) and not 222 (1 fragment(s))"),
+              std::string::npos)
+        << named;
+    const auto m_named = nlohmann::json::parse(readText(dir / "named" / "metrics.json"));
+    EXPECT_EQ(m_named["fragments"], 2);
+    EXPECT_EQ(m_named["frames"], 20);
+    fs::remove_all(dir);
+}
+
 }  // namespace
