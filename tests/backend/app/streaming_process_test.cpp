@@ -23,6 +23,7 @@
 #include <nlohmann/json.hpp>
 
 #include "messages/files.hpp"
+#include "messages/spool.hpp"
 
 extern char** environ;
 
@@ -733,6 +734,58 @@ TEST(StreamingProcesses, SessionsNotFinishedOrNotReconstructedAreNamedInAWarning
     const auto m_named = nlohmann::json::parse(readText(dir / "named" / "metrics.json"));
     EXPECT_EQ(m_named["fragments"], 2);
     EXPECT_EQ(m_named["frames"], 20);
+    fs::remove_all(dir);
+}
+
+// Issue 32, item 8, as processes: a fragment in the device spool that the backend cannot decode
+// (left by an earlier session 42) is rejected, moved to <spool>/quarantine beside its reason,
+// and the run exits 1 saying so; the next run on the same spool neither resends it nor fails.
+TEST(StreamingProcesses, RejectedFragmentIsQuarantinedAndNotResent) {
+    const fs::path dir = tempDir("quarantine");
+    fs::create_directories(dir / "spool");
+    const std::string name = plumb::messages::fragmentFileName(42, 0);
+    std::string junk;
+    while (junk.size() < 3000) junk += "not a plumb fragment\n";
+    const std::vector<uint8_t> junk_bytes(junk.begin(), junk.end());
+    writeBytes(dir / "spool" / name, junk_bytes);
+    auto backend_args = backendArgs(dir);
+    backend_args.insert(backend_args.end(), {"--session", "1001", "--session", "1002"});
+    const pid_t backend = spawn(backend_args, dir / "backend.log");
+    ASSERT_GT(backend, 0);
+    std::this_thread::sleep_for(300ms);
+    auto run = [&](const std::string& id) {
+        auto args = deviceArgs(dir, 10);
+        args.insert(args.end(), {"--session-id", id});
+        const pid_t device = spawn(args, dir / (id + ".log"));
+        EXPECT_GT(device, 0);
+        const int rc = waitExit(device, 100s);
+        return std::make_pair(rc, readText(dir / (id + ".log")));
+    };
+    const auto [first_rc, first] = run("1001");
+    const auto [second_rc, second] = run("1002");
+    const int backend_rc = waitExit(backend, 30s);
+    const std::string log = readText(dir / "backend.log");
+
+    const fs::path quarantine = dir / "spool" / "quarantine";
+    EXPECT_EQ(first_rc, 1) << first;
+    EXPECT_NE(first.find("1 fragment(s) were rejected for good by the backend and moved to " +
+                         quarantine.string()),
+              std::string::npos)
+        << first;
+    auto kept = plumb::messages::readFile(quarantine / name, 1 << 20);
+    ASSERT_TRUE(kept.isOk()) << kept.status().toString();
+    EXPECT_TRUE(*kept == junk_bytes);
+    EXPECT_NE(readText(quarantine / (name + ".reason")).find("rejected for good by the backend"),
+              std::string::npos);
+    EXPECT_EQ(countPlf(dir / "spool"), 0u);
+
+    EXPECT_EQ(second_rc, 0) << second;
+    EXPECT_EQ(second.find("of earlier runs found"), std::string::npos) << second;
+    EXPECT_EQ(backend_rc, 0) << log;
+    EXPECT_EQ(countOf(log, "fragment 0 of session 42 rejected"), 1u) << log;  // sent once only
+    const auto stored = readPlf(dir / "out" / "fragments");
+    EXPECT_EQ(stored.size(), 2u) << log;  // one of each run, none of session 42
+    EXPECT_EQ(stored.count(name), 0u);
     fs::remove_all(dir);
 }
 
