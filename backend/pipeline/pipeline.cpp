@@ -458,6 +458,8 @@ Result<PipelineResult> runPipeline(const PipelineInput& input, const PipelineCon
         PLUMB_RETURN_IF_ERROR(outputAndEvaluate(plan.dir, input, outcome, full_layout, &v));
         variants_json[plan.name] = toJson(v.evaluation);
         figures.top_views[plan.name] = topViewSvg(v.mesh, full_layout);
+        if (p == 0)
+            figures.model_views = renderModelViews(v.mesh, v.layout ? v.layout : full_layout);
         result.variants.push_back(std::move(v));
     }
 

@@ -1,6 +1,9 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "backend/report/report_html.hpp"
 
+#include "backend/report/mesh_render.hpp"
+#include "backend/report/png_encode.hpp"
+
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -188,6 +191,53 @@ std::string selfCalibrationSection(const nlohmann::json& metrics) {
 
 }  // namespace
 
+Eigen::Isometry3d reportUpFrame(const std::optional<Layout>& layout) {
+    if (layout) return layout->T_W_L.inverse();
+    // Camera convention: x right, y down, z forward. U = Rx(-90 deg) W maps -y to +z.
+    Eigen::Isometry3d T_U_W = Eigen::Isometry3d::Identity();
+    T_U_W.linear() = Eigen::AngleAxisd(-M_PI / 2.0, Eigen::Vector3d::UnitX()).toRotationMatrix();
+    return T_U_W;
+}
+
+std::vector<ModelView> renderModelViews(const TriangleMesh& mesh,
+                                        const std::optional<Layout>& layout, int size_px) {
+    std::vector<ModelView> views;
+    if (mesh.triangles.empty()) return views;
+    const Eigen::Isometry3d T_U_W = reportUpFrame(layout);
+    MeshRenderConfig c;
+    c.width_px = size_px;
+    c.height_px = size_px * 3 / 4;
+    c.cull_back_faces = true;  // TSDF surfaces face the free space: see in through near walls
+    if (layout && layout->ceiling_height_m > 0.5) {
+        c.cut_above_z_m = layout->ceiling_height_m - 0.25;
+    } else {
+        c.cut_top_fraction = 0.12;
+    }
+    // Look at the walls from the side they face: the area-weighted mean horizontal normal of the
+    // steep triangles (TSDF surfaces face the free space) points from the walls towards where the
+    // scan saw them from. A closed room has none; then any azimuth will do.
+    Eigen::Vector2d facing = Eigen::Vector2d::Zero();
+    for (const Eigen::Vector3i& t : mesh.triangles) {
+        const Eigen::Vector3d a = T_U_W * mesh.vertices[t[0]].cast<double>();
+        const Eigen::Vector3d b = T_U_W * mesh.vertices[t[1]].cast<double>();
+        const Eigen::Vector3d c3 = T_U_W * mesh.vertices[t[2]].cast<double>();
+        const Eigen::Vector3d n = (b - a).cross(c3 - a);  // |n| = 2 * area
+        if (std::abs(n.z()) < 0.5 * n.norm()) facing += n.head<2>();
+    }
+    const double azimuth_deg =
+        facing.norm() > 1e-9 ? std::atan2(facing.y(), facing.x()) * 180.0 / M_PI : -60.0;
+    c.projection = RenderProjection::kOrthographic;
+    c.elevation_deg = 55.0;
+    c.azimuth_deg = azimuth_deg - 20.0;
+    views.push_back({"oblique view from above (ceiling cut away)",
+                     pngDataUri(renderMesh(mesh, T_U_W, c).image)});
+    c.projection = RenderProjection::kPerspective;
+    c.elevation_deg = 30.0;
+    c.azimuth_deg = azimuth_deg + 25.0;
+    views.push_back({"perspective view", pngDataUri(renderMesh(mesh, T_U_W, c).image)});
+    return views;
+}
+
 std::string topViewSvg(const TriangleMesh& mesh, const std::optional<Layout>& layout, int size_px,
                        size_t max_points) {
     const Eigen::Isometry3d T_L_W =
@@ -261,6 +311,16 @@ std::string renderReportHtml(const nlohmann::json& metrics, const ReportFigures&
             for (const auto& n : v["notes"]) out << escape(n.get<std::string>()) << "; ";
             out << "</p>\n";
         }
+    }
+    if (!figures.model_views.empty()) {
+        out << "<h2 id=model>Model</h2><div class=row>\n";
+        for (const ModelView& v : figures.model_views) {
+            if (v.png_data_uri.empty()) continue;
+            out << "<figure><img class=model alt='" << escape(v.caption) << "' src='"
+                << v.png_data_uri << "'><figcaption>" << escape(v.caption)
+                << "</figcaption></figure>\n";
+        }
+        out << "</div>\n";
     }
     if (metrics.contains("self_calibration")) out << selfCalibrationSection(metrics);
     if (!figures.floorplan_svg.empty())

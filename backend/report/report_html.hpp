@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 #pragma once
 
-// report.html: one self-contained page (inline SVG and CSS, nothing fetched) that puts the full
+// report.html: one self-contained page (inline SVG, CSS and base64 PNG pictures rendered by plumb's
+// own rasteriser, nothing fetched) that puts the full
 // method and the --no-layout baseline side by side — ATE, reconstruction error, wall planarity and
 // wall-to-wall angles, layout errors — with the floor plan, top views of both meshes, the energy of
 // every alternation iteration and the time per stage. Everything it shows comes from metrics.json,
@@ -11,6 +12,7 @@
 #include <map>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -25,9 +27,27 @@ namespace plumb::backend {
 std::string topViewSvg(const TriangleMesh& mesh, const std::optional<Layout>& layout,
                        int size_px = 420, size_t max_points = 40000);
 
+/// The up frame U of the report's pictures (z against gravity): the layout frame L when a
+/// layout is given, else the world turned so that the camera convention's -y (the first
+/// frame's up) becomes +z. Returns T_U_W.
+Eigen::Isometry3d reportUpFrame(const std::optional<Layout>& layout);
+
+/// A picture of the model for the report: a caption and a `data:image/png;base64,` URI.
+struct ModelView {
+    std::string caption;
+    std::string png_data_uri;
+};
+
+/// Pictures of `mesh` (world frame) rendered by plumb's own rasteriser
+/// (backend/report/mesh_render.hpp): an oblique view from above with the top of the room cut
+/// away, and a perspective view. `size_px`: width of each picture.
+std::vector<ModelView> renderModelViews(const TriangleMesh& mesh,
+                                        const std::optional<Layout>& layout, int size_px = 560);
+
 struct ReportFigures {
     std::string floorplan_svg;                     ///< the layout stage's floor plan, if any
     std::map<std::string, std::string> top_views;  ///< variant name -> SVG
+    std::vector<ModelView> model_views;            ///< the main variant's mesh, rendered
 };
 
 /// The page. `metrics` is the metrics.json document (see backend/pipeline/pipeline.hpp).
