@@ -4,6 +4,7 @@
 #include <fmt/format.h>
 
 #include <fstream>
+#include <limits>
 #include <numbers>
 #include <sstream>
 
@@ -265,6 +266,7 @@ Status outputAndEvaluate(const fs::path& dir, const PipelineInput& input,
                                             v->mesh, v->layout));
     Result<io::Trajectory> trajectory = registration::frameTrajectory(input.fragments, graph);
     if (!trajectory.isOk()) return trajectory.status();
+    v->trajectory = *trajectory;
     Result<VariantEvaluation> ev =
         evaluateVariant(v->name, *trajectory, v->mesh, v->layout, input.ground_truth, full_layout,
                         EvaluationConfig{});
@@ -308,6 +310,20 @@ std::string inlineSvg(const fs::path& path) {
     const size_t start = svg.find("<svg");
     if (start != std::string::npos) svg.erase(0, start);
     return svg;
+}
+
+/// The variant's camera path for the top view, with each pose's ATE error when it was scored.
+TopViewTrajectory topViewTrajectory(const VariantResult& v) {
+    TopViewTrajectory t;
+    for (const io::StampedPose& p : v.trajectory) t.positions_W.push_back(p.T_W_C.translation());
+    if (v.evaluation.trajectory) {
+        const eval::TrajectoryEvaluation& te = *v.evaluation.trajectory;
+        t.errors_m.assign(t.positions_W.size(), std::numeric_limits<double>::quiet_NaN());
+        for (size_t k = 0; k < te.pairs.size() && k < te.ate.errors_m.size(); ++k)
+            if (te.pairs[k].second < t.errors_m.size())
+                t.errors_m[te.pairs[k].second] = te.ate.errors_m[k];
+    }
+    return t;
 }
 
 /// Between stages: kCancelled when the caller asked to stop (`after`: the stage just done).
@@ -457,7 +473,7 @@ Result<PipelineResult> runPipeline(const PipelineInput& input, const PipelineCon
         auto scope = timer.scope("outputs and evaluation (" + plan.name + ")");
         PLUMB_RETURN_IF_ERROR(outputAndEvaluate(plan.dir, input, outcome, full_layout, &v));
         variants_json[plan.name] = toJson(v.evaluation);
-        figures.top_views[plan.name] = topViewSvg(v.mesh, full_layout);
+        figures.top_views[plan.name] = topViewSvg(v.mesh, full_layout, topViewTrajectory(v));
         if (p == 0)
             figures.model_views = renderModelViews(v.mesh, v.layout ? v.layout : full_layout);
         result.variants.push_back(std::move(v));

@@ -91,6 +91,7 @@ struct VariantResult {
     std::vector<Eigen::Isometry3d> T_W_F;
     std::optional<Layout> layout;
     TriangleMesh mesh;
+    io::Trajectory trajectory;  ///< per-frame camera -> world poses of this variant
     VariantEvaluation evaluation;
 };
 

@@ -238,53 +238,158 @@ std::vector<ModelView> renderModelViews(const TriangleMesh& mesh,
     return views;
 }
 
-std::string topViewSvg(const TriangleMesh& mesh, const std::optional<Layout>& layout, int size_px,
-                       size_t max_points) {
-    const Eigen::Isometry3d T_L_W =
-        layout ? layout->T_W_L.inverse() : Eigen::Isometry3d::Identity();
-    std::vector<Eigen::Vector2d> xy;
-    const size_t step = std::max<size_t>(1, mesh.vertices.size() / std::max<size_t>(1, max_points));
-    for (size_t i = 0; i < mesh.vertices.size(); i += step) {
-        const Eigen::Vector3d p = T_L_W * mesh.vertices[i].cast<double>();
-        // Without a layout the camera convention (y down) makes x-z the floor plane.
-        xy.emplace_back(p.x(), layout ? p.y() : p.z());
-    }
+namespace {
+
+/// Green (0) -> yellow (0.5) -> red (1).
+std::string errorColour(double t) {
+    t = std::clamp(t, 0.0, 1.0);
+    const int r = static_cast<int>(std::round(255.0 * std::min(1.0, 2.0 * t)));
+    const int g = static_cast<int>(std::round(200.0 * std::min(1.0, 2.0 * (1.0 - t))));
+    return fmt::format("#{:02x}{:02x}30", r, g);
+}
+
+}  // namespace
+
+std::string topViewSvg(const TriangleMesh& mesh, const std::optional<Layout>& layout,
+                       const TopViewTrajectory& trajectory, int size_px, size_t max_segments) {
+    const Eigen::Isometry3d T_U_W = reportUpFrame(layout);
+    // The plan: the mesh and the camera path both decide the extent, so the path is never cut
+    // off; a degenerate helper triangle through the path's corners widens the fit without
+    // showing (zero area, never drawn).
+    TriangleMesh plan_mesh = mesh;
+    std::vector<Eigen::Vector3d> path_U;
+    for (const auto& p : trajectory.positions_W) path_U.push_back(T_U_W * p);
     if (layout)
-        for (const auto& v : layout->room_polygon_L) xy.push_back(v);
-    if (xy.empty()) return "<p class=na>empty mesh</p>";
-    Eigen::Vector2d lo = xy.front(), hi = xy.front();
-    for (const auto& p : xy) {
-        lo = lo.cwiseMin(p);
-        hi = hi.cwiseMax(p);
+        for (const auto& v : layout->room_polygon_L) path_U.emplace_back(v.x(), v.y(), 0.0);
+    if (!path_U.empty()) {
+        Eigen::Vector3d lo = path_U.front(), hi = path_U.front();
+        for (const auto& p : path_U) {
+            lo = lo.cwiseMin(p);
+            hi = hi.cwiseMax(p);
+        }
+        const Eigen::Isometry3d T_W_U = T_U_W.inverse();
+        const int base = static_cast<int>(plan_mesh.vertices.size());
+        double z = 0.0;  // the mesh's lowest point: never above the dollhouse cut
+        if (!mesh.empty()) {
+            z = std::numeric_limits<double>::infinity();
+            for (const auto& v : mesh.vertices) z = std::min(z, (T_U_W * v.cast<double>()).z());
+        }
+        for (const Eigen::Vector3d& c :
+             {Eigen::Vector3d(lo.x(), lo.y(), z), Eigen::Vector3d(hi.x(), hi.y(), z),
+              Eigen::Vector3d(0.5 * (lo.x() + hi.x()), 0.5 * (lo.y() + hi.y()), z)}) {
+            plan_mesh.vertices.push_back((T_W_U * c).cast<float>());
+            if (!plan_mesh.colors.empty()) plan_mesh.colors.emplace_back(255, 255, 255);
+            if (!plan_mesh.normals.empty()) plan_mesh.normals.emplace_back(0.f, 0.f, 1.f);
+        }
+        // Colinear corners: zero area, so the triangle fixes the extent and is never drawn.
+        plan_mesh.triangles.emplace_back(base, base + 2, base + 1);
     }
-    const double extent = std::max({hi.x() - lo.x(), hi.y() - lo.y(), 0.5});
-    const double pad = 16.0;
-    const double scale = (size_px - 2 * pad) / extent;
-    auto X = [&](const Eigen::Vector2d& p) { return pad + (p.x() - lo.x()) * scale; };
-    auto Y = [&](const Eigen::Vector2d& p) { return size_px - pad - (p.y() - lo.y()) * scale; };
+    if (plan_mesh.triangles.empty()) return "<p class=na>empty mesh</p>";
+    MeshRenderConfig c;
+    c.width_px = size_px;
+    c.height_px = size_px;
+    c.elevation_deg = 90.0;
+    c.azimuth_deg = -90.0;  // +x right, +y up
+    c.margin = 0.05;
+    c.cull_back_faces = true;
+    c.light_direction_U = Eigen::Vector3d(0.3, -0.4, 1.0);
+    if (layout && layout->ceiling_height_m > 0.5) {
+        c.cut_above_z_m = layout->ceiling_height_m - 0.25;
+    } else {
+        c.cut_top_fraction = 0.12;
+    }
+    const MeshRender plan = renderMesh(plan_mesh, T_U_W, c);
+    auto px = [&](const Eigen::Vector3d& p_U) {
+        const Eigen::Vector3d q = plan.project(p_U).value_or(Eigen::Vector3d::Zero());
+        return Eigen::Vector2d(q.x(), q.y());
+    };
     std::ostringstream out;
-    out << fmt::format("<svg width={0} height={0} viewBox='0 0 {0} {0}'>", size_px);
-    out << fmt::format("<rect width={0} height={0} fill='#fff' stroke='#ccc'/>", size_px);
-    const size_t n_mesh = xy.size() - (layout ? layout->room_polygon_L.size() : 0);
-    out << "<g fill='#555' fill-opacity='0.35'>";
-    for (size_t i = 0; i < n_mesh; ++i)
-        out << fmt::format("<rect x='{:.1f}' y='{:.1f}' width='1' height='1'/>", X(xy[i]),
-                           Y(xy[i]));
-    out << "</g>";
+    out << fmt::format("<svg class=topview width={0} height={0} viewBox='0 0 {0} {0}'>", size_px);
+    out << fmt::format("<image width='{0}' height='{0}' href='{1}'/>", size_px,
+                       pngDataUri(plan.image));
+    out << fmt::format("<rect width={0} height={0} fill='none' stroke='#ccc'/>", size_px);
     if (layout) {
         for (const LayoutPlane* w : layout->walls()) {
+            const Eigen::Vector2d a = px({w->start_L.x(), w->start_L.y(), 0.0});
+            const Eigen::Vector2d b = px({w->end_L.x(), w->end_L.y(), 0.0});
             out << fmt::format(
-                "<line x1='{:.1f}' y1='{:.1f}' x2='{:.1f}' y2='{:.1f}' stroke='{}' "
-                "stroke-width='2'/>",
-                X(w->start_L), Y(w->start_L), X(w->end_L), Y(w->end_L),
-                w->manhattan_snapped ? "#d73a49" : "#e36209");
+                "<line class=wall x1='{:.1f}' y1='{:.1f}' x2='{:.1f}' y2='{:.1f}' stroke='{}' "
+                "stroke-width='2.5'/>",
+                a.x(), a.y(), b.x(), b.y(), w->manhattan_snapped ? "#d73a49" : "#e36209");
         }
     }
+    // The camera path, in at most max_segments pieces; with errors, each piece coloured by the
+    // mean error of the poses it stands for.
+    const auto& pos = trajectory.positions_W;
+    const bool with_errors = trajectory.errors_m.size() == pos.size() && !pos.empty();
+    double max_error = 0.0;
+    if (with_errors)
+        for (double e : trajectory.errors_m)
+            if (std::isfinite(e)) max_error = std::max(max_error, e);
+    if (pos.size() >= 2) {
+        const size_t pieces = std::max<size_t>(1, std::min(max_segments, pos.size() - 1));
+        const double step = double(pos.size() - 1) / pieces;
+        out << "<g class=trajectory stroke-width='2.5' stroke-linecap='round' fill='none'>";
+        if (!with_errors) out << "<polyline stroke='#1f6feb' points='";
+        for (size_t k = 0; k < pieces; ++k) {
+            const size_t i0 = static_cast<size_t>(std::round(k * step));
+            const size_t i1 =
+                std::min(pos.size() - 1, static_cast<size_t>(std::round((k + 1) * step)));
+            const Eigen::Vector2d a = px(T_U_W * pos[i0]);
+            const Eigen::Vector2d b = px(T_U_W * pos[i1]);
+            if (!with_errors) {
+                if (k == 0) out << fmt::format("{:.1f},{:.1f} ", a.x(), a.y());
+                out << fmt::format("{:.1f},{:.1f} ", b.x(), b.y());
+                continue;
+            }
+            double sum = 0.0;
+            int n = 0;
+            for (size_t i = i0; i <= i1; ++i)
+                if (std::isfinite(trajectory.errors_m[i])) {
+                    sum += trajectory.errors_m[i];
+                    ++n;
+                }
+            const std::string colour =
+                n == 0 ? std::string("#888888")
+                       : errorColour(max_error > 0.0 ? sum / n / max_error : 0.0);
+            out << fmt::format(
+                "<line x1='{:.1f}' y1='{:.1f}' x2='{:.1f}' y2='{:.1f}' stroke='{}'/>", a.x(), a.y(),
+                b.x(), b.y(), colour);
+        }
+        if (!with_errors) out << "'/>";
+        out << "</g>";
+        const Eigen::Vector2d start = px(T_U_W * pos.front());
+        const Eigen::Vector2d end = px(T_U_W * pos.back());
+        out << fmt::format(
+            "<circle cx='{:.1f}' cy='{:.1f}' r='5' fill='#fff' stroke='#000' "
+            "stroke-width='2'><title>first frame</title></circle>",
+            start.x(), start.y());
+        out << fmt::format(
+            "<circle cx='{:.1f}' cy='{:.1f}' r='4' fill='#000'><title>last frame</title></circle>",
+            end.x(), end.y());
+    }
+    // Scale bar: 1 m in plan pixels.
+    const double metre_px = plan.focal_px;
     out << fmt::format(
-        "<line x1='{:.1f}' y1='{:.1f}' x2='{:.1f}' y2='{:.1f}' stroke='#000' stroke-width='3'/>",
-        pad, size_px - 6.0, pad + scale, size_px - 6.0);
-    out << fmt::format("<text x='{:.1f}' y='{}' font-size='10'>1 m</text>", pad + scale + 4,
-                       size_px - 3);
+        "<line x1='12' y1='{0:.1f}' x2='{1:.1f}' y2='{0:.1f}' stroke='#000' stroke-width='3'/>",
+        size_px - 8.0, 12.0 + metre_px);
+    out << fmt::format("<text x='{:.1f}' y='{}' font-size='11'>1 m</text>", 16.0 + metre_px,
+                       size_px - 4);
+    if (with_errors) {
+        const int bar_x = size_px - 130, bar_y = 8;
+        out << "<defs><linearGradient id='errgrad'>";
+        for (int k = 0; k <= 4; ++k)
+            out << fmt::format("<stop offset='{}%' stop-color='{}'/>", 25 * k,
+                               errorColour(0.25 * k));
+        out << "</linearGradient></defs>";
+        out << fmt::format(
+            "<rect class=colourbar x='{}' y='{}' width='100' height='8' fill='url(#errgrad)'/>",
+            bar_x, bar_y);
+        out << fmt::format("<text x='{}' y='{}' font-size='10'>0</text>", bar_x, bar_y + 19);
+        out << fmt::format(
+            "<text x='{}' y='{}' font-size='10' text-anchor='end'>{:.1f} cm ATE</text>",
+            bar_x + 100, bar_y + 19, 100.0 * max_error);
+    }
     out << "</svg>";
     return out.str();
 }
@@ -296,7 +401,9 @@ std::string renderReportHtml(const nlohmann::json& metrics, const ReportFigures&
            "table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #ddd;padding:4px "
            "8px;text-align:right}td:first-child,th:first-child{text-align:left}"
            ".good{color:#1a7f37}.bad{color:#cf222e}.na{color:#999}.row{display:flex;gap:2em;"
-           "flex-wrap:wrap}h2{border-bottom:1px solid #eee}"
+           "flex-wrap:wrap}h2{border-bottom:1px solid "
+           "#eee}figure{margin:0}img.model{max-width:520px;"
+           "width:100%;border:1px solid #eee}figcaption{color:#666;font-size:90%}"
            "</style></head><body>\n";
     out << "<h1>plumb reconstruction report</h1>\n";
     out << "<p>Input: <b>" << escape(metrics.value("input", std::string("?"))) << "</b>; "

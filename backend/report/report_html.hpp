@@ -21,11 +21,21 @@
 
 namespace plumb::backend {
 
-/// Top view (x-y of the layout frame when a layout is given, else of the world) of a mesh's
-/// vertices, subsampled to at most `max_points`, as an SVG with a 1 m scale bar. Walls of the
-/// layout, when given, are drawn over it.
+/// The camera path drawn on a top view: positions in the world frame and, with ground truth,
+/// each position's ATE error (NaN where a pose had no ground-truth partner).
+struct TopViewTrajectory {
+    std::vector<Eigen::Vector3d> positions_W;
+    std::vector<double> errors_m;  ///< empty, or one per position
+};
+
+/// Top view (x-y of the layout frame when a layout is given, else of the world with the first
+/// camera's up as +z) of a mesh: a plan rendered by the rasteriser (backend/report/mesh_render)
+/// and embedded as a PNG in an SVG that draws, over it, the layout's walls, the camera path
+/// (coloured by its error when errors are given, with a colour bar) and a 1 m scale bar. The
+/// vector part stays small: at most `max_segments` path segments whatever the number of frames.
 std::string topViewSvg(const TriangleMesh& mesh, const std::optional<Layout>& layout,
-                       int size_px = 420, size_t max_points = 40000);
+                       const TopViewTrajectory& trajectory = {}, int size_px = 460,
+                       size_t max_segments = 300);
 
 /// The up frame U of the report's pictures (z against gravity): the layout frame L when a
 /// layout is given, else the world turned so that the camera convention's -y (the first
