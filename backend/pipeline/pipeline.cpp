@@ -3,6 +3,8 @@
 
 #include <fmt/format.h>
 
+#include <Eigen/Eigenvalues>
+
 #include <fstream>
 #include <limits>
 #include <numbers>
@@ -326,6 +328,48 @@ TopViewTrajectory topViewTrajectory(const VariantResult& v) {
     return t;
 }
 
+/// The main variant's walls for the report's table: id, normal and offset in the layout frame
+/// (n.x + d = 0, z up, floor at 0), length along the floor, and whether the weak-Manhattan step
+/// snapped it. Planarity and ground-truth errors are joined in by the report from "variants".
+nlohmann::json layoutWallsJson(const Layout& layout) {
+    nlohmann::json walls = nlohmann::json::array();
+    for (const LayoutPlane* w : layout.walls())
+        walls.push_back({{"id", w->id},
+                         {"normal_L", {w->normal_L.x(), w->normal_L.y(), w->normal_L.z()}},
+                         {"offset_m", w->d_L},
+                         {"length_m", (w->end_L - w->start_L).norm()},
+                         {"manhattan_snapped", w->manhattan_snapped}});
+    return walls;
+}
+
+/// What tracking left behind in the fragments, for the report's warnings: frames it failed on,
+/// fragments it closed early, and fragments whose odometry left a translation direction
+/// (nearly) unobserved: smallest / largest eigenvalue of the translation block of
+/// Fragment::odometry_information below `min_ratio` (a plain corridor, a single wall).
+nlohmann::json trackingJson(const std::vector<Fragment>& fragments, double min_ratio = 1e-3) {
+    size_t failed = 0;
+    nlohmann::json lost = nlohmann::json::array();
+    nlohmann::json weak = nlohmann::json::array();
+    size_t weak_frames = 0;
+    for (const Fragment& f : fragments) {
+        for (const FragmentFrame& fr : f.frames) failed += fr.tracking_ok ? 0 : 1;
+        if (f.end == FragmentEnd::kTrackingLost) lost.push_back(f.id);
+        const Eigen::Matrix3d info_t = f.odometry_information.bottomRightCorner<3, 3>();
+        if (info_t.isZero(0.0)) continue;  // unknown: first of a segment, older data
+        const Eigen::Vector3d ev =
+            Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(info_t).eigenvalues().cwiseMax(0.0);
+        if (ev.maxCoeff() <= 0.0 || ev.minCoeff() < min_ratio * ev.maxCoeff()) {
+            weak.push_back(f.id);
+            weak_frames += f.frames.size();
+        }
+    }
+    return {{"frames_tracking_failed", failed},
+            {"fragments_closed_by_tracking_loss", lost},
+            {"fragments_with_unobserved_directions", weak},
+            {"frames_in_fragments_with_unobserved_directions", weak_frames},
+            {"unobserved_direction_eigenvalue_ratio", min_ratio}};
+}
+
 /// Between stages: kCancelled when the caller asked to stop (`after`: the stage just done).
 Status stopIfRequested(const PipelineInput& input, const char* after) {
     if (input.stop_requested && input.stop_requested())
@@ -486,6 +530,15 @@ Result<PipelineResult> runPipeline(const PipelineInput& input, const PipelineCon
     if (!alternation_summary.is_null()) metrics["alternation"] = alternation_summary;
     metrics["energies"] = energies;
     if (!layout_diagnostics.is_null()) metrics["layout_diagnostics"] = layout_diagnostics;
+    metrics["tracking"] = trackingJson(fragments);
+    if (!result.variants.empty() && result.variants.front().layout) {
+        const Layout& main_layout = *result.variants.front().layout;
+        metrics["layout_walls"] = layoutWallsJson(main_layout);
+        metrics["outline_on_walls"] = wallBoundedFraction(main_layout);
+        // Whose walls "variants/*/walls" (planarity) are numbered by (evaluation.hpp).
+        metrics["planarity_reference"] =
+            input.ground_truth.layout ? "ground-truth layout" : "estimated layout";
+    }
     metrics["stages"] = stagesJson(timer);
     metrics["total_seconds"] = timer.totalSeconds();
     PLUMB_RETURN_IF_ERROR(writeDocuments(out_dir, input, metrics, figures));

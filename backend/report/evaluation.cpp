@@ -228,6 +228,15 @@ nlohmann::json toJson(const VariantEvaluation& ev) {
         if (m.floor) j["layout"]["floor_angle_error_deg"] = m.floor->angle_error_deg;
         if (m.ceiling_height_error_m)
             j["layout"]["ceiling_height_error_m"] = *m.ceiling_height_error_m;
+        nlohmann::json matches = nlohmann::json::array();
+        for (const eval::PlaneError& e : m.walls)
+            matches.push_back({{"gt_wall", e.gt_id},
+                               {"estimated_wall", e.est_id},
+                               {"angle_error_deg", e.angle_error_deg},
+                               {"offset_error_m", e.offset_error_m}});
+        j["layout"]["walls"] = matches;
+        j["layout"]["unmatched_gt_walls"] = m.unmatched_gt_walls;
+        j["layout"]["unmatched_estimated_walls"] = m.unmatched_est_walls;
     }
     nlohmann::json walls = nlohmann::json::array();
     for (const WallFit& w : ev.walls)

@@ -189,6 +189,138 @@ std::string selfCalibrationSection(const nlohmann::json& metrics) {
     return out.str();
 }
 
+/// The variant the page leads with: "full" when it ran, else "baseline".
+const nlohmann::json* mainVariant(const nlohmann::json& metrics) {
+    if (!metrics.contains("variants") || !metrics["variants"].is_object()) return nullptr;
+    const nlohmann::json& v = metrics["variants"];
+    for (const char* name : {"full", "baseline"})
+        if (v.contains(name)) return &v[name];
+    return nullptr;
+}
+
+/// The element of array `list` whose `key` equals `id`, or nullptr.
+const nlohmann::json* findById(const nlohmann::json& list, const char* key, int id) {
+    if (!list.is_array()) return nullptr;
+    for (const auto& e : list)
+        if (e.contains(key) && e[key].is_number_integer() && e[key].get<int>() == id) return &e;
+    return nullptr;
+}
+
+std::string idList(const nlohmann::json& ids) {
+    std::string out;
+    for (const auto& id : ids) out += (out.empty() ? "" : ", ") + id.dump();
+    return out;
+}
+
+/// One row per estimated wall of the main variant: normal and offset (layout frame), length,
+/// planarity measured on the mesh, and the error against the matched ground-truth wall.
+std::string wallTable(const nlohmann::json& metrics) {
+    const nlohmann::json walls = metrics.value("layout_walls", nlohmann::json());
+    if (!walls.is_array() || walls.empty()) return "<p class=na>No walls were estimated.</p>\n";
+    const nlohmann::json* main = mainVariant(metrics);
+    const nlohmann::json empty = nlohmann::json::object();
+    const nlohmann::json& v = main ? *main : empty;
+    const nlohmann::json fits = v.value("walls", nlohmann::json::array());
+    const nlohmann::json gt = v.contains("layout")
+                                  ? v["layout"].value("walls", nlohmann::json::array())
+                                  : nlohmann::json::array();
+    const bool has_gt = v.contains("layout");
+    const bool by_gt = metrics.value("planarity_reference", std::string()) == "ground-truth layout";
+    std::ostringstream out;
+    out << "<table class=walls><tr><th>wall</th><th>normal (layout frame)</th><th>offset d "
+           "(m)</th><th>length (m)</th><th>planarity RMS (mm)</th>";
+    if (has_gt) out << "<th>GT wall</th><th>angle error (deg)</th><th>offset error (cm)</th>";
+    out << "</tr>\n";
+    for (const auto& w : walls) {
+        const int id = w.value("id", -1);
+        const nlohmann::json n = w.value("normal_L", nlohmann::json::array({0, 0, 0}));
+        out << fmt::format(
+            "<tr><td>{}{}</td><td>({:+.3f}, {:+.3f}, {:+.3f})</td><td>{:.3f}</td>"
+            "<td>{:.2f}</td>",
+            id, w.value("manhattan_snapped", false) ? " (snapped)" : "", n[0].get<double>(),
+            n[1].get<double>(), n[2].get<double>(), w.value("offset_m", 0.0),
+            w.value("length_m", 0.0));
+        const nlohmann::json* match = findById(gt, "estimated_wall", id);
+        const int ref = by_gt ? (match ? match->value("gt_wall", -1) : -1) : id;
+        const nlohmann::json* fit = ref >= 0 ? findById(fits, "wall", ref) : nullptr;
+        out << (fit ? fmt::format("<td>{:.2f}</td>", 1000.0 * fit->value("rms_m", 0.0))
+                    : std::string("<td class=na>not measured</td>"));
+        if (has_gt) {
+            if (match) {
+                out << fmt::format("<td>{}</td><td>{:.2f}</td><td>{:+.2f}</td>",
+                                   match->value("gt_wall", -1),
+                                   match->value("angle_error_deg", 0.0),
+                                   100.0 * match->value("offset_error_m", 0.0));
+            } else {
+                out << "<td class=bad colspan=3>matches no ground-truth wall</td>";
+            }
+        }
+        out << "</tr>\n";
+    }
+    out << "</table>\n";
+    if (has_gt) {
+        const nlohmann::json missing = v["layout"].value("unmatched_gt_walls", nlohmann::json());
+        if (missing.is_array() && !missing.empty())
+            out << "<p class=bad>Ground-truth walls not found: " << idList(missing) << ".</p>\n";
+    }
+    return out.str();
+}
+
+/// Everything in metrics.json that should make a user doubt the result, one line each.
+std::vector<std::string> warnings(const nlohmann::json& metrics) {
+    std::vector<std::string> w;
+    if (metrics.value("status", std::string("complete")) != "complete")
+        w.push_back("the run did not complete: " + metrics.value("status", std::string()));
+    if (metrics.contains("tracking")) {
+        const nlohmann::json& t = metrics["tracking"];
+        const size_t failed = t.value("frames_tracking_failed", size_t{0});
+        if (failed > 0)
+            w.push_back(
+                fmt::format("tracking failed on {} frames; they are not in the model", failed));
+        const nlohmann::json lost = t.value("fragments_closed_by_tracking_loss", nlohmann::json());
+        if (lost.is_array() && !lost.empty())
+            w.push_back("fragments closed early by tracking loss: " + idList(lost));
+        const nlohmann::json weak =
+            t.value("fragments_with_unobserved_directions", nlohmann::json());
+        if (weak.is_array() && !weak.empty())
+            w.push_back(fmt::format(
+                "{} frames (fragments {}) were tracked with a translation direction the depth "
+                "hardly constrained (smallest / largest eigenvalue of the odometry's translation "
+                "information below {:g}): their poses along it rest on the motion model",
+                t.value("frames_in_fragments_with_unobserved_directions", size_t{0}), idList(weak),
+                t.value("unobserved_direction_eigenvalue_ratio", 0.0)));
+    }
+    if (metrics.contains("alternation") && !metrics["alternation"].value("converged", true))
+        w.push_back(
+            fmt::format("the layout / registration alternation did not converge: {} after {} outer "
+                        "iterations",
+                        metrics["alternation"].value("stop_reason", std::string("?")),
+                        metrics["alternation"].value("outer_iterations", 0)));
+    const nlohmann::json walls = metrics.value("layout_walls", nlohmann::json());
+    if (!walls.is_array()) {
+        w.push_back("no room layout was found: no walls, no floor plan");
+    } else if (walls.size() < 3) {
+        w.push_back(fmt::format("only {} walls were found", walls.size()));
+    }
+    if (const nlohmann::json* main = mainVariant(metrics); main && main->contains("layout")) {
+        const nlohmann::json missing =
+            (*main)["layout"].value("unmatched_gt_walls", nlohmann::json());
+        if (missing.is_array() && !missing.empty())
+            w.push_back(fmt::format("{} of {} ground-truth walls were not found (walls {})",
+                                    missing.size(), (*main)["layout"].value("gt_walls", 0),
+                                    idList(missing)));
+    }
+    if (metrics.contains("outline_on_walls") && metrics["outline_on_walls"].is_number()) {
+        const double f = metrics["outline_on_walls"].get<double>();
+        if (f < kClosedRoomWallFraction)
+            w.push_back(fmt::format(
+                "partial coverage: {:.0f} % of the room outline lies on seen walls (the rest is "
+                "inferred)",
+                100.0 * f));
+    }
+    return w;
+}
+
 }  // namespace
 
 Eigen::Isometry3d reportUpFrame(const std::optional<Layout>& layout) {
@@ -429,6 +561,16 @@ std::string renderReportHtml(const nlohmann::json& metrics, const ReportFigures&
         }
         out << "</div>\n";
     }
+    out << "<h2 id=warnings>Warnings</h2>\n";
+    const std::vector<std::string> warned = warnings(metrics);
+    if (warned.empty()) {
+        out << "<p class=good>None: every check passed.</p>\n";
+    } else {
+        out << "<ul class=warnings>\n";
+        for (const std::string& w : warned) out << "<li class=bad>" << escape(w) << "</li>\n";
+        out << "</ul>\n";
+    }
+    out << "<h2 id=walls>Walls</h2>\n" << wallTable(metrics);
     if (metrics.contains("self_calibration")) out << selfCalibrationSection(metrics);
     if (!figures.floorplan_svg.empty())
         out << "<h2>Floor plan</h2>\n" << figures.floorplan_svg << "\n";

@@ -2,6 +2,7 @@
 // report.html (issue 31): sections present, pictures embedded as PNG, size bounded.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <regex>
 #include <string>
@@ -144,6 +145,126 @@ TEST(ModelViews, RenderTheRoomAsNonBlankPngs) {
         EXPECT_EQ(image(0, 0), (Rgb8{255, 255, 255})) << v.caption;
         EXPECT_FALSE(v.caption.empty());
     }
+}
+
+/// A metrics.json as the pipeline writes it for a 1000-frame run with ground truth.
+nlohmann::json metrics() {
+    nlohmann::json m;
+    m["format"] = "plumb-metrics-1";
+    m["status"] = "complete";
+    m["input"] = "sim:test_room";
+    m["fragments"] = 20;
+    m["frames"] = 1000;
+    m["ground_truth"] = "simulator";
+    m["variants"]["full"] = {{"ate", {{"rmse_m", 0.01}, {"median_m", 0.008}}},
+                             {"walls", {{{"wall", 10}, {"vertices", 900}, {"rms_m", 0.002}}}},
+                             {"layout",
+                              {{"gt_walls", 4},
+                               {"walls",
+                                {{{"gt_wall", 10},
+                                  {"estimated_wall", 0},
+                                  {"angle_error_deg", 0.5},
+                                  {"offset_error_m", 0.012}}}},
+                               {"unmatched_gt_walls", {13}}}}};
+    m["layout_walls"] = nlohmann::json::array();
+    for (int k = 0; k < 3; ++k)
+        m["layout_walls"].push_back({{"id", k},
+                                     {"normal_L", {1.0, 0.0, 0.0}},
+                                     {"offset_m", -0.5 * k},
+                                     {"length_m", 3.0},
+                                     {"manhattan_snapped", k > 0}});
+    m["planarity_reference"] = "ground-truth layout";
+    m["outline_on_walls"] = 0.6;
+    m["tracking"] = {{"frames_tracking_failed", 3},
+                     {"fragments_closed_by_tracking_loss", {4}},
+                     {"fragments_with_unobserved_directions", {7, 8}},
+                     {"frames_in_fragments_with_unobserved_directions", 100},
+                     {"unobserved_direction_eigenvalue_ratio", 1e-3}};
+    m["alternation"] = {
+        {"outer_iterations", 5}, {"converged", false}, {"stop_reason", "iteration limit"}};
+    m["energies"] = {{{"energy", 3.0}}, {{"energy", 2.0}}, {{"energy", 1.5}}};
+    m["stages"] = {{{"name", "initial registration"}, {"seconds", 2.0}}};
+    m["total_seconds"] = 2.0;
+    return m;
+}
+
+ReportFigures figures() {
+    ReportFigures f;
+    const Layout layout = roomLayout();
+    const TriangleMesh mesh = room(150);  // 270 k triangles
+    f.top_views["full"] = topViewSvg(mesh, layout, loop(1000));
+    f.top_views["baseline"] = topViewSvg(mesh, layout, loop(1000));
+    f.model_views = renderModelViews(mesh, layout);
+    return f;
+}
+
+/// The text of the <h2> headings, in order.
+std::vector<std::string> headings(const std::string& html) {
+    std::vector<std::string> out;
+    const std::regex h2("<h2[^>]*>([^<]*)</h2>");
+    for (auto it = std::sregex_iterator(html.begin(), html.end(), h2); it != std::sregex_iterator();
+         ++it)
+        out.push_back((*it)[1]);
+    return out;
+}
+
+TEST(ReportHtml, HasEverySectionAndOnlyEmbeddedPngPictures) {
+    const std::string html = renderReportHtml(metrics(), figures());
+    const std::vector<std::string> h = headings(html);
+    for (const char* section : {"Accuracy", "Model", "Warnings", "Walls", "Top views",
+                                "Energy per alternation iteration", "Time per stage"})
+        EXPECT_NE(std::find(h.begin(), h.end(), section), h.end()) << section;
+    // Every picture is an embedded PNG: nothing is fetched.
+    const std::regex src("(?:src|href)='([^']{0,40})");
+    size_t pictures = 0;
+    for (auto it = std::sregex_iterator(html.begin(), html.end(), src);
+         it != std::sregex_iterator(); ++it, ++pictures)
+        EXPECT_EQ((*it)[1].str().rfind("data:image/png;base64,", 0), 0u) << (*it)[1];
+    EXPECT_EQ(pictures, 4u);  // two model views, two top views
+    EXPECT_EQ(html.find("http://"), std::string::npos);
+    EXPECT_EQ(html.find("https://"), std::string::npos);
+}
+
+TEST(ReportHtml, A1000FrameReportStaysUnder2MB) {
+    const std::string html = renderReportHtml(metrics(), figures());
+    EXPECT_LT(html.size(), 2u * 1024u * 1024u);
+}
+
+TEST(ReportHtml, WarningsNameWhatToDoubt) {
+    const std::string html = renderReportHtml(metrics(), ReportFigures{});
+    const size_t at = html.find("<h2 id=warnings>");
+    ASSERT_NE(at, std::string::npos);
+    const std::string w = html.substr(at, html.find("</ul>", at) - at);
+    EXPECT_NE(w.find("tracking failed on 3 frames"), std::string::npos);
+    EXPECT_NE(w.find("tracking loss: 4"), std::string::npos);
+    EXPECT_NE(w.find("100 frames (fragments 7, 8)"), std::string::npos);
+    EXPECT_NE(w.find("did not converge: iteration limit after 5"), std::string::npos);
+    EXPECT_NE(w.find("1 of 4 ground-truth walls were not found (walls 13)"), std::string::npos);
+    EXPECT_NE(w.find("partial coverage: 60 %"), std::string::npos);
+    // A clean run says so.
+    nlohmann::json clean = metrics();
+    clean.erase("tracking");
+    clean["alternation"]["converged"] = true;
+    clean["variants"]["full"]["layout"]["unmatched_gt_walls"] = nlohmann::json::array();
+    clean["outline_on_walls"] = 0.95;
+    EXPECT_NE(renderReportHtml(clean, ReportFigures{}).find("None: every check passed"),
+              std::string::npos);
+    // No layout at all is a warning too.
+    clean.erase("layout_walls");
+    EXPECT_NE(renderReportHtml(clean, ReportFigures{}).find("no room layout was found"),
+              std::string::npos);
+}
+
+TEST(ReportHtml, WallTableJoinsPlanarityAndGroundTruthErrors) {
+    const std::string html = renderReportHtml(metrics(), ReportFigures{});
+    const size_t at = html.find("<table class=walls>");
+    ASSERT_NE(at, std::string::npos);
+    const std::string t = html.substr(at, html.find("</table>", at) - at);
+    EXPECT_EQ(count(t, "<tr>"), 4u);  // header + 3 walls
+    // Wall 0 matched GT wall 10: planarity 2 mm, angle 0.5 deg, offset +1.2 cm.
+    EXPECT_NE(t.find("<td>2.00</td><td>10</td><td>0.50</td><td>+1.20</td>"), std::string::npos);
+    EXPECT_EQ(count(t, "matches no ground-truth wall"), 2u);
+    EXPECT_NE(t.find("1 (snapped)"), std::string::npos);
 }
 
 }  // namespace
