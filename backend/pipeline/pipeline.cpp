@@ -5,6 +5,7 @@
 
 #include <Eigen/Eigenvalues>
 
+#include <ctime>
 #include <fstream>
 #include <limits>
 #include <numbers>
@@ -295,6 +296,27 @@ nlohmann::json metricsHeader(const PipelineInput& input, bool from_raw) {
     return metrics;
 }
 
+/// Who made this output, when, and how long it took: plumb's version, the UTC date, the
+/// command line, and the time of tracking and fusion (when the caller measured it) plus the
+/// backend's.
+nlohmann::json runJson(const PipelineInput& input, double backend_seconds) {
+    nlohmann::json run;
+    run["version"] = PLUMB_VERSION_STRING;
+    const std::time_t now = std::time(nullptr);
+    std::tm utc{};
+    gmtime_r(&now, &utc);
+    char date[32];
+    std::strftime(date, sizeof(date), "%Y-%m-%dT%H:%M:%SZ", &utc);
+    run["date_utc"] = date;
+    if (!input.command_line.empty()) run["command_line"] = input.command_line;
+    run["backend_seconds"] = backend_seconds;
+    if (input.tracking_fusion_seconds >= 0.0) {
+        run["tracking_fusion_seconds"] = input.tracking_fusion_seconds;
+        run["total_seconds"] = input.tracking_fusion_seconds + backend_seconds;
+    }
+    return run;
+}
+
 nlohmann::json stagesJson(const StageTimer& timer) {
     nlohmann::json stages = nlohmann::json::array();
     for (const StageTime& st : timer.stages())
@@ -540,7 +562,8 @@ Result<PipelineResult> runPipeline(const PipelineInput& input, const PipelineCon
             input.ground_truth.layout ? "ground-truth layout" : "estimated layout";
     }
     metrics["stages"] = stagesJson(timer);
-    metrics["total_seconds"] = timer.totalSeconds();
+    metrics["total_seconds"] = timer.totalSeconds();  // the backend's stages
+    metrics["run"] = runJson(input, timer.totalSeconds());
     PLUMB_RETURN_IF_ERROR(writeDocuments(out_dir, input, metrics, figures));
     result.metrics = std::move(metrics);
     return result;

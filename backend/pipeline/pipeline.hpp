@@ -76,6 +76,12 @@ struct PipelineInput {
     GroundTruth ground_truth;  ///< may be empty
     std::string description;   ///< the input, for the report ("sim:living_room", a folder, ...)
     std::string config_toml;   ///< the effective configuration, written as config.toml
+    /// The command that started the run, for the report ("plumb reconstruct sim:... --out r");
+    /// empty when unknown.
+    std::string command_line;
+    /// Wall time the tracking and fusion that made the fragments took before the pipeline,
+    /// seconds; negative when unknown (fragments from a store or a live device).
+    double tracking_fusion_seconds = -1.0;
     /// What a self-calibration of the depth found before this run (`plumb reconstruct
     /// --self-calibrate`): written as metrics.json's "self_calibration" and shown in the report;
     /// null when the depth was not self-calibrated.

@@ -112,6 +112,8 @@ std::string comparisonTable(const nlohmann::json& variants) {
     return out.str();
 }
 
+/// Energy E of every accepted and rejected step of the alternation, against the step number,
+/// with both axes drawn, ticks and labels.
 std::string energyChart(const nlohmann::json& energies) {
     if (!energies.is_array() || energies.empty()) return "<p class=na>No alternation ran.</p>";
     std::vector<double> e;
@@ -119,25 +121,87 @@ std::string energyChart(const nlohmann::json& energies) {
         if (it.contains("energy") && it["energy"].is_number())
             e.push_back(it["energy"].get<double>());
     if (e.empty()) return "<p class=na>No energies recorded.</p>";
-    const double lo = *std::min_element(e.begin(), e.end());
-    const double hi = *std::max_element(e.begin(), e.end());
-    const double span = hi > lo ? hi - lo : 1.0;
-    const int w = 420, h = 160, pad = 30;
-    std::ostringstream out;
-    out << fmt::format("<svg width={} height={} viewBox='0 0 {} {}'>", w, h, w, h);
-    out << fmt::format("<rect x=0 y=0 width={} height={} fill='#fafafa' stroke='#ccc'/>", w, h);
-    out << "<polyline fill=none stroke='#1f6feb' stroke-width=2 points='";
-    for (size_t i = 0; i < e.size(); ++i) {
-        const double x = pad + (w - 2 * pad) * (e.size() == 1 ? 0.5 : double(i) / (e.size() - 1));
-        const double y = h - pad - (h - 2 * pad) * (e[i] - lo) / span;
-        out << fmt::format("{:.1f},{:.1f} ", x, y);
+    double lo = *std::min_element(e.begin(), e.end());
+    double hi = *std::max_element(e.begin(), e.end());
+    if (!(hi > lo)) {
+        const double pad = std::max(std::abs(hi) * 0.05, 1e-12);
+        lo -= pad;
+        hi += pad;
     }
+    const int w = 480, h = 220, left = 70, right = 16, top = 14, bottom = 42;
+    const double pw = w - left - right, ph = h - top - bottom;
+    auto X = [&](double i) { return left + pw * (e.size() == 1 ? 0.5 : i / double(e.size() - 1)); };
+    auto Y = [&](double v) { return top + ph * (1.0 - (v - lo) / (hi - lo)); };
+    std::ostringstream out;
+    out << fmt::format("<svg class=energy width={} height={} viewBox='0 0 {} {}' font-size=11>", w,
+                       h, w, h);
+    out << fmt::format("<rect x=0 y=0 width={} height={} fill='#fafafa' stroke='#ccc'/>", w, h);
+    // Axes.
+    out << fmt::format(
+        "<g class=axes stroke='#333'><line x1={0} y1={1} x2={0} y2={2}/>"
+        "<line x1={0} y1={2} x2={3} y2={2}/></g>",
+        left, top, top + ph, left + pw);
+    // y ticks: 5 levels between lo and hi, with enough digits to tell them apart.
+    const double magnitude = std::max(std::abs(lo), std::abs(hi));
+    const int digits = std::clamp(
+        3 + static_cast<int>(std::ceil(std::log10(std::max(1.0, magnitude / (hi - lo))))), 3, 12);
+    for (int k = 0; k <= 4; ++k) {
+        const double v = lo + (hi - lo) * k / 4.0;
+        out << fmt::format(
+            "<line x1={} y1='{:.1f}' x2={} y2='{:.1f}' stroke='#333'/><line x1={} y1='{:.1f}' "
+            "x2={} y2='{:.1f}' stroke='#eee'/><text x={} y='{:.1f}' text-anchor=end>{:.{}g}</text>",
+            left - 4, Y(v), left, Y(v), left + 1, Y(v), left + pw, Y(v), left - 6, Y(v) + 4, v,
+            digits);
+    }
+    // x ticks: every step up to 10 steps, else 10 evenly.
+    const size_t n = e.size();
+    const size_t stride = std::max<size_t>(1, (n + 9) / 10);
+    for (size_t i = 0; i < n; i += stride)
+        out << fmt::format(
+            "<line x1='{0:.1f}' y1={1} x2='{0:.1f}' y2={2} stroke='#333'/>"
+            "<text x='{0:.1f}' y={3} text-anchor=middle>{4}</text>",
+            X(double(i)), top + ph, top + ph + 4, top + ph + 16, i);
+    out << fmt::format("<text x='{:.1f}' y={} text-anchor=middle>alternation step</text>",
+                       left + pw / 2, h - 6);
+    out << fmt::format(
+        "<text transform='translate(14,{:.1f}) rotate(-90)' text-anchor=middle>energy E</text>",
+        top + ph / 2);
+    out << "<polyline fill=none stroke='#1f6feb' stroke-width=2 points='";
+    for (size_t i = 0; i < n; ++i) out << fmt::format("{:.1f},{:.1f} ", X(double(i)), Y(e[i]));
     out << "'/>";
-    out << fmt::format("<text x=4 y=14 font-size=11>E = {:.4g}</text>", hi);
-    out << fmt::format("<text x=4 y={} font-size=11>E = {:.4g}</text>", h - 6, lo);
-    out << fmt::format("<text x={} y={} font-size=11>{} iterations</text>", w - 110, h - 6,
-                       e.size());
+    for (size_t i = 0; i < n; ++i)
+        out << fmt::format("<circle cx='{:.1f}' cy='{:.1f}' r=2.5 fill='#1f6feb'/>", X(double(i)),
+                           Y(e[i]));
     out << "</svg>";
+    return out.str();
+}
+
+/// Version, date, command line and the time of the whole run (metrics.json "run").
+std::string runSection(const nlohmann::json& metrics) {
+    if (!metrics.contains("run")) return "";
+    const nlohmann::json& r = metrics["run"];
+    std::ostringstream out;
+    out << "<table class=run>";
+    out << "<tr><td>plumb version</td><td>" << escape(r.value("version", std::string("?")))
+        << "</td></tr>";
+    out << "<tr><td>date (UTC)</td><td>" << escape(r.value("date_utc", std::string("?")))
+        << "</td></tr>";
+    if (r.contains("command_line"))
+        out << "<tr><td>command line</td><td><code>"
+            << escape(r.value("command_line", std::string())) << "</code></td></tr>";
+    if (r.contains("total_seconds")) {
+        out << fmt::format(
+            "<tr><td>total time</td><td><b>{:.1f} s</b> (tracking and fusion {:.1f} s, backend "
+            "{:.1f} s)</td></tr>",
+            r.value("total_seconds", 0.0), r.value("tracking_fusion_seconds", 0.0),
+            r.value("backend_seconds", 0.0));
+    } else {
+        out << fmt::format(
+            "<tr><td>total time</td><td>backend {:.1f} s (tracking and fusion not measured "
+            "here)</td></tr>",
+            r.value("backend_seconds", 0.0));
+    }
+    out << "</table>\n";
     return out.str();
 }
 
@@ -152,7 +216,7 @@ std::string stageTable(const nlohmann::json& stages) {
         out << fmt::format("<tr><td>{}</td><td>{:.2f}</td></tr>\n",
                            escape(s.value("name", std::string("?"))), sec);
     }
-    out << fmt::format("<tr><th>total</th><th>{:.2f}</th></tr></table>\n", total);
+    out << fmt::format("<tr><th>backend total</th><th>{:.2f}</th></tr></table>\n", total);
     return out.str();
 }
 
@@ -542,6 +606,7 @@ std::string renderReportHtml(const nlohmann::json& metrics, const ReportFigures&
         << metrics.value("fragments", 0) << " fragments, " << metrics.value("frames", 0)
         << " frames. Ground truth: " << escape(metrics.value("ground_truth", std::string("none")))
         << ".</p>\n";
+    out << runSection(metrics);
     if (metrics.contains("variants")) {
         out << "<h2>Accuracy</h2>\n" << comparisonTable(metrics["variants"]);
         for (const auto& [name, v] : metrics["variants"].items()) {
@@ -594,7 +659,12 @@ std::string renderReportHtml(const nlohmann::json& metrics, const ReportFigures&
     out << "<h2>Energy per alternation iteration</h2>\n"
         << energyChart(metrics.value("energies", nlohmann::json::array())) << "\n";
     out << "<h2>Time per stage</h2>\n"
-        << stageTable(metrics.value("stages", nlohmann::json::array())) << "\n";
+        << stageTable(metrics.value("stages", nlohmann::json::array()));
+    if (metrics.contains("run") && metrics["run"].contains("tracking_fusion_seconds"))
+        out << fmt::format(
+            "<p>Before these stages, tracking and fusion took {:.1f} s: {:.1f} s in all.</p>\n",
+            metrics["run"].value("tracking_fusion_seconds", 0.0),
+            metrics["run"].value("total_seconds", 0.0));
     out << "</body></html>\n";
     return out.str();
 }

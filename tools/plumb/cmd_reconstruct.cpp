@@ -240,8 +240,12 @@ Result<backend::PipelineResult> reconstructOnce(FrameSource& source, const std::
         log::info("resuming after frame {} ({} fragments stored{})", pass.counts().read,
                   pass.fragmentsStored(), pass.finished() ? ", tracking and fusion done" : "");
     }
+    const auto tracking_start = std::chrono::steady_clock::now();
     Result<bool> finished = pass.run(source, InterruptScope::requested, options.quiet);
     if (!finished.isOk()) return finished.status();
+    // This invocation's tracking and fusion (after a resume: only the frames read now).
+    input.tracking_fusion_seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - tracking_start).count();
     if (!*finished) {
         PLUMB_RETURN_IF_ERROR(writeInterrupted(out, pass, "tracking and fusion"));
         return cancelled(
@@ -546,6 +550,10 @@ int runReconstruct(const std::vector<std::string>& arguments) {
         }
     }
     base.config_toml = config_toml;
+    base.command_line = std::string("plumb ") + kCommand;
+    for (const std::string& a : arguments)
+        base.command_line +=
+            " " + (a.find_first_of(" \t'\"") == std::string::npos ? a : "'" + a + "'");
 
     Result<backend::PipelineResult> result =
         o.self_calibrate ? selfCalibratedRun(**source, uri, o, cfg, base)

@@ -185,6 +185,12 @@ nlohmann::json metrics() {
     m["energies"] = {{{"energy", 3.0}}, {{"energy", 2.0}}, {{"energy", 1.5}}};
     m["stages"] = {{{"name", "initial registration"}, {"seconds", 2.0}}};
     m["total_seconds"] = 2.0;
+    m["run"] = {{"version", "0.1.0"},
+                {"date_utc", "2026-12-03T08:00:00Z"},
+                {"command_line", "plumb reconstruct sim:test_room --out <r>"},
+                {"backend_seconds", 2.0},
+                {"tracking_fusion_seconds", 61.0},
+                {"total_seconds", 63.0}};
     return m;
 }
 
@@ -253,6 +259,34 @@ TEST(ReportHtml, WarningsNameWhatToDoubt) {
     clean.erase("layout_walls");
     EXPECT_NE(renderReportHtml(clean, ReportFigures{}).find("no room layout was found"),
               std::string::npos);
+}
+
+TEST(ReportHtml, RunSectionGivesVersionDateCommandAndTotalTime) {
+    const std::string html = renderReportHtml(metrics(), ReportFigures{});
+    EXPECT_NE(html.find("<td>plumb version</td><td>0.1.0</td>"), std::string::npos);
+    EXPECT_NE(html.find("2026-12-03T08:00:00Z"), std::string::npos);
+    EXPECT_NE(html.find("<code>plumb reconstruct sim:test_room --out &lt;r&gt;</code>"),
+              std::string::npos);  // escaped
+    EXPECT_NE(html.find("<b>63.0 s</b> (tracking and fusion 61.0 s, backend 2.0 s)"),
+              std::string::npos);
+    nlohmann::json m = metrics();
+    m["run"].erase("tracking_fusion_seconds");
+    m["run"].erase("total_seconds");
+    EXPECT_NE(renderReportHtml(m, ReportFigures{}).find("backend 2.0 s (tracking and fusion not"),
+              std::string::npos);
+}
+
+TEST(ReportHtml, EnergyPlotHasAxesTicksAndLabels) {
+    const std::string html = renderReportHtml(metrics(), ReportFigures{});
+    const size_t at = html.find("<svg class=energy");
+    ASSERT_NE(at, std::string::npos);
+    const std::string svg = html.substr(at, html.find("</svg>", at) - at);
+    EXPECT_NE(svg.find("<g class=axes"), std::string::npos);
+    EXPECT_NE(svg.find(">alternation step</text>"), std::string::npos);
+    EXPECT_NE(svg.find(">energy E</text>"), std::string::npos);
+    EXPECT_NE(svg.find(">1.5</text>"), std::string::npos);  // lowest tick
+    EXPECT_NE(svg.find(">3</text>"), std::string::npos);    // highest tick
+    EXPECT_EQ(count(svg, "<circle"), 3u);                   // one marker per step
 }
 
 TEST(ReportHtml, WallTableJoinsPlanarityAndGroundTruthErrors) {
