@@ -138,8 +138,8 @@ std::string energyChart(const nlohmann::json& energies) {
     out << fmt::format("<rect x=0 y=0 width={} height={} fill='#fafafa' stroke='#ccc'/>", w, h);
     // Axes.
     out << fmt::format(
-        "<g class=axes stroke='#333'><line x1={0} y1={1} x2={0} y2={2}/>"
-        "<line x1={0} y1={2} x2={3} y2={2}/></g>",
+        "<g class=axes stroke='#333'><line x1='{0}' y1='{1}' x2='{0}' y2='{2}'/>"
+        "<line x1='{0}' y1='{2}' x2='{3}' y2='{2}'/></g>",
         left, top, top + ph, left + pw);
     // y ticks: 5 levels between lo and hi, with enough digits to tell them apart.
     const double magnitude = std::max(std::abs(lo), std::abs(hi));
