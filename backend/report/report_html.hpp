@@ -1,12 +1,16 @@
 // SPDX-License-Identifier: Apache-2.0
 #pragma once
 
-// report.html: one self-contained page (inline SVG, CSS and base64 PNG pictures rendered by plumb's
-// own rasteriser, nothing fetched) that puts the full
-// method and the --no-layout baseline side by side — ATE, reconstruction error, wall planarity and
-// wall-to-wall angles, layout errors — with the floor plan, top views of both meshes, the energy of
-// every alternation iteration and the time per stage. Everything it shows comes from metrics.json,
-// so the page and the file never disagree.
+// report.html: one self-contained page (inline SVG and CSS, pictures as base64 PNG rendered by
+// plumb's own rasteriser, backend/report/mesh_render.hpp; nothing is fetched) that puts the full
+// method and the --no-layout baseline side by side. In order: the run (version, date, command
+// line, total time including tracking and fusion), accuracy (ATE, reconstruction error, wall
+// planarity and wall-to-wall angles, layout errors), pictures of the model, warnings (tracking
+// failures and unobserved directions, alternation not converged, walls not found, partial
+// coverage), a per-wall table, the floor plan, top views with the camera path (coloured by its
+// error with ground truth), the pose graph, the energy of every alternation step and the time per
+// stage. Every number comes from metrics.json, so the page and the file never disagree; the
+// pictures come from the meshes (ReportFigures).
 
 #include <Eigen/Geometry>
 #include <map>
