@@ -46,26 +46,15 @@ std::optional<Eigen::Vector3d> MeshRender::project(const Eigen::Vector3d& p_U) c
                            principal_px.y() + focal_px * p_C.y() / p_C.z(), p_C.z());
 }
 
-MeshRender renderMesh(const TriangleMesh& mesh, const Eigen::Isometry3d& T_U_M,
-                      const MeshRenderConfig& config) {
-    PLUMB_CHECK(config.width_px > 0 && config.height_px > 0)
-        << "image size " << config.width_px << "x" << config.height_px;
-    const int w = config.width_px;
-    const int h = config.height_px;
-    MeshRender out;
-    out.projection = config.projection;
-    out.image.width = w;
-    out.image.height = h;
-    out.image.rgb.resize(3 * static_cast<size_t>(w) * h);
-    for (int y = 0; y < h; ++y)
-        for (int x = 0; x < w; ++x) out.image.set(x, y, config.background);
-    out.depth.assign(static_cast<size_t>(w) * h, std::numeric_limits<float>::infinity());
-    out.principal_px = Eigen::Vector2d(0.5 * w, 0.5 * h);
+namespace {
 
-    std::vector<Eigen::Vector3d> p_U(mesh.vertices.size());
-    for (size_t i = 0; i < p_U.size(); ++i) p_U[i] = T_U_M * mesh.vertices[i].cast<double>();
-
-    // The dollhouse cut.
+/// The dollhouse cut: the triangles whose vertices are valid and not above the cut height (the
+/// ceiling cut away), in mesh order; marks their vertices in `used` and counts the others as
+/// culled.
+std::vector<const Eigen::Vector3i*> keptTriangles(const TriangleMesh& mesh,
+                                                  const std::vector<Eigen::Vector3d>& p_U,
+                                                  const MeshRenderConfig& config,
+                                                  std::vector<char>* used, MeshRender* out) {
     double z_lo = std::numeric_limits<double>::infinity(), z_hi = -z_lo;
     for (const auto& p : p_U) {
         z_lo = std::min(z_lo, p.z());
@@ -76,7 +65,7 @@ MeshRender renderMesh(const TriangleMesh& mesh, const Eigen::Isometry3d& T_U_M,
                              : z_hi - std::clamp(config.cut_top_fraction, 0.0, 1.0) * (z_hi - z_lo);
     std::vector<const Eigen::Vector3i*> kept;
     kept.reserve(mesh.triangles.size());
-    std::vector<char> used(p_U.size(), 0);
+    used->assign(p_U.size(), 0);
     for (const Eigen::Vector3i& t : mesh.triangles) {
         bool ok = true;
         for (int k = 0; k < 3; ++k) {
@@ -86,15 +75,21 @@ MeshRender renderMesh(const TriangleMesh& mesh, const Eigen::Isometry3d& T_U_M,
                 ok = false;
         }
         if (!ok) {
-            ++out.triangles_culled;
+            ++out->triangles_culled;
             continue;
         }
         kept.push_back(&t);
-        for (int k = 0; k < 3; ++k) used[t[k]] = 1;
+        for (int k = 0; k < 3; ++k) (*used)[t[k]] = 1;
     }
-    if (kept.empty()) return out;
+    return kept;
+}
 
-    // Camera: fit the kept vertices.
+/// Places the camera so that the used vertices fill the image but for the margin: sets
+/// out->T_C_U, focal_px and principal_px; returns the camera's position in U.
+Eigen::Vector3d frameCamera(const std::vector<Eigen::Vector3d>& p_U, const std::vector<char>& used,
+                            const MeshRenderConfig& config, MeshRender* out) {
+    const int w = config.width_px;
+    const int h = config.height_px;
     const Eigen::Matrix3d R_U_C = cameraAxes_U(config);
     const Eigen::Vector3d towards_U = towardsCamera(config);
     Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
@@ -113,19 +108,19 @@ MeshRender renderMesh(const TriangleMesh& mesh, const Eigen::Isometry3d& T_U_M,
         Eigen::Isometry3d T_U_C = Eigen::Isometry3d::Identity();
         T_U_C.linear() = R_U_C;
         T_U_C.translation() = camera_U;
-        out.T_C_U = T_U_C.inverse();
+        out->T_C_U = T_U_C.inverse();
         Eigen::Vector2d c_lo = Eigen::Vector2d::Constant(std::numeric_limits<double>::infinity());
         Eigen::Vector2d c_hi = -c_lo;
         for (size_t i = 0; i < p_U.size(); ++i) {
             if (!used[i]) continue;
-            const Eigen::Vector2d q = (out.T_C_U * p_U[i]).head<2>();
+            const Eigen::Vector2d q = (out->T_C_U * p_U[i]).head<2>();
             c_lo = c_lo.cwiseMin(q);
             c_hi = c_hi.cwiseMax(q);
         }
         const Eigen::Vector2d span = (c_hi - c_lo).cwiseMax(1e-6);
-        out.focal_px = std::min(usable * w / span.x(), usable * h / span.y());
+        out->focal_px = std::min(usable * w / span.x(), usable * h / span.y());
         const Eigen::Vector2d mid = 0.5 * (c_lo + c_hi);
-        out.principal_px = Eigen::Vector2d(0.5 * w, 0.5 * h) - out.focal_px * mid;
+        out->principal_px = Eigen::Vector2d(0.5 * w, 0.5 * h) - out->focal_px * mid;
     } else {
         const double half_v = 0.5 * std::clamp(config.vertical_fov_deg, 5.0, 170.0) * kDegToRad;
         const double half_h = std::atan(std::tan(half_v) * w / h);
@@ -134,10 +129,80 @@ MeshRender renderMesh(const TriangleMesh& mesh, const Eigen::Isometry3d& T_U_M,
         Eigen::Isometry3d T_U_C = Eigen::Isometry3d::Identity();
         T_U_C.linear() = R_U_C;
         T_U_C.translation() = camera_U;
-        out.T_C_U = T_U_C.inverse();
-        out.focal_px = 0.5 * h / std::tan(half_v);
+        out->T_C_U = T_U_C.inverse();
+        out->focal_px = 0.5 * h / std::tan(half_v);
     }
+    return camera_U;
+}
 
+/// Fills one projected triangle (screen x, y and depth per vertex) into the z-buffered image:
+/// colour interpolated from the vertices' `col`, times the triangle's `shade`. True when a
+/// pixel was drawn.
+bool rasteriseTriangle(const Eigen::Vector3d& s0, const Eigen::Vector3d& s1,
+                       const Eigen::Vector3d& s2, const Eigen::Vector3d (&col)[3], double shade,
+                       bool perspective, MeshRender* out) {
+    const int w = out->image.width;
+    const int h = out->image.height;
+    // Edge functions in screen space; the area's sign gives the orientation.
+    const double area =
+        (s1.x() - s0.x()) * (s2.y() - s0.y()) - (s2.x() - s0.x()) * (s1.y() - s0.y());
+    if (std::abs(area) < 1e-12) return false;
+    const int x0 = std::max(0, static_cast<int>(std::floor(std::min({s0.x(), s1.x(), s2.x()}))));
+    const int x1 = std::min(w - 1, static_cast<int>(std::ceil(std::max({s0.x(), s1.x(), s2.x()}))));
+    const int y0 = std::max(0, static_cast<int>(std::floor(std::min({s0.y(), s1.y(), s2.y()}))));
+    const int y1 = std::min(h - 1, static_cast<int>(std::ceil(std::max({s0.y(), s1.y(), s2.y()}))));
+    if (x0 > x1 || y0 > y1) return false;
+    bool drew = false;
+    for (int y = y0; y <= y1; ++y) {
+        for (int x = x0; x <= x1; ++x) {
+            const double px = x + 0.5, py = y + 0.5;
+            // Barycentric weights of vertex 0, 1, 2 (each the sub-triangle opposite it).
+            const double w0 =
+                ((s1.x() - px) * (s2.y() - py) - (s2.x() - px) * (s1.y() - py)) / area;
+            const double w1 =
+                ((s2.x() - px) * (s0.y() - py) - (s0.x() - px) * (s2.y() - py)) / area;
+            const double w2 = 1.0 - w0 - w1;
+            if (w0 < 0.0 || w1 < 0.0 || w2 < 0.0) continue;
+            // Depth: affine in screen space for parallel rays, 1/z affine for a pinhole.
+            const double z = perspective ? 1.0 / (w0 / s0.z() + w1 / s1.z() + w2 / s2.z())
+                                         : w0 * s0.z() + w1 * s1.z() + w2 * s2.z();
+            float& zbuf = out->depth[static_cast<size_t>(y) * w + x];
+            if (!(z < zbuf)) continue;
+            zbuf = static_cast<float>(z);
+            const Eigen::Vector3d rgb = shade * (w0 * col[0] + w1 * col[1] + w2 * col[2]);
+            out->image.set(x, y, rgb.cwiseMax(0.0).cwiseMin(255.0).array().round().cast<uint8_t>());
+            drew = true;
+        }
+    }
+    return drew;
+}
+
+}  // namespace
+
+MeshRender renderMesh(const TriangleMesh& mesh, const Eigen::Isometry3d& T_U_M,
+                      const MeshRenderConfig& config) {
+    PLUMB_CHECK(config.width_px > 0 && config.height_px > 0)
+        << "image size " << config.width_px << "x" << config.height_px;
+    const int w = config.width_px;
+    const int h = config.height_px;
+    MeshRender out;
+    out.projection = config.projection;
+    out.image.width = w;
+    out.image.height = h;
+    out.image.rgb.resize(3 * static_cast<size_t>(w) * h);
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) out.image.set(x, y, config.background);
+    out.depth.assign(static_cast<size_t>(w) * h, std::numeric_limits<float>::infinity());
+    out.principal_px = Eigen::Vector2d(0.5 * w, 0.5 * h);
+
+    std::vector<Eigen::Vector3d> p_U(mesh.vertices.size());
+    for (size_t i = 0; i < p_U.size(); ++i) p_U[i] = T_U_M * mesh.vertices[i].cast<double>();
+    std::vector<char> used;
+    const std::vector<const Eigen::Vector3i*> kept = keptTriangles(mesh, p_U, config, &used, &out);
+    if (kept.empty()) return out;
+    const Eigen::Vector3d camera_U = frameCamera(p_U, used, config, &out);
+
+    const Eigen::Vector3d towards_U = towardsCamera(config);
     const Eigen::Vector3d light_U =
         config.light_direction_U.norm() > 1e-12 ? config.light_direction_U.normalized() : towards_U;
     const bool has_colour = mesh.colors.size() == mesh.vertices.size();
@@ -158,56 +223,19 @@ MeshRender renderMesh(const TriangleMesh& mesh, const Eigen::Isometry3d& T_U_M,
             ++out.triangles_culled;
             continue;
         }
-        std::optional<Eigen::Vector3d> s[3] = {out.project(a), out.project(b), out.project(c)};
+        const std::optional<Eigen::Vector3d> s[3] = {out.project(a), out.project(b),
+                                                     out.project(c)};
         if (!s[0] || !s[1] || !s[2]) {
             ++out.triangles_culled;
             continue;
         }
-        // Edge functions in screen space; the area's sign gives the orientation.
-        const Eigen::Vector3d& s0 = *s[0];
-        const Eigen::Vector3d& s1 = *s[1];
-        const Eigen::Vector3d& s2 = *s[2];
-        const double area =
-            (s1.x() - s0.x()) * (s2.y() - s0.y()) - (s2.x() - s0.x()) * (s1.y() - s0.y());
-        if (std::abs(area) < 1e-12) continue;
-        const int x0 =
-            std::max(0, static_cast<int>(std::floor(std::min({s0.x(), s1.x(), s2.x()}))));
-        const int x1 =
-            std::min(w - 1, static_cast<int>(std::ceil(std::max({s0.x(), s1.x(), s2.x()}))));
-        const int y0 =
-            std::max(0, static_cast<int>(std::floor(std::min({s0.y(), s1.y(), s2.y()}))));
-        const int y1 =
-            std::min(h - 1, static_cast<int>(std::ceil(std::max({s0.y(), s1.y(), s2.y()}))));
-        if (x0 > x1 || y0 > y1) continue;
         const double shade = config.ambient + (1.0 - config.ambient) * std::abs(n.dot(light_U));
         Eigen::Vector3d col[3];
         for (int k = 0; k < 3; ++k)
             col[k] = has_colour ? mesh.colors[t[k]].cast<double>()
                                 : config.default_colour.cast<double>();
-        bool drew = false;
-        for (int y = y0; y <= y1; ++y) {
-            for (int x = x0; x <= x1; ++x) {
-                const double px = x + 0.5, py = y + 0.5;
-                // Barycentric weights of vertex 0, 1, 2 (each the sub-triangle opposite it).
-                const double w0 =
-                    ((s1.x() - px) * (s2.y() - py) - (s2.x() - px) * (s1.y() - py)) / area;
-                const double w1 =
-                    ((s2.x() - px) * (s0.y() - py) - (s0.x() - px) * (s2.y() - py)) / area;
-                const double w2 = 1.0 - w0 - w1;
-                if (w0 < 0.0 || w1 < 0.0 || w2 < 0.0) continue;
-                // Depth: affine in screen space for parallel rays, 1/z affine for a pinhole.
-                const double z = perspective ? 1.0 / (w0 / s0.z() + w1 / s1.z() + w2 / s2.z())
-                                             : w0 * s0.z() + w1 * s1.z() + w2 * s2.z();
-                float& zbuf = out.depth[static_cast<size_t>(y) * w + x];
-                if (!(z < zbuf)) continue;
-                zbuf = static_cast<float>(z);
-                const Eigen::Vector3d rgb = shade * (w0 * col[0] + w1 * col[1] + w2 * col[2]);
-                out.image.set(x, y,
-                              rgb.cwiseMax(0.0).cwiseMin(255.0).array().round().cast<uint8_t>());
-                drew = true;
-            }
-        }
-        if (drew) ++out.triangles_drawn;
+        if (rasteriseTriangle(*s[0], *s[1], *s[2], col, shade, perspective, &out))
+            ++out.triangles_drawn;
     }
     return out;
 }
