@@ -410,6 +410,24 @@ Status writeDocuments(const fs::path& out_dir, const PipelineInput& input,
     return Status::ok();
 }
 
+/// metrics.json's tracking, layout-wall and run figures and the stage table, for the report.
+void addRunFigures(const PipelineInput& input, const PipelineResult& result,
+                   const StageTimer& timer, nlohmann::json* metrics) {
+    nlohmann::json& m = *metrics;
+    m["tracking"] = trackingJson(input.fragments);
+    if (!result.variants.empty() && result.variants.front().layout) {
+        const Layout& main_layout = *result.variants.front().layout;
+        m["layout_walls"] = layoutWallsJson(main_layout);
+        m["outline_on_walls"] = wallBoundedFraction(main_layout);
+        // Whose walls "variants/*/walls" (planarity) are numbered by (evaluation.hpp).
+        m["planarity_reference"] =
+            input.ground_truth.layout ? "ground-truth layout" : "estimated layout";
+    }
+    m["stages"] = stagesJson(timer);
+    m["total_seconds"] = timer.totalSeconds();  // the backend's stages
+    m["run"] = runJson(input, timer.totalSeconds());
+}
+
 }  // namespace
 
 Result<PipelineResult> runPipeline(const PipelineInput& input, const PipelineConfig& config,
@@ -552,18 +570,7 @@ Result<PipelineResult> runPipeline(const PipelineInput& input, const PipelineCon
     if (!alternation_summary.is_null()) metrics["alternation"] = alternation_summary;
     metrics["energies"] = energies;
     if (!layout_diagnostics.is_null()) metrics["layout_diagnostics"] = layout_diagnostics;
-    metrics["tracking"] = trackingJson(fragments);
-    if (!result.variants.empty() && result.variants.front().layout) {
-        const Layout& main_layout = *result.variants.front().layout;
-        metrics["layout_walls"] = layoutWallsJson(main_layout);
-        metrics["outline_on_walls"] = wallBoundedFraction(main_layout);
-        // Whose walls "variants/*/walls" (planarity) are numbered by (evaluation.hpp).
-        metrics["planarity_reference"] =
-            input.ground_truth.layout ? "ground-truth layout" : "estimated layout";
-    }
-    metrics["stages"] = stagesJson(timer);
-    metrics["total_seconds"] = timer.totalSeconds();  // the backend's stages
-    metrics["run"] = runJson(input, timer.totalSeconds());
+    addRunFigures(input, result, timer, &metrics);
     PLUMB_RETURN_IF_ERROR(writeDocuments(out_dir, input, metrics, figures));
     result.metrics = std::move(metrics);
     return result;
