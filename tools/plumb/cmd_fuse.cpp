@@ -42,6 +42,7 @@
 #include "tools/plumb/interrupt.hpp"
 #include "tools/plumb/output_folder.hpp"
 #include "tools/plumb/run_record.hpp"
+#include "tools/plumb/source_arguments.hpp"
 
 namespace plumb::tools {
 namespace {
@@ -747,6 +748,13 @@ Result<std::string> FuseRun::writeComplete(const std::string& source_description
 std::optional<int> parseOptions(const std::vector<std::string>& args, FuseOptions* o) {
     for (size_t i = 0; i < args.size(); ++i) {
         const std::string& a = args[i];
+        bool source_option = false;
+        if (std::optional<int> rc =
+                parseSourceOption(kCommand, args, &i, &o->source_options, &source_option))
+            return rc;
+        if (source_option) {
+            continue;
+        }
         auto value = [&](std::string* v) {
             if (i + 1 >= args.size()) return false;
             *v = args[++i];
@@ -763,36 +771,10 @@ std::optional<int> parseOptions(const std::vector<std::string>& args, FuseOption
             o->force = true;
         } else if (a == "--resume") {
             return usageError(kCommand, "--resume DIR comes without a source and other options");
-        } else if (a == "--frames") {
-            if (!value(&v) || !parseNumber(v, &o->source_options.max_frames) ||
-                o->source_options.max_frames == 0)
-                return usageError(kCommand, "--frames needs a positive integer");
         } else if (a == "--frame-step") {
             if (!value(&v) || !parseNumber(v, &o->frame_step) || !(o->frame_step >= 1.0) ||
                 !std::isfinite(o->frame_step))
                 return usageError(kCommand, "--frame-step needs a number >= 1");
-        } else if (a == "--intrinsics") {
-            if (!value(&o->source_options.intrinsics))
-                return usageError(kCommand, "--intrinsics needs a preset or a file");
-        } else if (a == "--depth-scale") {
-            if (!value(&v) || !parseNumber(v, &o->source_options.depth_scale) ||
-                !(o->source_options.depth_scale > 0))
-                return usageError(kCommand, "--depth-scale needs a positive number");
-        } else if (a == "--seed") {
-            if (!value(&v) || !parseNumber(v, &o->source_options.seed))
-                return usageError(kCommand, "--seed needs a non-negative integer");
-        } else if (a == "--depth-calibration") {
-            if (!value(&o->source_options.depth_calibration))
-                return usageError(kCommand, "--depth-calibration needs a value");
-            if (Status s = checkDepthCalibration(o->source_options.depth_calibration); !s.isOk())
-                return usageError(kCommand, s.message());
-        } else if (a == "--no-colour") {
-            o->source_options.colour = false;
-        } else if (a == "--noise") {
-            if (!value(&o->source_options.sim_noise))
-                return usageError(kCommand, "--noise needs a mode");
-            if (Status s = sim::checkNoiseMode(o->source_options.sim_noise); !s.isOk())
-                return usageError(kCommand, s.message());
         } else if (a == "--threads") {
             if (!value(&v) || !parseNumber(v, &o->threads) || o->threads < 1)
                 return usageError(kCommand, "--threads needs a positive integer");
