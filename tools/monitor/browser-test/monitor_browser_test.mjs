@@ -18,25 +18,12 @@ import fs from "node:fs";
 import path from "node:path";
 import readline from "node:readline";
 
-const CHROMIUM = process.env.PLUMB_CHROMIUM || "/usr/bin/chromium";
+import { CHROMIUM, harness } from "./harness.mjs";
+
 const TOKEN = "browser-test-token";
 const FRAGMENTS = 8;
 
-function arg(name) {
-  const i = process.argv.indexOf(name);
-  if (i < 0 || i + 1 >= process.argv.length) throw new Error("missing " + name);
-  return process.argv[i + 1];
-}
-function fail(message) {
-  console.error("monitor_browser: FAILED: " + message);
-  console.log("0 passed, 1 failed");
-  process.exit(1);
-}
-function unavailable(message) {
-  if (process.env.CI === "true") fail(message + " (CI=true: the browser test must run; run tools/setup.sh)");
-  console.log("monitor_browser: skipped: " + message);
-  process.exit(77);
-}
+const { arg, fail, loadChromium } = harness("monitor_browser");
 
 const plumb = arg("--plumb");
 const fixture = arg("--fixture");
@@ -44,13 +31,7 @@ const work = arg("--work");
 fs.rmSync(work, { recursive: true, force: true });
 fs.mkdirSync(work, { recursive: true });
 
-if (!fs.existsSync(CHROMIUM)) unavailable(CHROMIUM + " not found (Debian package chromium)");
-let chromium;
-try {
-  ({ chromium } = await import("playwright-core"));
-} catch (err) {
-  unavailable("playwright-core not installed (tools/setup.sh runs npm ci in tools/monitor/browser-test): " + err.message);
-}
+const chromium = await loadChromium();
 
 const scan = path.join(work, "scan");
 const made = spawnSync(fixture, [scan, "--fragments", String(FRAGMENTS), "--interval", "0.4"], { encoding: "utf8" });

@@ -16,38 +16,19 @@ import { spawnSync } from "node:child_process";
 import fs from "node:fs";
 import path from "node:path";
 
-const CHROMIUM = process.env.PLUMB_CHROMIUM || "/usr/bin/chromium";
+import { CHROMIUM, harness } from "./harness.mjs";
+
 const SECTIONS = ["Accuracy", "Model", "Warnings", "Walls", "Floor plan", "Top views",
                   "Energy per alternation iteration", "Time per stage"];
 
-function arg(name) {
-  const i = process.argv.indexOf(name);
-  if (i < 0 || i + 1 >= process.argv.length) throw new Error("missing " + name);
-  return process.argv[i + 1];
-}
-function fail(message) {
-  console.error("report_browser: FAILED: " + message);
-  console.log("0 passed, 1 failed");
-  process.exit(1);
-}
-function unavailable(message) {
-  if (process.env.CI === "true") fail(message + " (CI=true: the browser test must run; run tools/setup.sh)");
-  console.log("report_browser: skipped: " + message);
-  process.exit(77);
-}
+const { arg, fail, loadChromium } = harness("report_browser");
 
 const plumb = arg("--plumb");
 const work = arg("--work");
 fs.rmSync(work, { recursive: true, force: true });
 fs.mkdirSync(work, { recursive: true });
 
-if (!fs.existsSync(CHROMIUM)) unavailable(CHROMIUM + " not found (Debian package chromium)");
-let chromium;
-try {
-  ({ chromium } = await import("playwright-core"));
-} catch (err) {
-  unavailable("playwright-core not installed (tools/setup.sh runs npm ci in tools/monitor/browser-test): " + err.message);
-}
+const chromium = await loadChromium();
 
 const out = path.join(work, "r");
 const run = spawnSync(plumb, ["--log-level", "warn", "reconstruct", "sim:living_room", "--frames", "120",
