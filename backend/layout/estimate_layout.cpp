@@ -76,6 +76,24 @@ void describe(config::Schema& s, LayoutConfig& c) {
     s.field("min_contour_run_cells", c.min_contour_run_cells,
             "room polygon: ignore shorter contour runs", "cells")
         .min(1);
+    s.field("path_occupancy_radius_m", c.path_occupancy_radius_m,
+            "base-grid cells this close to a camera position are occupied (0 = none)", "m")
+        .range(0.0, 2.0);
+    s.field("free_space_rays_per_fragment", c.free_space_rays_per_fragment,
+            "lines of sight drawn into the base grid per fragment (0 = none)")
+        .min(0);
+    s.field("max_camera_behind_fraction", c.max_camera_behind_fraction,
+            "walls with more of the camera positions in their extent behind them are rejected")
+        .range(0.0, 1.0);
+    s.field("camera_behind_margin_m", c.camera_behind_margin_m,
+            "camera positions closer than this to a wall count on neither side", "m")
+        .min(0.0);
+    s.field("stacked_wall_angle_deg", c.stacked_wall_angle_deg,
+            "stacked walls: maximum angle between the two", "deg")
+        .range(0.0, 45.0);
+    s.field("stacked_wall_max_gap_m", c.stacked_wall_max_gap_m,
+            "the inner of two same-facing parallel walls this close is rejected (0 = never)", "m")
+        .min(0.0);
 }
 
 namespace {
@@ -181,6 +199,36 @@ bool intersect(const Line2& a, const Line2& b, Eigen::Vector2d* x) {
     return true;
 }
 
+/// Camera positions in W: every tracked frame's (T_W_F * T_F_C), a fragment's origin when it
+/// lists no frames.
+std::vector<Eigen::Vector3d> cameraPositions(const std::vector<Fragment>& fragments,
+                                             const std::vector<Eigen::Isometry3d>& T_W_F) {
+    std::vector<Eigen::Vector3d> out;
+    for (size_t i = 0; i < fragments.size(); ++i) {
+        if (fragments[i].frames.empty()) {
+            out.push_back(T_W_F[i].translation());
+            continue;
+        }
+        for (const FragmentFrame& f : fragments[i].frames) {
+            if (f.tracking_ok && f.T_F_C.matrix().allFinite()) {
+                out.push_back(T_W_F[i] * f.T_F_C.translation());
+            }
+        }
+    }
+    return out;
+}
+
+/// Where a fragment was seen from: the camera position of its middle tracked frame in W (its
+/// origin when it lists no tracked frame).
+Eigen::Vector3d fragmentViewpoint(const Fragment& fragment, const Eigen::Isometry3d& T_W_F) {
+    std::vector<const FragmentFrame*> tracked;
+    for (const FragmentFrame& f : fragment.frames) {
+        if (f.tracking_ok && f.T_F_C.matrix().allFinite()) tracked.push_back(&f);
+    }
+    if (tracked.empty()) return T_W_F.translation();
+    return T_W_F * tracked[tracked.size() / 2]->T_F_C.translation();
+}
+
 double signedArea(const std::vector<Eigen::Vector2d>& poly) {
     double a = 0.0;
     for (size_t k = 0; k < poly.size(); ++k) {
@@ -226,7 +274,9 @@ Result<LayoutEstimate> estimateLayout(const std::vector<Fragment>& fragments,
     auto t0 = Clock::now();
     std::vector<Group> groups;
     std::vector<Eigen::Vector3d> all_points;
+    std::vector<size_t> points_begin;  // fragment i's points: [points_begin[i], points_begin[i+1])
     for (size_t i = 0; i < planes.size(); ++i) {
+        points_begin.push_back(all_points.size());
         const FragmentPlanes& fp = planes[i];
         const Eigen::Isometry3d& T = T_W_F[i];
         std::vector<std::vector<Eigen::Vector3d>> by_label(fp.planes.size());
@@ -250,6 +300,7 @@ Result<LayoutEstimate> estimateLayout(const std::vector<Fragment>& fragments,
             groups.push_back(std::move(g));
         }
     }
+    points_begin.push_back(all_points.size());
     const int num_groups = static_cast<int>(groups.size());
     diag.num_groups = num_groups;
     diag.num_hypotheses = num_groups;
@@ -363,16 +414,22 @@ Result<LayoutEstimate> estimateLayout(const std::vector<Fragment>& fragments,
     diag.base_plane_id = bp.id;
     diag.base_kind = base_is_floor ? "floor" : "ceiling";
 
-    // 4. Occupancy grid on the base plane and its boundary (reference §4.8).
+    // 4. Occupancy grid on the base plane and its boundary (reference §4.8), with the space the
+    // camera moved in.
     t0 = Clock::now();
+    const std::vector<Eigen::Vector3d> cameras_W = cameraPositions(fragments, T_W_F);
+    diag.num_camera_positions = static_cast<int>(cameras_W.size());
     Eigen::Vector3d e1, e2;
     planeBasis(n_b, &e1, &e2);
     double umin = 1e300, umax = -1e300, vmin = 1e300, vmax = -1e300;
-    for (const Eigen::Vector3d& x : all_points) {
-        umin = std::min(umin, e1.dot(x));
-        umax = std::max(umax, e1.dot(x));
-        vmin = std::min(vmin, e2.dot(x));
-        vmax = std::max(vmax, e2.dot(x));
+    for (const std::vector<Eigen::Vector3d>* set :
+         std::initializer_list<const std::vector<Eigen::Vector3d>*>{&all_points, &cameras_W}) {
+        for (const Eigen::Vector3d& x : *set) {
+            umin = std::min(umin, e1.dot(x));
+            umax = std::max(umax, e1.dot(x));
+            vmin = std::min(vmin, e2.dot(x));
+            vmax = std::max(vmax, e2.dot(x));
+        }
     }
     const int pad = 2 + config.closing_kernel_cells;
     umin -= pad * cell;
@@ -393,6 +450,26 @@ Result<LayoutEstimate> estimateLayout(const std::vector<Fragment>& fragments,
     cv::Mat counts = cv::Mat::zeros(gh, gw, CV_32S);
     for (const Eigen::Vector3d& x : all_points) ++counts.at<int>(toCell(x));
     cv::Mat occ = counts >= config.min_cell_points;  // CV_8U, 255 = occupied
+    if (config.path_occupancy_radius_m > 0.0) {
+        const int r = static_cast<int>(std::lround(config.path_occupancy_radius_m / cell));
+        for (const Eigen::Vector3d& c : cameras_W) {
+            cv::circle(occ, toCell(c), r, cv::Scalar(255), cv::FILLED);
+        }
+    }
+    // Lines of sight are free space inside the room: from each fragment's middle camera to a
+    // subsample of its points (this joins the path to the floor it saw from afar).
+    if (config.free_space_rays_per_fragment > 0) {
+        for (size_t i = 0; i < fragments.size(); ++i) {
+            const size_t b = points_begin[i], e = points_begin[i + 1];
+            if (e == b) continue;
+            const cv::Point from = toCell(fragmentViewpoint(fragments[i], T_W_F[i]));
+            const size_t n = static_cast<size_t>(config.free_space_rays_per_fragment);
+            const size_t stride = std::max<size_t>(1, (e - b + n - 1) / n);
+            for (size_t k = b; k < e; k += stride) {
+                cv::line(occ, from, toCell(all_points[k]), cv::Scalar(255), 1);
+            }
+        }
+    }
     if (config.closing_kernel_cells > 0) {
         const cv::Mat kernel = cv::getStructuringElement(
             cv::MORPH_ELLIPSE, cv::Size(config.closing_kernel_cells, config.closing_kernel_cells));
@@ -508,6 +585,136 @@ Result<LayoutEstimate> estimateLayout(const std::vector<Fragment>& fragments,
         diag.walls.push_back(wd);
     }
     diag.opposite_plane_id = opposite >= 0 ? dominant[opposite].id : -1;
+
+    // 5b. Walls bound the space the camera moved in (rules a-c in the header). diag.walls[k] is
+    // the decision on dominant[k].
+    {
+        // A wall seen from above: a point on it, its direction, its extent along the direction
+        // (0.5 % / 99.5 % of its points) and its horizontal normal into the room.
+        struct WallSide {
+            Eigen::Vector3d m = Eigen::Vector3d::Zero();
+            Eigen::Vector3d dir = Eigen::Vector3d::Zero();
+            Eigen::Vector3d u = Eigen::Vector3d::Zero();
+            double tmin = 0.0, tmax = 0.0;
+        };
+        auto inRoom = [&](const Eigen::Vector3d& x) {
+            const double u = (e1.dot(x) - umin) / cell, v = (e2.dot(x) - vmin) / cell;
+            if (u < 0 || v < 0 || u >= gw || v >= gh) return false;
+            return room.at<uint8_t>(static_cast<int>(v), static_cast<int>(u)) != 0;
+        };
+        auto wallSide = [&](const SupportedPlane& p) {
+            WallSide ws;
+            PlaneMoments mm;
+            for (const Eigen::Vector3d* x : p.capped) mm.add(*x);
+            ws.m = mm.mean();
+            Eigen::Vector3d u = (p.n - p.n.dot(n_b) * n_b).normalized();
+            ws.dir = n_b.cross(u);
+            std::vector<double> ts;
+            ts.reserve(p.all.size());
+            for (const Eigen::Vector3d* x : p.all) ts.push_back(ws.dir.dot(*x));
+            std::sort(ts.begin(), ts.end());
+            ws.tmin = ts[ts.size() / 200];
+            ws.tmax = ts[ts.size() - 1 - ts.size() / 200];
+            // The room lies on one side of a boundary wall: probe both sides along its extent,
+            // just beyond the band within which it counts as on the boundary.
+            const double probe = config.tau2_m + 2.0 * cell;
+            int plus = 0, minus = 0;
+            for (double t = ws.tmin; t <= ws.tmax; t += cell) {
+                const Eigen::Vector3d q = ws.m + (t - ws.dir.dot(ws.m)) * ws.dir;
+                const bool a = inRoom(q + probe * u), b = inRoom(q - probe * u);
+                if (a && !b) ++plus;
+                if (b && !a) ++minus;
+            }
+            if (plus == minus) {  // no side tells: the side most camera positions are on
+                for (const Eigen::Vector3d& c : cameras_W) (u.dot(c - ws.m) >= 0 ? plus : minus)++;
+            }
+            ws.u = minus > plus ? Eigen::Vector3d(-u) : u;
+            return ws;
+        };
+        std::vector<WallSide> sides(dominant.size());
+        // a. No camera behind a wall.
+        std::vector<int> kept;
+        for (int k : wall_ids) {
+            sides[k] = wallSide(dominant[k]);
+            const WallSide& ws = sides[k];
+            int within = 0, behind = 0;
+            for (const Eigen::Vector3d& c : cameras_W) {
+                const double t = ws.dir.dot(c);
+                if (t < ws.tmin || t > ws.tmax) continue;
+                ++within;
+                if (ws.u.dot(c - ws.m) < -config.camera_behind_margin_m) ++behind;
+            }
+            WallDecision& wd = diag.walls[k];
+            if (within > 0) wd.camera_behind_fraction = static_cast<double>(behind) / within;
+            if (within > 0 && wd.camera_behind_fraction > config.max_camera_behind_fraction) {
+                wd.kept = false;
+                wd.reason = "camera behind it";
+            } else {
+                kept.push_back(k);
+            }
+        }
+        // b. The inner of two stacked walls (a front before the wall behind it).
+        struct Front {
+            int inner = -1, outer = -1;
+            double gap_m = 0.0;
+        };
+        std::vector<Front> fronts;
+        const double cos_stack = std::cos(config.stacked_wall_angle_deg * kDeg);
+        if (config.stacked_wall_max_gap_m > 0.0) {
+            for (int i : kept) {
+                Front best;
+                for (int o : kept) {
+                    if (o == i || sides[i].u.dot(sides[o].u) < cos_stack) continue;
+                    const double gap = sides[o].u.dot(sides[i].m - sides[o].m);
+                    if (gap > config.wall_merge_offset_m && gap <= config.stacked_wall_max_gap_m &&
+                        gap > best.gap_m) {
+                        best = Front{i, o, gap};
+                    }
+                }
+                if (best.inner >= 0) fronts.push_back(best);
+            }
+        }
+        auto isInner = [&](int k) {
+            return std::any_of(fronts.begin(), fronts.end(),
+                               [&](const Front& f) { return f.inner == k; });
+        };
+        std::vector<int> bounding;
+        for (int k : kept) {
+            WallDecision& wd = diag.walls[k];
+            for (const Front& f : fronts) {
+                if (f.inner == k) {
+                    wd.kept = false;
+                    wd.reason = fmt::format("in front of wall {}", dominant[f.outer].id);
+                }
+            }
+            if (isInner(k)) continue;
+            // c. The side of a block whose front was rejected: (almost) all its points between
+            // the outer wall and the front, within the front's extent.
+            const double margin = 0.1;
+            for (const Front& f : fronts) {
+                const WallSide& o = sides[f.outer];
+                const WallSide& in = sides[f.inner];
+                if (std::abs(sides[k].u.dot(o.u)) >= cos_stack) continue;
+                const SupportedPlane& p = dominant[k];
+                size_t between = 0;
+                for (const Eigen::Vector3d* x : p.capped) {
+                    const double s = o.u.dot(*x - o.m), t = in.dir.dot(*x);
+                    if (s >= -margin && s <= f.gap_m + margin && t >= in.tmin - 2 * margin &&
+                        t <= in.tmax + 2 * margin) {
+                        ++between;
+                    }
+                }
+                if (!p.capped.empty() && between >= 0.95 * static_cast<double>(p.capped.size())) {
+                    wd.kept = false;
+                    wd.reason =
+                        fmt::format("side of a block in front of wall {}", dominant[f.outer].id);
+                    break;
+                }
+            }
+            if (wd.kept) bounding.push_back(k);
+        }
+        wall_ids = std::move(bounding);
+    }
 
     // 6. Weak-Manhattan snapping (reference §4.10).
     std::vector<Eigen::Vector3d> wall_n(wall_ids.size());
@@ -675,22 +882,30 @@ Result<LayoutEstimate> estimateLayout(const std::vector<Fragment>& fragments,
             }
         }
         // Where the contour rounds a corner its cells can alternate between the two walls
-        // (A B A B): drop the shortest run B that sits between two runs of the same wall A and
-        // merge those, until no such triple is left.
+        // (A B A B): of a run B between two runs of the same wall A, the shortest of the three
+        // is dropped (B: the two A runs merge; one A: a stray stretch of A's line, e.g. where a
+        // partial scan's contour passes near it again), until no such triple is left.
+        auto mergeEqualNeighbours = [&](size_t at) {  // kept[at] and kept[at + 1] (wrapping)
+            const size_t m = kept.size();
+            const size_t nx = (at + 1) % m;
+            if (m < 2 || kept[at].first != kept[nx].first) return;
+            kept[at].second += kept[nx].second;
+            kept.erase(kept.begin() + static_cast<std::ptrdiff_t>(nx));
+        };
         for (bool changed = true; changed && kept.size() > 3;) {
             changed = false;
             const size_t m = kept.size();
-            size_t best = m;
+            size_t drop = m;
             for (size_t k = 0; k < m; ++k) {
-                if (kept[(k + m - 1) % m].first != kept[(k + 1) % m].first) continue;
-                if (best == m || kept[k].second < kept[best].second) best = k;
+                const size_t prev = (k + m - 1) % m, next = (k + 1) % m;
+                if (kept[prev].first != kept[next].first) continue;
+                for (size_t c : {k, prev, next}) {
+                    if (drop == m || kept[c].second < kept[drop].second) drop = c;
+                }
             }
-            if (best == m) break;
-            const size_t prev = (best + m - 1) % m, next = (best + 1) % m;
-            kept[prev].second += kept[next].second;
-            const size_t lo = std::min(best, next), hi = std::max(best, next);
-            kept.erase(kept.begin() + static_cast<std::ptrdiff_t>(hi));
-            kept.erase(kept.begin() + static_cast<std::ptrdiff_t>(lo));
+            if (drop == m) break;
+            kept.erase(kept.begin() + static_cast<std::ptrdiff_t>(drop));
+            mergeEqualNeighbours((drop + kept.size() - 1) % kept.size());
             changed = true;
         }
         for (const auto& run : kept) {
@@ -754,6 +969,15 @@ Result<LayoutEstimate> estimateLayout(const std::vector<Fragment>& fragments,
         diag.polygon_method = "walls";
     }
     layout.room_polygon_L = polygon;
+    if (!cameras_W.empty() && polygon.size() >= 3) {
+        size_t inside = 0;
+        for (const Eigen::Vector3d& c : cameras_W) {
+            if (insidePolygon(polygon, (T_L_W * c).head<2>())) ++inside;
+        }
+        diag.path_inside_fraction = static_cast<double>(inside) / cameras_W.size();
+    } else if (!cameras_W.empty()) {
+        diag.path_inside_fraction = 0.0;
+    }
 
     // Planes in L.
     LayoutPlane floor;
@@ -868,6 +1092,7 @@ nlohmann::json toJson(const LayoutDiagnostics& d) {
                               {"abs_dot_base", w.abs_dot_base},
                               {"boundary_distance_m", w.boundary_distance_m},
                               {"top_gap_m", w.top_gap_m},
+                              {"camera_behind_fraction", w.camera_behind_fraction},
                               {"reason", w.reason}});
     }
     j["snapping"] = nlohmann::json::array();
@@ -880,6 +1105,8 @@ nlohmann::json toJson(const LayoutDiagnostics& d) {
                                  {"normal_before_W", vec(s.normal_before_W)}});
     }
     j["polygon_method"] = d.polygon_method;
+    j["num_camera_positions"] = d.num_camera_positions;
+    j["path_inside_fraction"] = d.path_inside_fraction;
     j["ms_clustering"] = d.ms_clustering;
     j["ms_grid"] = d.ms_grid;
     j["ms_total"] = d.ms_total;

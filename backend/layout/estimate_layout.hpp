@@ -15,11 +15,34 @@
 //      the morphological boundary dO (Iwanowski 2007);
 //   5. walls (Eq. 6-7): |n . n_base| < tau1 and mean distance of the plane's projected points to
 //      dO < tau2; near-coplanar walls merged; the opposite horizontal plane (ceiling or floor);
+//      then walls must bound the space the camera moved in (below);
 //   6. weak-Manhattan snapping: walls made exactly vertical; those within snap_angle of a multiple
 //      of 90 degrees from the largest wall are made exactly orthogonal/parallel to it, the others
 //      keep their angle; offsets re-estimated with the normals fixed;
 //   7. layout frame L: z up (the floor normal), floor at z = 0, x along the largest wall's normal;
 //      the room polygon from the walls in the order the boundary contour meets them.
+//
+// Walls bound the space the camera moved in. The camera positions (every tracked frame's,
+// T_W_F * T_F_C; a fragment without frames gives its origin) are occupied cells of the base grid
+// (path_occupancy_radius_m around each), and so are lines of sight from each fragment's middle
+// camera to its points, so the boundary dO encloses the path and the space seen from it. A wall's
+// room side is the side of it where the room region (the filled contour) lies, probed along its
+// extent; the rules, in this order:
+//   a. camera behind: of the camera positions whose projection falls within the wall's extent,
+//      more than max_camera_behind_fraction lie farther than camera_behind_margin_m behind the
+//      wall (outside the room) -> not a wall ("camera behind it": a counter front or room divider
+//      seen from its far side, a plane that would leave the path outside the polygon);
+//   b. stacked walls: of two walls within stacked_wall_angle_deg of parallel, facing the same way
+//      (room sides agree), whose planes are more than wall_merge_offset_m and at most
+//      stacked_wall_max_gap_m apart, the inner one (nearer the room, i.e. in front of the other)
+//      is not a wall ("in front of wall N": a counter, tall cabinet or shelf front before the
+//      wall behind it). A recess of a wall shallower than stacked_wall_max_gap_m is therefore
+//      drawn as the straight outer wall;
+//   c. block sides: a wall whose points (95 %) lie within the slab between such an outer wall and
+//      the rejected inner front (10 cm margin) is that block's side, not a wall ("side of a block
+//      in front of wall N").
+// The fraction of camera positions inside the final room polygon is reported
+// (LayoutDiagnostics::path_inside_fraction).
 //
 // Deterministic; the result depends only on the inputs and the configuration.
 
@@ -104,6 +127,28 @@ struct LayoutConfig {
     double refit_band_m = 0.06;
     /// Room polygon: contour runs shorter than this many cells are ignored.
     int min_contour_run_cells = 4;
+    /// Walls bound the camera's space (rules a-c above). Cells of the base grid within this
+    /// distance of a camera position are occupied, metres (0: the path is not added). 0.3 m:
+    /// the person holding the camera stands there, and 6 cells cover a 1.2 m gap to the seen
+    /// floor a camera held at 1.4 m pitched down 8 degrees leaves around it.
+    double path_occupancy_radius_m = 0.3;
+    /// Lines of sight are free space: this many lines per fragment, from its middle camera to its
+    /// points (a stride subsample), are occupied cells of the base grid (0: none). They join the
+    /// path to the floor it saw from afar (a camera pitched down 8 degrees at 1.4 m sees no floor
+    /// within 1.2 m of itself, and the path would be left outside the seen space).
+    int free_space_rays_per_fragment = 300;
+    /// Rule a: a wall with more than this fraction of the camera positions within its extent
+    /// behind it is not a wall. A true wall has none behind it; 0.1 tolerates a path that grazes
+    /// the end of a wall through a doorway.
+    double max_camera_behind_fraction = 0.1;
+    /// Rule a: camera positions closer than this to the wall count on neither side, metres.
+    double camera_behind_margin_m = 0.1;
+    /// Rule b: walls within this angle of parallel may be stacked, degrees.
+    double stacked_wall_angle_deg = 10.0;
+    /// Rule b: the inner of two same-facing parallel walls at most this far apart is rejected,
+    /// metres: kitchen counters and tall cabinets are 0.6 m deep, wardrobes 0.6, shelves 0.3-0.4
+    /// (0 disables rules b and c).
+    double stacked_wall_max_gap_m = 0.8;
 };
 void describe(config::Schema& s, LayoutConfig& c);
 
@@ -128,9 +173,14 @@ struct WallDecision {
     /// How far the plane's points stay below the ceiling (above the floor when the base is the
     /// ceiling), 99th percentile; without an opposite plane, min_wall_height_m minus its span.
     double top_gap_m = 0.0;
+    /// Rule a: the fraction of the camera positions within the wall's extent that lie behind it
+    /// (outside the room); -1 when no camera position falls within its extent or the plane was
+    /// rejected before.
+    double camera_behind_fraction = -1.0;
     std::string reason;  ///< "wall", "base plane", "not vertical", "far from boundary",
                          ///< "too small", "does not reach the ceiling",
-                         ///< "too low", "merged into N", "opposite plane"
+                         ///< "too low", "merged into N", "opposite plane", "camera behind it",
+                         ///< "in front of wall N", "side of a block in front of wall N"
 };
 
 /// What the weak-Manhattan step did to one wall.
@@ -160,7 +210,10 @@ struct LayoutDiagnostics {
     int boundary_cells = 0;
     std::vector<WallDecision> walls;
     std::vector<SnapDecision> snapping;
-    std::string polygon_method;  ///< "walls" (contour order) or "contour" (fallback)
+    std::string polygon_method;    ///< "walls" (contour order) or "contour" (fallback)
+    int num_camera_positions = 0;  ///< camera positions the wall rules used
+    /// Fraction of the camera positions inside the room polygon (1 when there are none).
+    double path_inside_fraction = 1.0;
     double ms_clustering = 0.0;
     double ms_grid = 0.0;
     double ms_total = 0.0;

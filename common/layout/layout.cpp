@@ -95,6 +95,30 @@ std::vector<int> polygonEdgeWalls(const Layout& layout, double tolerance_m) {
     return out;
 }
 
+bool insidePolygon(const std::vector<Eigen::Vector2d>& polygon, const Eigen::Vector2d& q) {
+    if (polygon.size() < 3) return false;
+    bool inside = false;
+    for (size_t k = 0, j = polygon.size() - 1; k < polygon.size(); j = k++) {
+        const Eigen::Vector2d& a = polygon[k];
+        const Eigen::Vector2d& b = polygon[j];
+        if ((a.y() > q.y()) != (b.y() > q.y()) &&
+            q.x() < (b.x() - a.x()) * (q.y() - a.y()) / (b.y() - a.y()) + a.x()) {
+            inside = !inside;
+        }
+    }
+    return inside;
+}
+
+double polygonArea(const std::vector<Eigen::Vector2d>& polygon) {
+    double twice = 0.0;
+    for (size_t k = 0; k < polygon.size(); ++k) {
+        const Eigen::Vector2d& p = polygon[k];
+        const Eigen::Vector2d& q = polygon[(k + 1) % polygon.size()];
+        twice += p.x() * q.y() - q.x() * p.y();
+    }
+    return 0.5 * std::abs(twice);
+}
+
 double wallBoundedFraction(const Layout& layout, double tolerance_m) {
     const std::vector<Eigen::Vector2d>& poly = layout.room_polygon_L;
     if (poly.size() < 3) return 0.0;

@@ -74,6 +74,13 @@ std::vector<int> polygonEdgeWalls(const Layout& layout, double tolerance_m = 0.0
 /// for a polygon with fewer than 3 vertices.
 double wallBoundedFraction(const Layout& layout, double tolerance_m = 0.05);
 
+/// True when `q` lies inside the polygon (even-odd rule; a point on an edge may count either
+/// way). Any orientation; fewer than 3 vertices contain nothing.
+bool insidePolygon(const std::vector<Eigen::Vector2d>& polygon, const Eigen::Vector2d& q);
+
+/// The polygon's area (absolute value of the shoelace sum), m^2 for a polygon in metres.
+double polygonArea(const std::vector<Eigen::Vector2d>& polygon);
+
 /// A room counts as closed when at least this fraction of its outline lies on walls; below it
 /// the outline is mostly the edge of the seen floor (the scan saw only part of the room).
 inline constexpr double kClosedRoomWallFraction = 0.8;

@@ -147,6 +147,15 @@ TEST_P(SimLayout, GroundTruthPosesGiveTheRoom) {
     EXPECT_EQ(est->diagnostics.polygon_method, "walls");
     EXPECT_EQ(static_cast<int>(est->layout.walls().size()), room.scene.numWalls());
     expectLayoutMatches(est->layout, room.gt, 1.0, 0.02, GetParam() + " GT poses");
+    // Walls bound the space the camera moved in: no wall has the camera behind it, and the
+    // whole path lies inside the room polygon.
+    for (const WallDecision& w : est->diagnostics.walls) {
+        if (w.kept) {
+            EXPECT_LE(w.camera_behind_fraction, 0.0) << "plane " << w.plane_id;
+        }
+    }
+    EXPECT_GT(est->diagnostics.num_camera_positions, 0);
+    EXPECT_DOUBLE_EQ(est->diagnostics.path_inside_fraction, 1.0);
     EXPECT_NEAR(est->layout.ceiling_height_m, room.scene.height_m, 0.02);
     // The layout frame is gravity aligned with the floor at z = 0.
     const Eigen::Vector3d up_W = est->layout.T_W_L.linear().col(2);
