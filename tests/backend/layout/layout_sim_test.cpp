@@ -23,19 +23,13 @@
 #include "common/geometry/lie.hpp"
 #include "drivers/sim/sim_source.hpp"
 #include "tests/backend/global/overlap_information.hpp"
-#include "tests/backend/layout/layout_fixtures.hpp"
+#include "tests/backend/layout/sim_scan.hpp"
 #include "tests/testing/shared_data.hpp"
 
 namespace plumb::layout {
 namespace {
 
-struct SimRoom {
-    sim::Scene scene;
-    Layout gt;
-    std::vector<Fragment> fragments;
-    std::vector<Eigen::Isometry3d> T_W_F;
-    std::vector<FragmentPlanes> planes;
-};
+using SimRoom = testing::SimScan;
 
 /// Fuses a simulated loop around `name` (3 Hz, 6 frames per fragment, Redwood sensor noise
 /// without the distortion table) and extracts every fragment's planes; cached per scene.
@@ -43,7 +37,6 @@ const SimRoom& simRoom(const std::string& name) {
     static std::map<std::string, std::unique_ptr<SimRoom>> cache;
     auto it = cache.find(name);
     if (it != cache.end()) return *it->second;
-    auto room = std::make_unique<SimRoom>();
     sim::SimConfig cfg;
     cfg.scene = name;
     cfg.noise.distortion = sim::DistortionKind::kNone;
@@ -52,36 +45,7 @@ const SimRoom& simRoom(const std::string& name) {
     // ceiling); the default sway of 10 degrees never sees the ceiling from 1.5 m.
     cfg.trajectory.pitch_deg = 0.0;
     cfg.trajectory.pitch_sway_deg = 30.0;
-    auto scene = sim::builtinScene(name);
-    EXPECT_TRUE(scene.isOk());
-    auto path = sim::pathControlPoints(*scene);
-    EXPECT_TRUE(path.isOk());
-    double perimeter = 0.0;
-    for (size_t k = 0; k < path->size(); ++k) {
-        perimeter += ((*path)[(k + 1) % path->size()] - (*path)[k]).norm();
-    }
-    cfg.trajectory.num_frames =
-        static_cast<size_t>(std::ceil(perimeter / 0.35 * cfg.trajectory.rate_hz));
-    auto source = sim::SimSource::create(cfg);
-    EXPECT_TRUE(source.isOk()) << source.status().toString();
-    room->scene = (*source)->scene();
-    room->gt = makeRoomLayout(room->scene.polygon, room->scene.height_m).value();
-    const sim::SimSource& src = **source;
-    auto fused = testing::fuseWithGroundTruth(
-        [&](size_t k) -> Result<Frame> {
-            auto f = src.render(k);
-            if (!f.isOk()) return f.status();
-            return f->frame;
-        },
-        cfg.trajectory.num_frames, 1, 6, src.camera());
-    EXPECT_TRUE(fused.isOk()) << fused.status().toString();
-    room->fragments = std::move(fused->fragments);
-    room->T_W_F = std::move(fused->T_W_F);
-    for (const Fragment& f : room->fragments) {
-        auto fp = extractFragmentPlanes(f);
-        EXPECT_TRUE(fp.isOk()) << fp.status().toString();
-        if (fp.isOk()) room->planes.push_back(std::move(fp).value());
-    }
+    auto room = std::make_unique<SimRoom>(testing::scanSimRoom(cfg, 6));
     return *cache.emplace(name, std::move(room)).first->second;
 }
 
