@@ -252,7 +252,7 @@ Status writeVariantFiles(const fs::path& dir, const std::vector<Fragment>& fragm
         s = io::writeLayoutJson(dir / "layout.json", *layout);
         if (!s.isOk()) return prefixed(s, "writing layout.json");
         s = layout::writeFloorplanSvg(dir / "floorplan.svg", *layout,
-                                      layout::fragmentOutlines(fragments, graph.T_W_F, *layout));
+                                      layout::floorplanOverlays(fragments, graph.T_W_F, *layout));
         if (!s.isOk()) return prefixed(s, "writing floorplan.svg");
     }
     return Status::ok();

@@ -4,8 +4,10 @@
 // same structure with perturbed fragment poses (and the same tolerances once Algorithm 1 has
 // re-registered them), the weak-Manhattan wall left unsnapped, all six walls of the L-shaped room.
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
@@ -140,24 +142,113 @@ TEST_P(SimLayout, GroundTruthPosesGiveTheRoom) {
     const nlohmann::json j = toJson(est->diagnostics);
 
     EXPECT_EQ(j["walls"].size(), est->diagnostics.walls.size());
+}
+
+/// Occurrences of `needle` in svg[from, to).
+size_t countIn(const std::string& svg, const std::string& needle, size_t from = 0,
+               size_t to = std::string::npos) {
+    size_t n = 0;
+    for (size_t at = svg.find(needle, from); at != std::string::npos && at < to;
+         at = svg.find(needle, at + 1)) {
+        ++n;
+    }
+    return n;
+}
+
+/// The text of the SVG group with this id ("" when there is none).
+std::string svgGroup(const std::string& svg, const std::string& id) {
+    const size_t at = svg.find("<g id=\"" + id + "\"");
+    if (at == std::string::npos) return {};
+    return svg.substr(at, svg.find("</g>", at) - at);
+}
+
+/// Interior angles (degrees) of a counter-clockwise polygon.
+std::vector<double> interiorAngles(const std::vector<Eigen::Vector2d>& p) {
+    std::vector<double> out;
+    const size_t n = p.size();
+    for (size_t k = 0; k < n; ++k) {
+        const Eigen::Vector2d a = p[(k + 1) % n] - p[k], b = p[(k + n - 1) % n] - p[k];
+        double deg = std::atan2(a.x() * b.y() - a.y() * b.x(), a.dot(b)) * 180.0 / std::numbers::pi;
+        out.push_back(deg < 0 ? deg + 360.0 : deg);
+    }
+    std::sort(out.begin(), out.end());
+    return out;
+}
+
+TEST_P(SimLayout, FloorPlanDrawsTheRoomAsTheGroundTruthHasIt) {
+    const SimRoom& room = simRoom(GetParam());
+    auto est = estimateLayout(room.fragments, room.planes, room.T_W_F);
+    ASSERT_TRUE(est.isOk()) << est.status().toString();
+    const Layout& layout = est->layout;
+    const FloorplanOverlays overlays = floorplanOverlays(room.fragments, room.T_W_F, layout);
+    const FloorplanFigures fig = floorplanFigures(layout, overlays.seen);
+    const std::vector<Eigen::Vector2d>& gt = room.scene.polygon;
+    ASSERT_EQ(layout.room_polygon_L.size(), gt.size());
+
+    // The figures against the scene: edge lengths (as a set: L's vertex order starts
+    // elsewhere) within 3 cm, corner angles within 1 degree, area within 3 %, and width x depth
+    // within 3 cm (L's x is the largest wall's normal: the rooms' axes, in either order).
+    std::vector<double> gt_lengths, est_lengths = fig.edge_lengths_m;
+    for (size_t k = 0; k < gt.size(); ++k)
+        gt_lengths.push_back((gt[(k + 1) % gt.size()] - gt[k]).norm());
+    std::sort(gt_lengths.begin(), gt_lengths.end());
+    std::sort(est_lengths.begin(), est_lengths.end());
+    for (size_t k = 0; k < gt.size(); ++k) {
+        EXPECT_NEAR(est_lengths[k], gt_lengths[k], 0.03) << "edge length " << k;
+    }
+    const std::vector<double> gt_angles = interiorAngles(gt);
+    std::vector<double> est_angles = fig.corner_angles_deg;
+    std::sort(est_angles.begin(), est_angles.end());
+    for (size_t k = 0; k < gt.size(); ++k) {
+        EXPECT_NEAR(est_angles[k], gt_angles[k], 1.0) << "corner " << k;
+    }
+    EXPECT_NEAR(fig.area_m2, polygonArea(gt), 0.03 * polygonArea(gt));
+    Eigen::Vector2d lo = gt.front(), hi = gt.front();
+    for (const Eigen::Vector2d& p : gt) {
+        lo = lo.cwiseMin(p);
+        hi = hi.cwiseMax(p);
+    }
+    const double gt_small = std::min(hi.x() - lo.x(), hi.y() - lo.y());
+    const double gt_large = std::max(hi.x() - lo.x(), hi.y() - lo.y());
+    EXPECT_NEAR(std::min(fig.width_m, fig.depth_m), gt_small, 0.03);
+    EXPECT_NEAR(std::max(fig.width_m, fig.depth_m), gt_large, 0.03);
+    // A loop round the whole room closes it with walls and sees a good part of its floor.
+    EXPECT_GE(fig.wall_bounded_fraction, kClosedRoomWallFraction);
+    EXPECT_GE(fig.seen_fraction, kMinSeenFloorFraction);
+    EXPECT_LE(fig.seen_fraction, 1.0);
+    EXPECT_FALSE(fig.partial);
+
+    // The drawing holds them: every corner, every edge solid with its length beside it, the
+    // room's size and area, the seen area, the camera path, every fragment's outline, and no
+    // warning.
     const auto dir = testing::freshTempDir("layout_" + GetParam());
-    ASSERT_TRUE(writeFloorplanSvg(dir / "floorplan.svg", est->layout,
-                                  fragmentOutlines(room.fragments, room.T_W_F, est->layout))
-                    .isOk());
-    // A loop round the whole room closes it with walls: the outline lies on them, the plan
-    // warns of nothing and draws every fragment's outline.
-    EXPECT_GE(wallBoundedFraction(est->layout), kClosedRoomWallFraction);
+    ASSERT_TRUE(writeFloorplanSvg(dir / "floorplan.svg", layout, overlays).isOk());
     std::ifstream in(dir / "floorplan.svg");
     const std::string svg((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    EXPECT_EQ(svg.find("partial scan"), std::string::npos);
-    size_t outlines = 0;
-    const size_t group = svg.find("<g id=\"fragments\"");
-    ASSERT_NE(group, std::string::npos);
-    for (size_t at = svg.find("<polygon", group); at < svg.find("</g>", group);
-         at = svg.find("<polygon", at + 1)) {
-        ++outlines;
+    EXPECT_EQ(countIn(svgGroup(svg, "corners"), "<circle"), gt.size());
+    const std::string lengths = svgGroup(svg, "lengths");
+    EXPECT_EQ(countIn(lengths, "<text class=\"seen\""), gt.size());
+    for (double len : fig.edge_lengths_m) {
+        EXPECT_NE(lengths.find(fmt::format(">{:.2f} m<", len)), std::string::npos) << len;
     }
-    EXPECT_EQ(outlines, room.fragments.size());
+    EXPECT_EQ(countIn(svgGroup(svg, "outline"), "class=\"inferred\""), 0u);
+    EXPECT_NE(svg.find(fmt::format("room {:.2f} m \u00d7 {:.2f} m, {:.1f} m\u00b2", fig.width_m,
+                                   fig.depth_m, fig.area_m2)),
+              std::string::npos);
+    EXPECT_NE(svg.find(fmt::format("ceiling {:.2f} m", layout.ceiling_height_m)),
+              std::string::npos);
+    const std::string dims = svgGroup(svg, "dimensions");
+    EXPECT_NE(dims.find(fmt::format(">{:.2f} m<", fig.width_m)), std::string::npos);
+    EXPECT_NE(dims.find(fmt::format(">{:.2f} m<", fig.depth_m)), std::string::npos);
+    EXPECT_NE(svg.find("<path id=\"seen\""), std::string::npos);
+    EXPECT_NE(svg.find("clip-path=\"url(#floorplan-room-clip)\""), std::string::npos);
+    EXPECT_NE(svg.find("<polyline id=\"path\""), std::string::npos);
+    EXPECT_EQ(countIn(svgGroup(svg, "fragments"), "<polygon"), room.fragments.size());
+    EXPECT_EQ(svg.find("partial scan"), std::string::npos);
+    // The camera path drawn lies inside the room drawn.
+    for (const Eigen::Vector2d& c : overlays.camera_path_L) {
+        EXPECT_TRUE(insidePolygon(layout.room_polygon_L, c)) << c.transpose();
+    }
 }
 
 TEST(Floorplan, APartialScanIsSaidAndItsInferredOutlineDashed) {
@@ -170,18 +261,29 @@ TEST(Floorplan, APartialScanIsSaidAndItsInferredOutlineDashed) {
     room.ceiling_height_m = 0.0;
     const std::string partial = floorplanSvg(room);
     EXPECT_NE(partial.find("partial scan: 50 % of the outline"), std::string::npos) << partial;
-    size_t inferred = 0, seen = 0;
-    for (size_t at = partial.find("class=\"inferred\""); at != std::string::npos;
-         at = partial.find("class=\"inferred\"", at + 1)) {
-        ++inferred;
-    }
-    for (size_t at = partial.find("class=\"seen\""); at != std::string::npos;
-         at = partial.find("class=\"seen\"", at + 1)) {
-        ++seen;
-    }
-    EXPECT_EQ(seen, 2u);
-    EXPECT_EQ(inferred, 2u);
-    EXPECT_EQ(partial.find("ceiling"), std::string::npos);  // an unseen ceiling has no height
+    EXPECT_NE(partial.find("seen part 4.00 m \u00d7 3.00 m, 12.0 m\u00b2"), std::string::npos);
+    const std::string outline = svgGroup(partial, "outline");
+    EXPECT_EQ(countIn(outline, "<line class=\"seen\""), 2u);
+    EXPECT_EQ(countIn(outline, "<line class=\"inferred\" "), 2u);
+    EXPECT_EQ(countIn(outline, "stroke-dasharray"), 2u);
+    // An unseen ceiling has no height.
+    EXPECT_NE(partial.find("ceiling not seen"), std::string::npos);
+    EXPECT_EQ(partial.find("ceiling 0"), std::string::npos);
+
+    // A closed outline but a fifth of the floor seen is a partial scan too.
+    Layout closed = makeRoomLayout({{0, 0}, {4, 0}, {4, 3}, {0, 3}}, 2.5).value();
+    FloorplanOverlays fifth;
+    fifth.seen.outlines = {{{0, 0}, {2, 0}, {2, 1.2}, {0, 1.2}}};
+    fifth.seen.area_m2 = fifth.seen.area_in_room_m2 = 2.4;
+    const FloorplanFigures fig = floorplanFigures(closed, fifth.seen);
+    EXPECT_DOUBLE_EQ(fig.seen_fraction, 0.2);
+    EXPECT_TRUE(fig.partial);
+    const std::string svg = floorplanSvg(closed, fifth);
+    EXPECT_NE(svg.find("partial scan: 20 % of the room's area was seen"), std::string::npos) << svg;
+    EXPECT_NE(svg.find("room 4.00 m \u00d7 3.00 m, 12.0 m\u00b2, 20 % of it seen"),
+              std::string::npos);
+    EXPECT_EQ(countIn(svgGroup(svg, "corners"), "<circle"), 4u);
+    EXPECT_EQ(countIn(svgGroup(svg, "corners"), ": 90.0 deg"), 4u);
 }
 
 TEST_P(SimLayout, PerturbedPosesStillGiveTheRoom) {
