@@ -97,13 +97,45 @@ TEST(MonitorServer, TokenIsRequiredWhenSet) {
         EXPECT_EQ(res->status, 401) << path;
         EXPECT_EQ(res->body.find("\"fragments\""), std::string::npos) << path;
     }
-    // The page's files carry no data and load without the token (the page passes it on).
-    for (const char* path : {"/", "/monitor.js"}) {
+    // The page and its files need it too: without it a page that says so and loads nothing.
+    for (const char* path : {"/", "/index.html", "/monitor.js", "/monitor.css", "/favicon.svg"}) {
         auto res = c.Get(path);
+        ASSERT_TRUE(res) << path;
+        EXPECT_EQ(res->status, 401) << path;
+        EXPECT_NE(res->get_header_value("Content-Type").find("text/html"), std::string::npos);
+        EXPECT_NE(res->body.find(">token required: add ?token="), std::string::npos) << res->body;
+        EXPECT_EQ(res->body.find("monitor.js"), std::string::npos) << path;
+        EXPECT_EQ(res->get_header_value("Content-Security-Policy").find("default-src 'none'"), 0u);
+    }
+    auto res = c.Get("/?token=wrong");
+    ASSERT_TRUE(res);
+    EXPECT_EQ(res->status, 401);
+    EXPECT_NE(res->body.find(">token required: the token in the address is wrong<"),
+              std::string::npos)
+        << res->body;
+    res = c.Get("/monitor.js?token=s3cret-toke");
+    ASSERT_TRUE(res);
+    EXPECT_EQ(res->status, 401);
+    // With it, the page comes with the token on every reference to its own files, so that the
+    // browser's requests for them pass too; the files themselves are served unchanged.
+    res = c.Get("/?token=s3cret-token");
+    ASSERT_TRUE(res);
+    EXPECT_EQ(res->status, 200);
+    for (const char* file : {"monitor.js", "monitor.css", "favicon.svg"}) {
+        const std::string name = std::string("\"") + file;
+        EXPECT_NE(res->body.find(name + "?token=s3cret-token\""), std::string::npos) << file;
+        EXPECT_EQ(res->body.find(name + "\""), std::string::npos) << file;
+    }
+    for (const char* path : {"/monitor.js?token=s3cret-token", "/favicon.svg?token=s3cret-token"}) {
+        res = c.Get(path);
         ASSERT_TRUE(res) << path;
         EXPECT_EQ(res->status, 200) << path;
     }
-    auto res = c.Get("/api/state?token=wrong");
+    EXPECT_EQ(res->body, std::string(findWebAsset("/favicon.svg")->bytes));
+    res = c.Get("/", {{"Authorization", "Bearer s3cret-token"}});
+    ASSERT_TRUE(res);
+    EXPECT_EQ(res->status, 200);
+    res = c.Get("/api/state?token=wrong");
     ASSERT_TRUE(res);
     EXPECT_EQ(res->status, 401);
     res = c.Get("/api/state?token=s3cret-toke");  // a prefix is not the token
@@ -123,6 +155,21 @@ TEST(MonitorServer, TokenIsRequiredWhenSet) {
     EXPECT_EQ(res->status, 200);
     // Issue 32, item 9: the URL plumb monitor prints never carries the secret.
     EXPECT_EQ(s.server->url().find("s3cret-token"), std::string::npos) << s.server->url();
+}
+
+TEST(MonitorServer, ATokenIsEncodedInThePage) {
+    ServerConfig config;
+    config.token = "a b&\"<x>/é";
+    Served s(config);
+    auto res = s.client().Get("/?token=a%20b%26%22%3Cx%3E%2F%C3%A9");
+    ASSERT_TRUE(res);
+    ASSERT_EQ(res->status, 200);
+    EXPECT_NE(res->body.find("\"monitor.js?token=a%20b%26%22%3Cx%3E%2F%C3%A9\""), std::string::npos)
+        << res->body;
+    EXPECT_EQ(res->body.find("<x>"), std::string::npos);
+    res = s.client().Get("/monitor.js?token=a%20b%26%22%3Cx%3E%2F%C3%A9");
+    ASSERT_TRUE(res);
+    EXPECT_EQ(res->status, 200);
 }
 
 TEST(MonitorServer, RefusesForeignHostNamesOnLoopback) {

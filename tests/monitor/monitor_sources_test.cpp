@@ -201,6 +201,41 @@ TEST(DirectoryWatcher, ReadsTheOutputContractAndFollowsChanges) {
     fs::remove_all(dir);
 }
 
+TEST(DirectoryWatcher, MetricsJsonSaysTheRunHasEnded) {
+    const fs::path dir = freshDir("dirstatus");
+    MonitorState state;
+    DirectoryWatcher watcher(dir, state);
+    EXPECT_EQ(watcher.scanOnce(), 0);
+    // While the backend writes the folder there is no metrics.json: the run is not over.
+    EXPECT_TRUE(state.toJson()["source"]["run_status"].is_null());
+    {
+        std::ofstream(dir / "metrics.json")
+            << R"({"format": "plumb-metrics-1", "status": "complete"})";
+    }
+    EXPECT_EQ(watcher.scanOnce(), 1);
+    EXPECT_EQ(state.toJson()["source"]["run_status"], "complete");
+    EXPECT_EQ(watcher.scanOnce(), 0);
+    {
+        std::ofstream(dir / "metrics.json")
+            << R"({"status": "interrupted", "format": "plumb-metrics-1"})";
+    }
+    EXPECT_EQ(watcher.scanOnce(), 1);
+    EXPECT_EQ(state.toJson()["source"]["run_status"], "interrupted");
+    // A run started again in the folder removes it.
+    fs::remove(dir / "metrics.json");
+    EXPECT_EQ(watcher.scanOnce(), 1);
+    EXPECT_TRUE(state.toJson()["source"]["run_status"].is_null());
+    // A damaged one is reported, not taken for an ended run.
+    { std::ofstream(dir / "metrics.json") << R"({"status": )"; }
+    for (int i = 0; i < 3; ++i) watcher.scanOnce();
+    const json j = state.toJson();
+    EXPECT_TRUE(j["source"]["run_status"].is_null());
+    ASSERT_FALSE(j["errors"].empty());
+    EXPECT_NE(j["errors"].back().get<std::string>().find("metrics.json: invalid JSON"),
+              std::string::npos);
+    fs::remove_all(dir);
+}
+
 TEST(DirectoryWatcher, ThreadPicksUpNewFragments) {
     const fs::path dir = freshDir("dirthread");
     MonitorState state;

@@ -251,6 +251,13 @@ void MonitorState::setReplayProgress(uint64_t messages, bool finished) {
     bumpLocked();
 }
 
+void MonitorState::setRunStatus(std::optional<std::string> status) {
+    std::lock_guard lock(mutex_);
+    if (run_status_ == status) return;
+    run_status_ = std::move(status);
+    bumpLocked();
+}
+
 void MonitorState::addError(const std::string& message) {
     std::lock_guard lock(mutex_);
     errors_.push_back(message);
@@ -300,6 +307,7 @@ json MonitorState::buildJsonLocked() const {
     if (replay_) {
         j["source"]["replay"] = {{"messages", replay_->first}, {"finished", replay_->second}};
     }
+    j["source"]["run_status"] = run_status_ ? json(*run_status_) : json(nullptr);
 
     const Eigen::Isometry3d T_V_W = viewFromWorld(layout_ ? &*layout_ : nullptr);
     j["view"] = {{"frame", layout_ ? "layout" : "first-camera"},

@@ -96,6 +96,9 @@ class MonitorState {
                       uint64_t malformed);
     /// Replay progress: messages dispatched so far; finished when the log ended.
     void setReplayProgress(uint64_t messages, bool finished);
+    /// How the run that wrote the watched directory ended: metrics.json's "status" ("complete",
+    /// "interrupted", ...), written once the run is over; nullopt while it is not there.
+    void setRunStatus(std::optional<std::string> status);
     /// Records a problem for the page (the newest max_errors are kept).
     void addError(const std::string& message);
 
@@ -106,12 +109,14 @@ class MonitorState {
     /// Wakes every waitForChange (used when shutting down).
     void notifyAll() const;
 
-    /// The whole state as JSON, "format": "plumb-monitor-state-1", and its version. Keys: source,
-    /// view (frame, T_V_W), fragments[] (id, session, segment, end, frames [first, last],
-    /// num_points, pose = current T_W_F, pose_source, position_V, outline_V, ack, ...), edges[]
-    /// (source, target, kind, line_process, kept, reason, overlap, inlier_rmse_m, provisional),
-    /// layout (layout.json content + room_polygon_V, walls_V; null), device (heartbeat; null),
-    /// link (reassembly counters; null), trajectory_V, coverage (grid, fraction, gaps), errors.
+    /// The whole state as JSON, "format": "plumb-monitor-state-1", and its version. Keys: source
+    /// (mode, detail, replay {messages, finished} for a log, run_status: metrics.json's status of
+    /// the watched directory, null until the run has ended), view (frame, T_V_W), fragments[] (id,
+    /// session, segment, end, frames [first, last], num_points, pose = current T_W_F, pose_source,
+    /// position_V, outline_V, ack, ...), edges[] (source, target, kind, line_process, kept, reason,
+    /// overlap, inlier_rmse_m, provisional), layout (layout.json content + room_polygon_V, walls_V;
+    /// null), device (heartbeat; null), link (reassembly counters; null), trajectory_V, coverage
+    /// (grid, fraction, gaps), errors.
     nlohmann::json toJson(uint64_t* version = nullptr) const;
     /// toJson() serialised compactly (one line), cached per version.
     std::string toJsonText(uint64_t* version = nullptr) const;
@@ -159,6 +164,7 @@ class MonitorState {
     uint64_t link_messages_ = 0;
     uint64_t link_malformed_ = 0;
     std::optional<std::pair<uint64_t, bool>> replay_;
+    std::optional<std::string> run_status_;
     std::vector<std::string> errors_;
 
     mutable uint64_t cached_version_ = 0;

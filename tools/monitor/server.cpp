@@ -7,7 +7,9 @@
 #include <sys/socket.h>
 
 #include <atomic>
+#include <cctype>
 #include <chrono>
+#include <string_view>
 #include <thread>
 
 #include "tools/monitor/web_assets.hpp"
@@ -63,6 +65,58 @@ void setJsonError(httplib::Response& res, int code, const std::string& message) 
     res.set_content(nlohmann::json{{"error", message}}.dump(), "application/json");
 }
 
+/// Percent-encodes everything but RFC 3986's unreserved characters, so the result is safe in a
+/// query string and inside an HTML attribute.
+std::string percentEncode(const std::string& text) {
+    std::string out;
+    for (const unsigned char c : text) {
+        if (std::isalnum(c) != 0 || c == '-' || c == '.' || c == '_' || c == '~') {
+            out += static_cast<char>(c);
+        } else {
+            out += fmt::format("%{:02X}", c);
+        }
+    }
+    return out;
+}
+
+/// index.html with every reference to another embedded file ("monitor.js", ...) carrying
+/// ?token=<token>, so that the browser's requests for them pass the token check too.
+std::string pageWithToken(std::string_view html, const std::string& token) {
+    std::string page(html);
+    const std::string query = "?token=" + percentEncode(token);
+    for (const WebAsset& asset : webAssets()) {
+        const std::string_view name = std::string_view(asset.path).substr(1);
+        if (name == "index.html") continue;
+        const std::string quoted = fmt::format("\"{}\"", name);
+        const std::string with = fmt::format("\"{}{}\"", name, query);
+        for (size_t at = page.find(quoted); at != std::string::npos;
+             at = page.find(quoted, at + with.size())) {
+            page.replace(at, quoted.size(), with);
+        }
+    }
+    return page;
+}
+
+/// What a browser gets for a page request without the right token: a page that says so and
+/// loads nothing (the monitor's own files need the token too).
+void setTokenRequiredPage(httplib::Response& res, bool token_given) {
+    const char* why = token_given ? "token required: the token in the address is wrong"
+                                  : "token required: add ?token=&lt;token&gt; to the address";
+    res.status = 401;
+    res.set_header("Content-Security-Policy", "default-src 'none'; style-src 'unsafe-inline'");
+    res.set_content(
+        fmt::format("<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n"
+                    "<meta charset=\"utf-8\">\n<title>plumb monitor: token required"
+                    "</title>\n<link rel=\"icon\" href=\"data:,\">\n</head>\n"
+                    "<body style=\"font: 14px system-ui, sans-serif\">\n"
+                    "<h1>plumb monitor</h1>\n<p><span id=\"connection\">{}</span></p>\n"
+                    "<p>This monitor was started with --token (or PLUMB_MONITOR_TOKEN): "
+                    "open its address with ?token=&lt;token&gt; appended.</p>\n"
+                    "</body>\n</html>\n",
+                    why),
+        "text/html; charset=utf-8");
+}
+
 }  // namespace
 
 struct MonitorServer::Impl {
@@ -95,12 +149,16 @@ struct MonitorServer::Impl {
                 setJsonError(res, 403, "the monitor answers only to loopback host names");
                 return httplib::Server::HandlerResponse::Handled;
             }
-            // The page itself (embedded, the same for everyone) is public so that a browser can
-            // load it from a link carrying the token; every /api/ request needs the token.
-            if (req.path.rfind("/api/", 0) == 0 && !authorised(req)) {
-                setJsonError(res, 401,
-                             "access token required: add ?token=<token> to the address, or send "
-                             "'Authorization: Bearer <token>'");
+            // With a token, every request needs it: the API, and the page and its files too
+            // (the page passes the ?token= it was opened with on to its files and the API).
+            if (!authorised(req)) {
+                if (req.path.rfind("/api/", 0) == 0) {
+                    setJsonError(res, 401,
+                                 "access token required: add ?token=<token> to the address, or "
+                                 "send 'Authorization: Bearer <token>'");
+                } else {
+                    setTokenRequiredPage(res, req.has_param("token"));
+                }
                 return httplib::Server::HandlerResponse::Handled;
             }
             return httplib::Server::HandlerResponse::Unhandled;
@@ -151,16 +209,21 @@ struct MonitorServer::Impl {
                 },
                 [this](bool) { streams.fetch_sub(1); });
         });
-        server.Get(R"(/[A-Za-z0-9_.\-]*)", [](const httplib::Request& req, httplib::Response& res) {
-            const WebAsset* asset = findWebAsset(req.path);
-            if (asset == nullptr) {
-                setJsonError(res, 404, "no such page: " + req.path);
-                return;
-            }
-            res.set_header("Content-Security-Policy",
-                           "default-src 'self'; img-src 'self' data:; connect-src 'self'");
-            res.set_content(std::string(asset->bytes), asset->content_type);
-        });
+        server.Get(
+            R"(/[A-Za-z0-9_.\-]*)", [this](const httplib::Request& req, httplib::Response& res) {
+                const WebAsset* asset = findWebAsset(req.path);
+                if (asset == nullptr) {
+                    setJsonError(res, 404, "no such page: " + req.path);
+                    return;
+                }
+                res.set_header("Content-Security-Policy",
+                               "default-src 'self'; img-src 'self' data:; connect-src 'self'");
+                const bool page = std::string_view(asset->path) == "/index.html";
+                res.set_content(page && !config.token.empty()
+                                    ? pageWithToken(asset->bytes, config.token)
+                                    : std::string(asset->bytes),
+                                asset->content_type);
+            });
     }
 };
 

@@ -8,9 +8,11 @@
 //                       and on every change (checked at least every 250 ms), ": keepalive"
 //                       comments in between
 //   GET /api/health     {"ok": true, "version": N}
-// Binds 127.0.0.1 unless told otherwise. With a token set, every /api/ request must carry it as
-// `?token=T`, `Authorization: Bearer T` or `X-Plumb-Token: T` (401 otherwise); the page's own
-// files hold no data and are served without it (the page passes its ?token= on to the API). While
+// Binds 127.0.0.1 unless told otherwise. With a token set, every request must carry it as
+// `?token=T`, `Authorization: Bearer T` or `X-Plumb-Token: T`: the API (401 with a JSON error
+// otherwise) and the page and its files (401 with a page saying "token required" otherwise). The
+// page is opened as `/?token=T`; it is served with ?token=T on its references to its own files,
+// and passes the token on to the API. While
 // bound to a loopback address, requests whose Host header names another host are refused (403),
 // which keeps web pages elsewhere from reaching the monitor through DNS rebinding.
 //

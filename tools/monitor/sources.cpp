@@ -157,6 +157,20 @@ void DirectoryWatcher::failed(const fs::path& path, const Stamp& stamp, const st
     }
 }
 
+std::optional<nlohmann::json> DirectoryWatcher::readJson(const fs::path& path, const Stamp& stamp) {
+    auto bytes = messages::readFile(path, kMaxJsonFileBytes);
+    if (!bytes.isOk()) {
+        failed(path, stamp, bytes.status().message());
+        return std::nullopt;
+    }
+    nlohmann::json j = nlohmann::json::parse(bytes->begin(), bytes->end(), nullptr, false);
+    if (j.is_discarded()) {
+        failed(path, stamp, path.string() + ": invalid JSON");
+        return std::nullopt;
+    }
+    return j;
+}
+
 int DirectoryWatcher::scanFragments() {
     fs::path store = dir_ / "fragments";
     std::error_code ec;
@@ -207,17 +221,9 @@ int DirectoryWatcher::scanPoseGraph() {
     const fs::path path = dir_ / "pose_graph.json";
     Stamp stamp;
     if (!changed(path, &stamp)) return 0;
-    auto bytes = messages::readFile(path, kMaxJsonFileBytes);
-    if (!bytes.isOk()) {
-        failed(path, stamp, bytes.status().message());
-        return 0;
-    }
-    const nlohmann::json j = nlohmann::json::parse(bytes->begin(), bytes->end(), nullptr, false);
-    if (j.is_discarded()) {
-        failed(path, stamp, path.string() + ": invalid JSON");
-        return 0;
-    }
-    auto graph = poseGraphFromJson(j, path.string());
+    const std::optional<nlohmann::json> j = readJson(path, stamp);
+    if (!j) return 0;
+    auto graph = poseGraphFromJson(*j, path.string());
     if (!graph.isOk()) {
         failed(path, stamp, graph.status().message());
         return 0;
@@ -258,10 +264,33 @@ int DirectoryWatcher::scanTrajectory() {
     return 1;
 }
 
+int DirectoryWatcher::scanMetrics() {
+    // metrics.json is written last, when the run has ended ("status": "complete" or
+    // "interrupted"); a run started again in the folder may remove it.
+    const fs::path path = dir_ / "metrics.json";
+    std::error_code ec;
+    if (!fs::exists(path, ec)) {
+        if (seen_.erase(path) == 0) return 0;
+        state_.setRunStatus(std::nullopt);
+        return 1;
+    }
+    Stamp stamp;
+    if (!changed(path, &stamp)) return 0;
+    const std::optional<nlohmann::json> j = readJson(path, stamp);
+    if (!j) return 0;
+    if (!j->is_object() || !j->contains("status") || !(*j)["status"].is_string()) {
+        failed(path, stamp, path.string() + ": no \"status\" string");
+        return 0;
+    }
+    seen_[path] = stamp;
+    state_.setRunStatus((*j)["status"].get<std::string>());
+    return 1;
+}
+
 int DirectoryWatcher::scanOnce() {
     std::error_code ec;
     if (!fs::is_directory(dir_, ec)) return 0;
-    return scanFragments() + scanPoseGraph() + scanLayout() + scanTrajectory();
+    return scanFragments() + scanPoseGraph() + scanLayout() + scanTrajectory() + scanMetrics();
 }
 
 void DirectoryWatcher::start() {

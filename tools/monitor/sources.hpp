@@ -3,7 +3,8 @@
 
 // The monitor's three feeds, each filling a MonitorState:
 //  - DirectoryWatcher: an output directory (fragment store files, pose_graph.json, layout.json,
-//    trajectory.txt), polled for changes. It only reads: it never renames, deletes or writes (the
+//    trajectory.txt, and metrics.json, whose "status" says the run has ended), polled for
+//    changes. It only reads: it never renames, deletes or writes (the
 //    backend may be writing the same directory).
 //  - LiveSource: LCM (device_status_t heartbeats, fragment headers and chunks, acks).
 //  - LogReplaySource: an LCM log file (lcm-logger format) played back at a chosen speed.
@@ -18,6 +19,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <span>
 #include <string>
 #include <thread>
@@ -113,6 +115,10 @@ class DirectoryWatcher {
     int scanPoseGraph();
     int scanLayout();
     int scanTrajectory();
+    int scanMetrics();
+    /// The JSON document at `path`; nullopt after reporting it to failed() when it cannot be
+    /// read or parsed.
+    std::optional<nlohmann::json> readJson(const std::filesystem::path& path, const Stamp& stamp);
     /// Records a failure for `path` at `stamp`; reported once per stamp after three attempts
     /// (a file being rewritten in place may be read half-written once).
     void failed(const std::filesystem::path& path, const Stamp& stamp, const std::string& why);

@@ -10,7 +10,10 @@
 //    until all fragments, their outlines and provisional odometry edges are in the DOM; then the
 //    test writes the backend's pose_graph.json and the loop edges must appear without a reload
 //    (server-sent events).
-// 4. A screenshot is saved to DIR/monitor.png.
+// 4. Without the token, or with a wrong one, every request is refused and the page says "token
+//    required". A screenshot is saved to DIR/monitor.png.
+// 5. `plumb monitor --dir backend` reads "watching folder", then "finished" (not a green "live")
+//    once the folder's metrics.json says the run is complete (DIR/monitor-folder.png).
 // Exit 0 on success, 1 on failure, 77 (ctest skip) when Chromium or playwright-core is missing
 // outside CI; under CI=true a missing browser is a failure.
 import { spawn, spawnSync } from "node:child_process";
@@ -86,9 +89,11 @@ try {
   page.on("console", (msg) => { if (msg.type() === "error") consoleErrors.push(msg.text()); });
   page.on("pageerror", (err) => consoleErrors.push(String(err)));
 
-  // Without the token the API refuses.
-  const denied = await page.request.get(new URL("/api/state", url).toString());
-  if (denied.status() !== 401) fail("GET /api/state without the token gave " + denied.status());
+  // Without the token every request is refused: the API, the page and its files.
+  for (const p of ["/api/state", "/", "/monitor.js", "/monitor.css"]) {
+    const denied = await page.request.get(new URL(p, url).toString());
+    if (denied.status() !== 401) throw new Error("GET " + p + " without the token gave " + denied.status());
+  }
 
   await page.goto(url);
   const initial = await page.locator("#fragment-list tr.fragment").count();
@@ -142,19 +147,62 @@ try {
   const badge = await page.locator("#connection").textContent();
   if (badge !== "replaying" && badge !== "replay finished") fail("connection badge of a replay reads '" + badge + "'");
 
-  // The page without the token loads (it carries no data) but says why it shows nothing.
-  const bare = await browser.newPage();
-  await bare.goto(url.replace("?token=" + TOKEN, ""));
-  await bare.waitForFunction(() => document.getElementById("connection").textContent.startsWith("token required"),
-                             null, { timeout: 30000, polling: 100 });
-  if (await bare.locator("#fragment-list tr.fragment").count() !== 0) fail("the page without the token shows fragments");
-  await bare.close();
+  // Without the token, or with a wrong one, the page says "token required" (not "reconnecting")
+  // and shows nothing of the scan.
+  for (const [address, says] of [[url.replace("?token=" + TOKEN, ""), "add ?token="],
+                                 [url.replace(TOKEN, "wrong-token"), "the token in the address is wrong"]]) {
+    const bare = await browser.newPage();
+    await bare.goto(address);
+    await bare.waitForFunction(() => document.getElementById("connection") !== null &&
+                               document.getElementById("connection").textContent.startsWith("token required"),
+                               null, { timeout: 30000, polling: 100 });
+    const text = await bare.locator("#connection").textContent();
+    if (!text.includes(says)) throw new Error("the page without the right token says '" + text + "'");
+    if (await bare.locator("#fragment-list tr.fragment").count() !== 0) fail("the page without the token shows fragments");
+    await bare.close();
+  }
 
   const shot = path.join(work, "monitor.png");
   await page.screenshot({ path: shot, fullPage: true });
   const size = fs.statSync(shot).size;
   if (size < 10000) fail("screenshot is only " + size + " bytes");
   console.log("monitor_browser: screenshot " + shot + " (" + size + " bytes)");
+
+  // A folder under review: "watching folder" while the run writes it, "finished" (never a green
+  // "live") once its metrics.json says the run is complete.
+  const folder = path.join(scan, "backend");
+  const review = spawn(plumb, ["monitor", "--dir", folder, "--port", "0"], { stdio: ["ignore", "pipe", "inherit"] });
+  let reviewExit = null;
+  review.on("exit", (code, signal) => { reviewExit = { code, signal }; });
+  try {
+    const reviewUrl = await new Promise((resolve, reject) => {
+      const timer = setTimeout(() => reject(new Error("plumb monitor --dir printed no URL within 30 s")), 30000);
+      readline.createInterface({ input: review.stdout }).on("line", (line) => {
+        const m = line.match(/serving (http:\/\/\S+)/);
+        if (m) { clearTimeout(timer); resolve(m[1]); }
+      });
+      review.on("exit", (code) => reject(new Error("plumb monitor --dir exited with " + code)));
+    });
+    const folderPage = await browser.newPage();
+    await folderPage.goto(reviewUrl);
+    const badgeIs = (text) => folderPage.waitForFunction((t) => document.getElementById("connection").textContent === t,
+                                                         text, { timeout: 30000, polling: 100 });
+    await badgeIs("watching folder");
+    fs.writeFileSync(path.join(folder, "metrics.json.tmp"), JSON.stringify({ format: "plumb-metrics-1", status: "complete" }));
+    fs.renameSync(path.join(folder, "metrics.json.tmp"), path.join(folder, "metrics.json"));
+    await badgeIs("finished");
+    const cls = await folderPage.locator("#connection").getAttribute("class");
+    if (cls.includes("good")) throw new Error("a finished folder's badge is green: class '" + cls + "'");
+    await folderPage.screenshot({ path: path.join(work, "monitor-folder.png") });
+    await folderPage.close();
+  } finally {
+    if (reviewExit === null) {
+      review.kill("SIGTERM");
+      await new Promise((resolve) => { if (reviewExit !== null) resolve(); else review.on("exit", resolve); });
+    }
+  }
+  if (!reviewExit || reviewExit.code !== 0) fail("plumb monitor --dir did not stop cleanly: " + JSON.stringify(reviewExit));
+  console.log("monitor_browser: a finished folder reads 'finished'");
 
   await cleanup();
   if (!monitorExit || monitorExit.code !== 0) fail("plumb monitor did not stop cleanly: " + JSON.stringify(monitorExit));

@@ -238,17 +238,21 @@
     c.className = "badge " + cls;
   }
 
-  // What the connected page shows: "live" only for a live source; a folder under review or a
-  // replayed log says so.
+  // What the connected page shows: "live" only for a live source; a replayed log or a folder
+  // says so, and a folder whose run has ended (metrics.json written) reads "finished".
   function connectedBadge(s) {
     if (s.source.mode === "live") return ["good", "live"];
     if (s.source.replay && s.source.replay.finished) return ["info", "replay finished"];
     if (s.source.mode === "replay") return ["good", "replaying"];
-    return ["info", "reviewing folder"];
+    if (s.source.run_status === "complete") return ["info", "finished"];
+    if (s.source.run_status) return ["warn", "finished: " + s.source.run_status];
+    return ["info", "watching folder"];
   }
 
+  // Every request needs the token when one is set; the page got here with it, so a refusal now
+  // means the monitor was restarted with another token.
   const refusal = (status) =>
-    status === 401 ? (token ? "wrong token" : "token required: add ?token=… to the address") : "HTTP " + status;
+    status === 401 ? (token ? "token required: the token in the address is wrong" : "token required: add ?token=… to the address") : "HTTP " + status;
 
   async function poll() {
     try {
