@@ -52,8 +52,9 @@ constexpr const char* kUsage =
     "options:\n"
     "  --out DIR        output folder (default out/demo)\n"
     "  --scene NAME     living_room (default), weak_manhattan, l_shape, corridor\n"
-    "  --frames N       frames of the scan at 30 Hz (default 300: about 3 m of walking, a third\n"
-    "                   of the way round living_room; more frames go further round)\n"
+    "  --frames N       frames of the scan at 30 Hz (default 520: about 5 m of walking, half\n"
+    "                   the way round living_room, and every wall seen; about 1000 close the\n"
+    "                   loop; 300 see a third of the room)\n"
     "  --noise MODE     simulated depth noise: redwood (default; with the measured distortion\n"
     "                   table, which bends frames by up to several cm at 3 m), undistorted,\n"
     "                   parametric, off\n"
@@ -161,7 +162,7 @@ int runDemo(const std::vector<std::string>& args) {
     std::string scene = "living_room";
     std::string noise = "redwood";
     std::string depth_calibration = "sensor";
-    size_t frames = 300;
+    size_t frames = 520;
     int port = 7667 + static_cast<int>(getpid() % 1000);
     for (size_t i = 0; i < args.size(); ++i) {
         const std::string& a = args[i];
