@@ -234,6 +234,8 @@ void describe(config::Schema& s, SelfCalibrationConfig& c) {
             "multiple of its change (in log space): f <- f_prev * (f_est / f_prev)^relaxation")
         .min(1.0)
         .lessThan(2.0);
+    s.section("planar", c.planar,
+              "the first stage: the bend from each frame's planes, without poses");
     s.section("tsdf", c.tsdf, "the model: TSDF fused from the undistorted frames");
     s.section("raycast", c.raycast, "the model's depth at each frame's pose");
     s.field("num_threads", c.num_threads,
@@ -260,6 +262,7 @@ Status validate(const SelfCalibrationConfig& c) {
     if (c.max_iterations < 1) return bad("max_iterations must be at least 1");
     if (!(c.change_tolerance > 0.0)) return bad("change_tolerance must be positive");
     if (!(c.relaxation >= 1.0 && c.relaxation < 2.0)) return bad("relaxation not in [1, 2)");
+    if (Status s = validate(c.planar); !s.isOk()) return s;
     if (c.num_threads < 0) return bad("num_threads must be >= 0");
     return c.tsdf.validate();
 }
@@ -381,6 +384,24 @@ Result<DistortionEstimate> DistortionEstimator::estimate(const Table* previous) 
     return out;
 }
 
+namespace {
+
+/// The median |e_i - (a + b u_i + c v_i)| after the least-squares affine fit over rows (1, u, v).
+double medianBeyondAffine(const std::vector<Eigen::Vector3d>& at, const std::vector<double>& e) {
+    Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d atb = Eigen::Vector3d::Zero();
+    for (size_t i = 0; i < at.size(); ++i) {
+        ata += at[i] * at[i].transpose();
+        atb += at[i] * e[i];
+    }
+    const Eigen::Vector3d k = ata.ldlt().solve(atb);
+    std::vector<double> residual(e.size());
+    for (size_t i = 0; i < e.size(); ++i) residual[i] = std::abs(e[i] - k.dot(at[i]));
+    return medianOf(&residual);
+}
+
+}  // namespace
+
 Result<TableComparison> compareTables(const sim::DistortionTable& learned,
                                       const DistortionEstimate& coverage,
                                       const sim::DistortionTable& reference) {
@@ -405,12 +426,19 @@ Result<TableComparison> compareTables(const sim::DistortionTable& learned,
     out.scale = medianOf(&ratios);
     for (int bin = 0; bin < sim::DistortionTable::kBins; ++bin) {
         std::vector<double> errors, uncalibrated;
+        std::vector<Eigen::Vector3d> at;  // (1, u, v) of the compared cells
+        std::vector<double> inverse_error, inverse_uncalibrated;
         for (int y = 0; y < side; ++y) {
             for (int x = 0; x < side; ++x) {
                 if (!compared(x, y, bin)) continue;
                 const double r = reference.cell(x, y)[bin];
-                errors.push_back(std::abs(learned.cell(x, y)[bin] / out.scale - r));
+                const double l = learned.cell(x, y)[bin] / out.scale;
+                errors.push_back(std::abs(l - r));
                 uncalibrated.push_back(std::abs(1.0 - r));
+                at.emplace_back(1.0, (x + 0.5) / (side / 2.0) - 1.0,
+                                (y + 0.5) / (side / 2.0) - 1.0);
+                inverse_error.push_back(1.0 / l - 1.0 / r);
+                inverse_uncalibrated.push_back(1.0 - 1.0 / r);
             }
         }
         TableComparison::Bin& b = out.bins[static_cast<size_t>(bin)];
@@ -418,6 +446,8 @@ Result<TableComparison> compareTables(const sim::DistortionTable& learned,
         if (errors.empty()) continue;
         b.median_error = medianOf(&errors);
         b.median_uncalibrated = medianOf(&uncalibrated);
+        b.median_error_beyond_projective = medianBeyondAffine(at, inverse_error);
+        b.median_uncalibrated_beyond_projective = medianBeyondAffine(at, inverse_uncalibrated);
     }
     return out;
 }

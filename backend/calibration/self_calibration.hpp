@@ -53,6 +53,7 @@
 #include <functional>
 #include <vector>
 
+#include "backend/calibration/planar_distortion.hpp"
 #include "common/camera/pinhole.hpp"
 #include "common/config/schema.hpp"
 #include "common/core/status.hpp"
@@ -110,6 +111,10 @@ struct SelfCalibrationConfig {
     /// speeds up that slow convergence (errors the data determine in one step oscillate with
     /// amplitude |1 - relaxation| instead).
     double relaxation = 1.5;
+    /// The first stage of `plumb calibrate` and `plumb reconstruct --self-calibrate`: the bend
+    /// from each frame's planes, without poses (planar_distortion.hpp); the alternation starts
+    /// from its table.
+    PlanarDistortionConfig planar;
     /// The model: TSDF fused from the undistorted frames at their poses.
     tsdf::TsdfConfig tsdf = defaultTsdf();
     /// The model's depth at each frame's pose.
@@ -253,6 +258,11 @@ struct TableComparison {
         size_t cells = 0;                  ///< covered cells with a valid reference factor
         double median_error = 0.0;         ///< median |learned / scale - reference|
         double median_uncalibrated = 0.0;  ///< median |1 - reference| over the same cells
+        /// The same after removing from 1/learned - 1/reference (and from 1/reference - 1) its
+        /// least-squares affine function of the image coordinates: the part of a table that maps
+        /// planes to planes, which no planarity and little of the views' consistency observes.
+        double median_error_beyond_projective = 0.0;
+        double median_uncalibrated_beyond_projective = 0.0;
     };
     std::array<Bin, sim::DistortionTable::kBins> bins{};
 };

@@ -228,9 +228,13 @@ std::string selfCalibrationSection(const nlohmann::json& metrics) {
     out << "<h2>Depth self-calibration</h2>\n<p>The depth distortion table <b>"
         << escape(sc.value("table", std::string("?"))) << "</b> was learned from "
         << sc.value("frames", 0) << " frames (one in " << sc.value("frame_step", 1)
-        << ") of the reconstruction from the raw depth ("
-        << escape(sc.value("raw_reconstruction", std::string("?"))) << ") in "
-        << sc.value("iterations", nlohmann::json::array()).size() << " iterations ("
+        << ") of a first reconstruction ("
+        << escape(
+               sc.value("first_reconstruction", sc.value("raw_reconstruction", std::string("?"))))
+        << (sc.value("first_table", std::string("none")) == "none"
+                ? ", from the raw depth"
+                : ", with the bend learned from each frame's planes")
+        << ") in " << sc.value("iterations", nlohmann::json::array()).size() << " iterations ("
         << (sc.value("converged", false) ? "converged" : "stopped at the iteration limit")
         << "); this reconstruction used it. Cells covered (of 6400) per depth bin 1/3/5/7/9 m:";
     for (const auto& c : sc.value("covered_cells", nlohmann::json::array())) out << " " << c;
@@ -244,7 +248,9 @@ std::string selfCalibrationSection(const nlohmann::json& metrics) {
             out << fmt::format("<tr><td>{}</td><td>{:.2f} cm</td><td>{:.2f} cm</td></tr>", name,
                                100.0 * ate, 100.0 * recon);
         };
-        row("raw depth", before.value("ate_rmse_m", 0.0), before.value("recon_mean_m", 0.0));
+        row(sc.value("first_table", std::string("none")) == "none" ? "raw depth"
+                                                                   : "bend from the planes",
+            before.value("ate_rmse_m", 0.0), before.value("recon_mean_m", 0.0));
         const nlohmann::json& m = *main;
         row("self-calibrated", m.contains("ate") ? m["ate"].value("rmse_m", 0.0) : 0.0,
             m.contains("recon") ? m["recon"].value("mean_m", 0.0) : 0.0);

@@ -50,13 +50,46 @@ TEST(PlumbCalibrateCli, WritesATableThatReadsBack) {
     EXPECT_LT(max_dev, 0.1);
 }
 
+TEST(PlumbCalibrateCli, PlanarOnlyLearnsTheBendWithoutPoses) {
+    PLUMB_REQUIRE_SHARED_DATA(path, "redwood-noise/dist-model.txt");
+    const fs::path dir = testing::freshTempDir("plumb_calibrate_cli_planar");
+    const fs::path table = dir / "table.txt";
+    const ProcessRun run = plumbCalibrate(
+        dir, {"sim:living_room", "--intrinsics", "ci", "--frames", "600", "--planar-only",
+              "--reference", path.string(), "--out", table.string()});
+    ASSERT_EQ(run.exit_code, 0) << run.err;
+    std::printf("%s", run.out.c_str());
+    EXPECT_NE(run.out.find("planes, iteration 1:"), std::string::npos) << run.out;
+    EXPECT_NE(run.out.find("the bend from the planes of 600 frames"), std::string::npos) << run.out;
+    EXPECT_NE(run.out.find("beyond a projective part"), std::string::npos) << run.out;
+    EXPECT_EQ(run.out.find("iteration 1: change median"), std::string::npos) << run.out;
+    auto learnt = sim::DistortionTable::load(table);
+    ASSERT_TRUE(learnt.isOk()) << learnt.status().toString();
+    // The bend at 3 m: per cents between the image's centre and its corners.
+    EXPECT_GT(std::abs(learnt->cell(0, 0)[1] - learnt->cell(40, 40)[1]), 0.005);
+}
+
+TEST(PlumbCalibrateCli, PlanarOnlyRefusesAScanWhosePlanesDoNotDetermineTheBend) {
+    PLUMB_REQUIRE_SHARED_DATA(path, "redwood-noise/dist-model.txt");
+    const fs::path dir = testing::freshTempDir("plumb_calibrate_cli_planar_short");
+    // The first 60 frames see one corner of the room: the halves of the scan disagree.
+    const ProcessRun run = plumbCalibrate(
+        dir,
+        {"sim:living_room", "--frames", "60", "--planar-only", "--out", (dir / "t.txt").string()});
+    EXPECT_EQ(run.exit_code, 1) << run.err;
+    EXPECT_NE(run.err.find("the scan's planes do not determine the bend"), std::string::npos)
+        << run.err;
+    EXPECT_FALSE(fs::exists(dir / "t.txt"));
+}
+
 TEST(PlumbCalibrateCli, HelpDocumentsEveryOption) {
     const fs::path dir = testing::freshTempDir("plumb_calibrate_cli_help");
     const ProcessRun run = plumbCalibrate(dir, {"--help"});
     ASSERT_EQ(run.exit_code, 0) << run.err;
-    for (const char* option : {"--out", "--frames", "--iterations", "--intrinsics", "--depth-scale",
-                               "--seed", "--noise", "--threads", "--config", "--set", "--quiet",
-                               "--poses", "--refine-poses", "--reference"}) {
+    for (const char* option :
+         {"--out", "--frames", "--iterations", "--intrinsics", "--depth-scale", "--seed", "--noise",
+          "--threads", "--config", "--set", "--quiet", "--poses", "--refine-poses", "--reference",
+          "--initial", "--planar-only", "--no-planar"}) {
         EXPECT_NE(run.out.find(option), std::string::npos) << option;
     }
 }
@@ -77,6 +110,15 @@ TEST(PlumbCalibrateCli, BadInputGetsASpecificErrorAndExitCode) {
              Case{{"sim:living_room", "--out", out, "--bogus"}, 2, "unknown option --bogus"},
              Case{{"sim:living_room", "--out", out, "--set", "relaxation=3"}, 2, "relaxation"},
              Case{{"sim:no_such_room", "--out", out}, 2, "no_such_room"},
+             Case{{"sim:living_room", "--out", out, "--planar-only", "--no-planar"},
+                  2,
+                  "exclude each other"},
+             Case{{"sim:living_room", "--out", out, "--planar-only", "--poses", "x.txt"},
+                  2,
+                  "--planar-only uses no poses"},
+             Case{{"sim:living_room", "--out", out, "--initial", "/nonexistent/t.txt"},
+                  1,
+                  "/nonexistent/t.txt"},
              Case{{"/nonexistent/dataset", "--out", out}, 1, "/nonexistent/dataset"},
          }) {
         const ProcessRun run = plumbCalibrate(dir, c.args);

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <functional>
 #include <iostream>
 #include <memory>
 #include <optional>
@@ -23,6 +24,7 @@
 #include "drivers/source.hpp"
 #include "tools/plumb/calibration_aligner.hpp"
 #include "tools/plumb/command.hpp"
+#include "tools/plumb/planar_stage.hpp"
 #include "tools/plumb/pose_lookup.hpp"
 
 namespace plumb::tools {
@@ -59,12 +61,17 @@ constexpr const char* kUsage =
     "  --poses FILE       camera poses: a TUM trajectory (frames matched by timestamp, within\n"
     "                     1 ms) or a .log trajectory (matched by frame index); default: the\n"
     "                     source's ground truth\n"
+    "  --planar-only      only the first stage: the bend from each frame's planes, with no\n"
+    "                     poses (default: that stage, then the alternation at the poses)\n"
+    "  --no-planar        skip the first stage: the alternation starts from the neutral\n"
+    "                     table (default: from the first stage's table)\n"
     "  --refine-poses     re-align every frame to each iteration's model by frame-to-model\n"
     "                     ICP before comparing it (default off: measured no better, 5x slower)\n"
     "  --reference TABLE  also compare the learned table with this one (e.g. the sensor's\n"
     "                     measured table): per depth bin the median |learned - reference| over\n"
     "                     the covered cells, after dividing out one global scale (default:\n"
     "                     none)\n"
+    "  --initial TABLE    start from this table instead of the neutral one (default: none)\n"
     "  --iterations K     at most K undistort-fuse-estimate steps (default: max_iterations, 8)\n"
     "  --intrinsics X     camera preset or intrinsics file (default: detected)\n"
     "  --depth-scale S    depth units per metre (default: the dataset's)\n"
@@ -81,6 +88,46 @@ constexpr const char* kUsage =
 
 constexpr const char* kCommand = "calibrate";
 
+std::function<void(const calibration::PlanarIteration&)> planarPrinter(bool quiet) {
+    if (quiet) return {};
+    return [](const calibration::PlanarIteration& it) {
+        std::printf(
+            "planes, iteration %d: %zu planar segments (%zu blocks), residual %.2f noise sigmas, "
+            "largest change %.5f\n",
+            it.iteration + 1, it.segments, it.blocks, it.rms_sigmas, it.max_change);
+        std::fflush(stdout);
+    };
+}
+
+/// The planar table covers every cell of the bins its frames reached.
+calibration::DistortionEstimate planarCoverage(const calibration::PlanarEstimate& e) {
+    calibration::DistortionEstimate coverage;
+    coverage.covered.assign(
+        sim::DistortionTable::kCellsPerSide * sim::DistortionTable::kCellsPerSide,
+        static_cast<uint8_t>(e.estimated_bins));
+    return coverage;
+}
+
+int printComparison(const sim::DistortionTable& learned,
+                    const calibration::DistortionEstimate& coverage,
+                    const sim::DistortionTable& reference, const std::filesystem::path& path) {
+    Result<calibration::TableComparison> c =
+        calibration::compareTables(learned, coverage, reference);
+    if (!c.isOk()) return failure(kCommand, c.status());
+    std::printf("against %s (learned factors divided by %.5f):\n", path.string().c_str(), c->scale);
+    for (int bin = 0; bin < sim::DistortionTable::kBins; ++bin) {
+        const calibration::TableComparison::Bin& b = c->bins[static_cast<size_t>(bin)];
+        if (b.cells == 0) continue;
+        std::printf(
+            "  %.0f m: %zu cells, median |learned - reference| %.3f %% (uncalibrated %.3f %%); "
+            "beyond a projective part %.3f %% (uncalibrated %.3f %%)\n",
+            sim::DistortionTable::binCentreM(bin), b.cells, 100.0 * b.median_error,
+            100.0 * b.median_uncalibrated, 100.0 * b.median_error_beyond_projective,
+            100.0 * b.median_uncalibrated_beyond_projective);
+    }
+    return kExitOk;
+}
+
 int runCalibrate(const std::vector<std::string>& arguments) {
     std::vector<std::string> args = arguments;
     Result<config::ConfigArgs> config_args = config::extractConfigArgs(args);
@@ -94,7 +141,10 @@ int runCalibrate(const std::vector<std::string>& arguments) {
     std::optional<int> iterations;
     std::optional<std::filesystem::path> poses_path;
     std::optional<std::filesystem::path> reference_path;
+    std::optional<std::filesystem::path> initial_path;
     bool refine_poses = false;
+    bool planar_only = false;
+    bool planar_first = true;
     int threads = 0;
     bool quiet = false;
     for (size_t i = 0; i < args.size(); ++i) {
@@ -121,10 +171,18 @@ int runCalibrate(const std::vector<std::string>& arguments) {
             poses_path = v;
         } else if (a == "--refine-poses") {
             refine_poses = true;
+        } else if (a == "--planar-only") {
+            planar_only = true;
+        } else if (a == "--no-planar") {
+            planar_first = false;
         } else if (a == "--reference") {
             if (!value(&v) || v.empty())
                 return usageError(kCommand, "--reference needs a table file");
             reference_path = v;
+        } else if (a == "--initial") {
+            if (!value(&v) || v.empty())
+                return usageError(kCommand, "--initial needs a table file");
+            initial_path = v;
         } else if (a == "--iterations") {
             int k = 0;
             if (!value(&v) || !parseNumber(v, &k) || k < 1)
@@ -160,6 +218,13 @@ int runCalibrate(const std::vector<std::string>& arguments) {
     }
     if (source_uri.empty()) return usageError(kCommand, "no source given");
     if (out.empty()) return usageError(kCommand, "--out is required");
+    if (planar_only && !planar_first)
+        return usageError(kCommand, "--planar-only and --no-planar exclude each other");
+    if (planar_only && (poses_path || refine_poses || initial_path)) {
+        return usageError(kCommand,
+                          "--planar-only uses no poses and no initial table: drop --poses, "
+                          "--refine-poses and --initial");
+    }
 
     calibration::SelfCalibrationConfig cfg;
     if (Status s = config::load(*config_args, cfg); !s.isOk())
@@ -193,10 +258,33 @@ int runCalibrate(const std::vector<std::string>& arguments) {
         if (!t.isOk()) return failure(kCommand, t.status());
         reference = std::move(*t);
     }
+    std::optional<sim::DistortionTable> initial;
+    if (initial_path) {
+        Result<sim::DistortionTable> t = sim::DistortionTable::load(*initial_path);
+        if (!t.isOk()) return failure(kCommand, t.status());
+        initial = std::move(*t);
+    }
     Result<std::unique_ptr<FrameSource>> opened = openFrameSource(uri, source_options);
     if (!opened.isOk()) return failure(kCommand, opened.status());
     std::unique_ptr<FrameSource> source = std::move(opened).value();
     const PinholeCamera camera = source->camera();
+    if (planar_only) {
+        Result<PlanarStage> planar = learnPlanarTable(*source, cfg.planar, planarPrinter(quiet));
+        if (!planar.isOk()) return failure(kCommand, planar.status());
+        if (Status s = planar->table.save(out); !s.isOk()) return failure(kCommand, s);
+        if (!quiet) {
+            std::printf(
+                "the bend from the planes of %zu frames (the scan's halves agree within %.3f "
+                "%%); table written to %s\n",
+                planar->frames_read, 100.0 * planar->estimate.split_disagreement,
+                out.string().c_str());
+        }
+        if (reference) {
+            return printComparison(planar->table, planarCoverage(planar->estimate), *reference,
+                                   *reference_path);
+        }
+        return kExitOk;
+    }
 
     std::vector<DepthImage> depth;
     std::vector<Eigen::Isometry3d> T_W_C;
@@ -219,7 +307,8 @@ int runCalibrate(const std::vector<std::string>& arguments) {
                 kCommand,
                 invalidArgument(fmt::format(
                     "frame {} ({}) has no ground-truth pose: plumb calibrate needs a source with "
-                    "ground truth (sim:SCENE, or a dataset with groundtruth.txt)",
+                    "ground truth (sim:SCENE, or a dataset with groundtruth.txt), --poses FILE, "
+                    "or --planar-only",
                     frame->index, frame->name)));
         }
         depth.push_back(std::move(frame->depth));
@@ -239,6 +328,30 @@ int runCalibrate(const std::vector<std::string>& arguments) {
                     poses_path ? poses_path->string().c_str() : "the ground truth");
         if (without_pose > 0)
             std::printf("%zu frames without a pose in the trajectory skipped\n", without_pose);
+    }
+
+    if (planar_first && !initial) {
+        calibration::PlanarDistortionEstimator estimator(camera, cfg.planar);
+        for (const DepthImage& d : depth) {
+            if (Status s = estimator.addFrame(d); !s.isOk()) return failure(kCommand, s);
+        }
+        Result<calibration::PlanarEstimate> planar = estimator.estimate(planarPrinter(quiet));
+        if (planar.isOk()) {
+            initial = planar->model.toTable();
+            if (!quiet) {
+                std::printf(
+                    "the alternation starts from the bend of the frames' planes (the scan's "
+                    "halves agree within %.3f %%)\n",
+                    100.0 * planar->split_disagreement);
+            }
+        } else if (planar.status().code() == StatusCode::kFailedPrecondition) {
+            std::fprintf(stderr,
+                         "plumb calibrate: warning: %s; the alternation starts from the "
+                         "neutral table\n",
+                         planar.status().message().c_str());
+        } else {
+            return failure(kCommand, planar.status());
+        }
     }
 
     const auto start = std::chrono::steady_clock::now();
@@ -267,8 +380,8 @@ int runCalibrate(const std::vector<std::string>& arguments) {
     const bool refine = refine_poses;
     const calibration::FrameAligner aligner =
         refine ? icpFrameAligner(CalibrationAlignerConfig{}, &unaligned) : nullptr;
-    Result<calibration::SelfCalibrationResult> result =
-        calibration::selfCalibrate(depth, camera, T_W_C, cfg, nullptr, report, aligner);
+    Result<calibration::SelfCalibrationResult> result = calibration::selfCalibrate(
+        depth, camera, T_W_C, cfg, initial ? &*initial : nullptr, report, aligner);
     if (!result.isOk()) return failure(kCommand, result.status());
     if (Status s = result->table.save(out); !s.isOk()) return failure(kCommand, s);
     if (!quiet && refine) {
@@ -283,20 +396,8 @@ int runCalibrate(const std::vector<std::string>& arguments) {
                     result->iterations.size(), out.string().c_str());
     }
     if (reference) {
-        Result<calibration::TableComparison> c = calibration::compareTables(
-            result->table, result->iterations.back().estimate, *reference);
-        if (!c.isOk()) return failure(kCommand, c.status());
-        std::printf("against %s (learned factors divided by %.5f):\n",
-                    reference_path->string().c_str(), c->scale);
-        for (int bin = 0; bin < sim::DistortionTable::kBins; ++bin) {
-            const calibration::TableComparison::Bin& b = c->bins[static_cast<size_t>(bin)];
-            if (b.cells == 0) continue;
-            std::printf(
-                "  %.0f m: %zu cells, median |learned - reference| %.3f %% (uncalibrated %.3f "
-                "%%)\n",
-                sim::DistortionTable::binCentreM(bin), b.cells, 100.0 * b.median_error,
-                100.0 * b.median_uncalibrated);
-        }
+        return printComparison(result->table, result->iterations.back().estimate, *reference,
+                               *reference_path);
     }
     return kExitOk;
 }

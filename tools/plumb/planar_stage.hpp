@@ -1,0 +1,30 @@
+// SPDX-License-Identifier: Apache-2.0
+#pragma once
+
+// The first stage of self-calibration in `plumb calibrate` and `plumb reconstruct
+// --self-calibrate`: the smooth bend of the depth, learned from the planes every frame sees
+// (backend/calibration/planar_distortion.hpp), with no pose.
+
+#include <functional>
+
+#include "backend/calibration/planar_distortion.hpp"
+#include "common/core/status.hpp"
+#include "drivers/frame_source.hpp"
+#include "drivers/sim/noise.hpp"
+
+namespace plumb::tools {
+
+struct PlanarStage {
+    calibration::PlanarEstimate estimate;
+    sim::DistortionTable table = sim::DistortionTable::neutral();
+    size_t frames_read = 0;
+};
+
+/// Reads `source` (its raw depth) to its end and fits the planar model to its frames
+/// (every config.frame_step-th). Errors: a frame error other than the end of the stream, and
+/// those of PlanarDistortionEstimator::estimate (no planar segment in any frame).
+Result<PlanarStage> learnPlanarTable(
+    FrameSource& source, const calibration::PlanarDistortionConfig& config,
+    const std::function<void(const calibration::PlanarIteration&)>& observer = {});
+
+}  // namespace plumb::tools
