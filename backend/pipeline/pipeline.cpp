@@ -558,8 +558,18 @@ Result<PipelineResult> runPipeline(const PipelineInput& input, const PipelineCon
         PLUMB_RETURN_IF_ERROR(outputAndEvaluate(plan.dir, input, outcome, full_layout, &v));
         variants_json[plan.name] = toJson(v.evaluation);
         figures.top_views[plan.name] = topViewSvg(v.mesh, full_layout, topViewTrajectory(v));
-        if (p == 0)
+        if (p == 0) {
             figures.model_views = renderModelViews(v.mesh, v.layout ? v.layout : full_layout);
+            if (!input.ground_truth.points.empty()) {
+                Result<ReconErrorMap> map = reconErrorMap(v.mesh, v.evaluation.T_gt_est,
+                                                          input.ground_truth.points, full_layout);
+                if (map.isOk()) {
+                    figures.recon_error_svg = std::move(map->svg);
+                } else {
+                    figures.recon_error_note = map.status().message();
+                }
+            }
+        }
         result.variants.push_back(std::move(v));
     }
 

@@ -3,6 +3,7 @@
 
 #include "backend/report/mesh_render.hpp"
 #include "backend/report/png_encode.hpp"
+#include "common/eval/recon_metrics.hpp"
 
 #include <fmt/format.h>
 
@@ -596,6 +597,126 @@ std::string topViewSvg(const TriangleMesh& mesh, const std::optional<Layout>& la
     return out.str();
 }
 
+Color3u8 reconErrorColour(double error_m) {
+    const double t =
+        std::isfinite(error_m) ? std::clamp(error_m / kReconErrorScaleMaxM, 0.0, 1.0) : 0.0;
+    return Color3u8(static_cast<uint8_t>(std::round(255.0 * std::min(1.0, 2.0 * t))),
+                    static_cast<uint8_t>(std::round(200.0 * std::min(1.0, 2.0 * (1.0 - t)))), 48);
+}
+
+ReconErrorMap reconErrorMap(const std::vector<Eigen::Vector3f>& points_W,
+                            const std::vector<double>& errors_m,
+                            const std::optional<Layout>& layout, int size_px) {
+    PLUMB_CHECK(points_W.size() == errors_m.size())
+        << points_W.size() << " points, " << errors_m.size() << " errors";
+    PLUMB_CHECK(size_px > 0) << "size " << size_px;
+    ReconErrorMap map;
+    map.T_U_W = reportUpFrame(layout);
+    map.image.width = size_px;
+    map.image.height = size_px;
+    map.image.rgb.assign(3 * size_t(size_px) * size_px, 255);
+    // The points in U, and the cut: like the other top views, the ceiling (and what hangs below
+    // it) is taken away so the floor and the walls show.
+    std::vector<Eigen::Vector3d> p_U;
+    std::vector<double> e;
+    p_U.reserve(points_W.size());
+    Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
+    Eigen::Vector3d hi = -lo;
+    for (size_t i = 0; i < points_W.size(); ++i) {
+        if (!std::isfinite(errors_m[i]) || !points_W[i].allFinite()) continue;
+        p_U.push_back(map.T_U_W * points_W[i].cast<double>());
+        e.push_back(errors_m[i]);
+        lo = lo.cwiseMin(p_U.back());
+        hi = hi.cwiseMax(p_U.back());
+    }
+    const double cut_z = layout && layout->ceiling_height_m > 0.5
+                             ? layout->ceiling_height_m - 0.25
+                             : hi.z() - 0.12 * (hi.z() - lo.z());
+    constexpr double kMargin = 0.05;
+    const double extent = std::max({hi.x() - lo.x(), hi.y() - lo.y(), 1e-3});
+    map.px_per_m = p_U.empty() ? 1.0 : size_px * (1.0 - 2.0 * kMargin) / extent;
+    if (!p_U.empty())
+        map.origin_px = Eigen::Vector2d(0.5 * size_px - map.px_per_m * 0.5 * (lo.x() + hi.x()),
+                                        0.5 * size_px + map.px_per_m * 0.5 * (lo.y() + hi.y()));
+    // Each point a 3 x 3 pixel square; the highest point wins a pixel (a z-buffer from above).
+    std::vector<double> top(size_t(size_px) * size_px, -std::numeric_limits<double>::infinity());
+    for (size_t i = 0; i < p_U.size(); ++i) {
+        if (p_U[i].z() > cut_z) continue;
+        ++map.points_drawn;
+        const int cx = static_cast<int>(std::floor(map.origin_px.x() + map.px_per_m * p_U[i].x()));
+        const int cy = static_cast<int>(std::floor(map.origin_px.y() - map.px_per_m * p_U[i].y()));
+        const Color3u8 colour = reconErrorColour(e[i]);
+        for (int y = std::max(0, cy - 1); y <= std::min(size_px - 1, cy + 1); ++y)
+            for (int x = std::max(0, cx - 1); x <= std::min(size_px - 1, cx + 1); ++x) {
+                double& z = top[size_t(y) * size_px + x];
+                if (p_U[i].z() < z) continue;
+                z = p_U[i].z();
+                map.image.set(x, y, colour);
+            }
+    }
+    std::ostringstream out;
+    const int legend_h = 34;
+    out << fmt::format(
+        "<svg class=reconerror width={0} height={1} viewBox='0 0 {0} {1}'><title>reconstruction "
+        "error: distance of each model point to the ground-truth surface</title>",
+        size_px, size_px + legend_h);
+    out << fmt::format("<image width='{0}' height='{0}' href='{1}'/>", size_px,
+                       pngDataUri(map.image));
+    out << fmt::format("<rect width={0} height={0} fill='none' stroke='#ccc'/>", size_px);
+    out << fmt::format(
+        "<line x1='12' y1='{0:.1f}' x2='{1:.1f}' y2='{0:.1f}' stroke='#000' stroke-width='3'/>",
+        size_px - 8.0, 12.0 + map.px_per_m);
+    out << fmt::format("<text x='{:.1f}' y='{}' font-size='11'>1 m</text>", 16.0 + map.px_per_m,
+                       size_px - 4);
+    // The colour bar: the fixed scale, 0 to kReconErrorScaleMaxM, with its legend.
+    const int bar_x = 12, bar_y = size_px + 6, bar_w = 160;
+    out << "<defs><linearGradient id='reconerrgrad'>";
+    for (int k = 0; k <= 4; ++k) {
+        const Color3u8 c = reconErrorColour(0.25 * k * kReconErrorScaleMaxM);
+        out << fmt::format("<stop offset='{}%' stop-color='#{:02x}{:02x}{:02x}'/>", 25 * k, c.x(),
+                           c.y(), c.z());
+    }
+    out << "</linearGradient></defs>";
+    out << fmt::format(
+        "<rect class=colourbar x='{}' y='{}' width='{}' height='9' fill='url(#reconerrgrad)'/>",
+        bar_x, bar_y, bar_w);
+    const int text_y = bar_y + 22;
+    out << fmt::format("<text x='{}' y='{}' font-size='10'>0</text>", bar_x, text_y);
+    out << fmt::format("<text x='{}' y='{}' font-size='10' text-anchor='middle'>{:.1f}</text>",
+                       bar_x + bar_w / 2, text_y, 50.0 * kReconErrorScaleMaxM);
+    out << fmt::format(
+        "<text x='{}' y='{}' font-size='10' text-anchor='end'>&#8805; {:.0f} cm</text>",
+        bar_x + bar_w, text_y, 100.0 * kReconErrorScaleMaxM);
+    out << fmt::format(
+        "<text class=legend x='{}' y='{}' font-size='11'>distance to the ground-truth surface, "
+        "cm (clipped at {:.0f} cm)</text>",
+        bar_x + bar_w + 12, bar_y + 9, 100.0 * kReconErrorScaleMaxM);
+    out << "</svg>";
+    map.svg = out.str();
+    return map;
+}
+
+Result<ReconErrorMap> reconErrorMap(const TriangleMesh& mesh, const Eigen::Isometry3d& T_gt_est,
+                                    const std::vector<Eigen::Vector3f>& gt_points_gt,
+                                    const std::optional<Layout>& layout, int size_px,
+                                    size_t max_points) {
+    if (mesh.vertices.empty()) return invalidArgument("reconstruction-error map: empty mesh");
+    if (gt_points_gt.empty())
+        return invalidArgument("reconstruction-error map: no ground-truth surface points");
+    const size_t stride =
+        std::max<size_t>(1, (mesh.vertices.size() + std::max<size_t>(1, max_points) - 1) /
+                                std::max<size_t>(1, max_points));
+    std::vector<Eigen::Vector3f> points_W, points_gt;
+    const Eigen::Isometry3f T = T_gt_est.cast<float>();
+    for (size_t i = 0; i < mesh.vertices.size(); i += stride) {
+        points_W.push_back(mesh.vertices[i]);
+        points_gt.push_back(T * mesh.vertices[i]);
+    }
+    Result<std::vector<double>> d = eval::closestPointDistances(points_gt, gt_points_gt);
+    if (!d.isOk()) return d.status();
+    return reconErrorMap(points_W, *d, layout, size_px);
+}
+
 std::string renderReportHtml(const nlohmann::json& metrics, const ReportFigures& figures) {
     std::ostringstream out;
     out << "<!doctype html><html><head><meta charset='utf-8'><title>plumb report</title><style>"
@@ -654,6 +775,17 @@ std::string renderReportHtml(const nlohmann::json& metrics, const ReportFigures&
                 << "</h3>" << it->second << "</div>\n";
         }
         out << "</div>\n";
+    }
+    out << "<h2 id=recon-error>Reconstruction error map</h2>\n";
+    if (!figures.recon_error_svg.empty()) {
+        out << "<figure>" << figures.recon_error_svg
+            << "<figcaption>The model seen from above, each point coloured by its distance to the "
+               "ground-truth surface after the trajectory alignment: green 0, yellow "
+            << fmt::format("{:.1f} cm, red {:.0f} cm and beyond", 50.0 * kReconErrorScaleMaxM,
+                           100.0 * kReconErrorScaleMaxM)
+            << ".</figcaption></figure>\n";
+    } else {
+        out << "<p class=na>Not drawn: " << escape(figures.recon_error_note) << ".</p>\n";
     }
     if (metrics.contains("registration")) {
         const auto& r = metrics["registration"];

@@ -201,6 +201,10 @@ ReportFigures figures() {
     f.top_views["full"] = topViewSvg(mesh, layout, loop(1000));
     f.top_views["baseline"] = topViewSvg(mesh, layout, loop(1000));
     f.model_views = renderModelViews(mesh, layout);
+    Result<ReconErrorMap> map = reconErrorMap(mesh, Eigen::Isometry3d::Identity(),
+                                              room(200).vertices, layout);  // 2 cm samples
+    EXPECT_TRUE(map.isOk()) << map.status().toString();
+    if (map.isOk()) f.recon_error_svg = map->svg;
     return f;
 }
 
@@ -217,8 +221,9 @@ std::vector<std::string> headings(const std::string& html) {
 TEST(ReportHtml, HasEverySectionAndOnlyEmbeddedPngPictures) {
     const std::string html = renderReportHtml(metrics(), figures());
     const std::vector<std::string> h = headings(html);
-    for (const char* section : {"Accuracy", "Model", "Warnings", "Walls", "Top views",
-                                "Energy per alternation iteration", "Time per stage"})
+    for (const char* section :
+         {"Accuracy", "Model", "Warnings", "Walls", "Top views", "Reconstruction error map",
+          "Energy per alternation iteration", "Time per stage"})
         EXPECT_NE(std::find(h.begin(), h.end(), section), h.end()) << section;
     // Every picture is an embedded PNG: nothing is fetched.
     const std::regex src("(?:src|href)='([^']{0,40})");
@@ -226,7 +231,7 @@ TEST(ReportHtml, HasEverySectionAndOnlyEmbeddedPngPictures) {
     for (auto it = std::sregex_iterator(html.begin(), html.end(), src);
          it != std::sregex_iterator(); ++it, ++pictures)
         EXPECT_EQ((*it)[1].str().rfind("data:image/png;base64,", 0), 0u) << (*it)[1];
-    EXPECT_EQ(pictures, 4u);  // two model views, two top views
+    EXPECT_EQ(pictures, 5u);  // two model views, two top views, the reconstruction-error map
     EXPECT_EQ(html.find("http://"), std::string::npos);
     EXPECT_EQ(html.find("https://"), std::string::npos);
 }
@@ -234,6 +239,99 @@ TEST(ReportHtml, HasEverySectionAndOnlyEmbeddedPngPictures) {
 TEST(ReportHtml, A1000FrameReportStaysUnder2MB) {
     const std::string html = renderReportHtml(metrics(), figures());
     EXPECT_LT(html.size(), 2u * 1024u * 1024u);
+}
+
+TEST(ReconErrorMap, FixedScaleGreenYellowRedClipped) {
+    EXPECT_EQ(reconErrorColour(0.0), Color3u8(0, 200, 48));
+    EXPECT_EQ(reconErrorColour(0.5 * kReconErrorScaleMaxM), Color3u8(255, 200, 48));
+    EXPECT_EQ(reconErrorColour(kReconErrorScaleMaxM), Color3u8(255, 0, 48));
+    EXPECT_EQ(reconErrorColour(0.10), Color3u8(255, 0, 48));  // beyond the scale: clipped
+    EXPECT_EQ(reconErrorColour(0.03), Color3u8(255, 160, 48));
+    EXPECT_EQ(reconErrorColour(std::nan("")), reconErrorColour(0.0));
+}
+
+/// Pixel of `image` as our colour type.
+Color3u8 at(const ColourImage& image, const Eigen::Vector2d& px) {
+    const Rgb8 c =
+        image(static_cast<int>(std::floor(px.x())), static_cast<int>(std::floor(px.y())));
+    return Color3u8(c.r, c.g, c.b);
+}
+
+TEST(ReconErrorMap, ColoursFollowTheErrorOfADisplacedPart) {
+    // The model: the room with the floor's half x < 2 m raised by 3 cm; the ground truth: the
+    // true room, sampled every 1 cm (on the model's vertex grid, so the rest is exact).
+    const Layout layout = roomLayout();
+    TriangleMesh model = room(100);
+    const std::vector<Eigen::Vector3f> gt = room(400).vertices;
+    const size_t floor_vertices = 101 * 101;  // room() adds the floor first
+    for (size_t i = 0; i < floor_vertices; ++i)
+        if (model.vertices[i].x() < 2.f - 1e-4f) model.vertices[i].z() += 0.03f;
+    Result<ReconErrorMap> map = reconErrorMap(model, Eigen::Isometry3d::Identity(), gt, layout);
+    ASSERT_TRUE(map.isOk()) << map.status().toString();
+    // Everything but the top of the walls (above the cut 25 cm under the ceiling) is drawn.
+    EXPECT_GT(map->points_drawn, model.vertices.size() * 8 / 10);
+    EXPECT_LT(map->points_drawn, model.vertices.size());
+    // The picture is embedded as a PNG, decodes, and is not blank.
+    const std::string prefix = "href='";
+    const size_t at_uri = map->svg.find(prefix + "data:image/png;base64,");
+    ASSERT_NE(at_uri, std::string::npos);
+    const size_t begin = at_uri + prefix.size();
+    const ColourImage image =
+        decodeDataUri(map->svg.substr(begin, map->svg.find('\'', begin) - begin));
+    ASSERT_EQ(image.width(), 460);
+    EXPECT_GT(nonBackgroundShare(image), 0.3);
+    // Away from the walls and the step, the raised half is at 3 cm's colour, the rest green.
+    size_t raised = 0, raised_ok = 0, flat = 0, flat_ok = 0;
+    for (size_t i = 0; i < floor_vertices; ++i) {
+        const Eigen::Vector3d p = model.vertices[i].cast<double>();
+        if (p.y() < 0.3 || p.y() > 2.7) continue;
+        if (p.x() > 0.3 && p.x() < 1.7) {
+            ++raised;
+            raised_ok += at(image, map->pixel(p)) == reconErrorColour(0.03);
+        } else if (p.x() > 2.3 && p.x() < 3.7) {
+            ++flat;
+            flat_ok += at(image, map->pixel(p)) == Color3u8(0, 200, 48);
+        }
+    }
+    ASSERT_GT(raised, 1000u);
+    ASSERT_GT(flat, 1000u);
+    EXPECT_EQ(raised_ok, raised);
+    EXPECT_EQ(flat_ok, flat);
+    // The colour bar and its legend.
+    EXPECT_EQ(count(map->svg, "class=colourbar"), 1u);
+    EXPECT_NE(map->svg.find("distance to the ground-truth surface, cm (clipped at 5 cm)"),
+              std::string::npos);
+    EXPECT_NE(map->svg.find(">0</text>"), std::string::npos);
+    EXPECT_NE(map->svg.find(">2.5</text>"), std::string::npos);
+    EXPECT_NE(map->svg.find("&#8805; 5 cm</text>"), std::string::npos);
+    EXPECT_NE(map->svg.find(">1 m</text>"), std::string::npos);
+    // A shifted alignment moves every error: T_gt_est raising the whole model by 6 cm makes the
+    // flat half clipped red (6 cm) too.
+    Eigen::Isometry3d up = Eigen::Isometry3d::Identity();
+    up.translation().z() = 0.06;
+    Result<ReconErrorMap> shifted = reconErrorMap(model, up, gt, layout);
+    ASSERT_TRUE(shifted.isOk());
+    EXPECT_EQ(shifted->image.at(static_cast<int>(shifted->pixel({3.0, 1.5, 0.0}).x()),
+                                static_cast<int>(shifted->pixel({3.0, 1.5, 0.0}).y())),
+              Color3u8(255, 0, 48));
+}
+
+TEST(ReconErrorMap, NeedsGroundTruthAndTheReportSaysWhy) {
+    EXPECT_FALSE(reconErrorMap(room(10), Eigen::Isometry3d::Identity(), {}, roomLayout()).isOk());
+    EXPECT_FALSE(reconErrorMap(TriangleMesh{}, Eigen::Isometry3d::Identity(), room(10).vertices,
+                               roomLayout())
+                     .isOk());
+    const std::string html = renderReportHtml(metrics(), ReportFigures{});
+    const std::vector<std::string> h = headings(html);
+    EXPECT_NE(std::find(h.begin(), h.end(), "Reconstruction error map"), h.end());
+    EXPECT_EQ(html.find("<svg class=reconerror"), std::string::npos);
+    EXPECT_NE(html.find("Not drawn: no ground-truth surface came with the input."),
+              std::string::npos);
+    // With the map, the page embeds it with its caption.
+    const std::string with = renderReportHtml(metrics(), figures());
+    EXPECT_EQ(count(with, "<svg class=reconerror"), 1u);
+    EXPECT_EQ(with.find("Not drawn:"), std::string::npos);
+    EXPECT_NE(with.find("red 5 cm and beyond"), std::string::npos);
 }
 
 TEST(ReportHtml, WarningsNameWhatToDoubt) {
