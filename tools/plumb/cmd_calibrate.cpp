@@ -71,7 +71,9 @@ constexpr const char* kUsage =
     "                     measured table): per depth bin the median |learned - reference| over\n"
     "                     the covered cells, after dividing out one global scale (default:\n"
     "                     none)\n"
-    "  --initial TABLE    start from this table instead of the neutral one (default: none)\n"
+    "  --initial TABLE    start from this table instead of the neutral one; with\n"
+    "                     --planar-only, learn the bend left after it and write their\n"
+    "                     product (default: none)\n"
     "  --iterations K     at most K undistort-fuse-estimate steps (default: max_iterations, 8)\n"
     "  --intrinsics X     camera preset or intrinsics file (default: detected)\n"
     "  --depth-scale S    depth units per metre (default: the dataset's)\n"
@@ -220,10 +222,8 @@ int runCalibrate(const std::vector<std::string>& arguments) {
     if (out.empty()) return usageError(kCommand, "--out is required");
     if (planar_only && !planar_first)
         return usageError(kCommand, "--planar-only and --no-planar exclude each other");
-    if (planar_only && (poses_path || refine_poses || initial_path)) {
-        return usageError(kCommand,
-                          "--planar-only uses no poses and no initial table: drop --poses, "
-                          "--refine-poses and --initial");
+    if (planar_only && (poses_path || refine_poses)) {
+        return usageError(kCommand, "--planar-only uses no poses: drop --poses and --refine-poses");
     }
 
     calibration::SelfCalibrationConfig cfg;
@@ -264,6 +264,8 @@ int runCalibrate(const std::vector<std::string>& arguments) {
         if (!t.isOk()) return failure(kCommand, t.status());
         initial = std::move(*t);
     }
+    // --planar-only --initial TABLE: the bend left in the depth undistorted by TABLE.
+    if (planar_only && initial_path) source_options.depth_calibration = initial_path->string();
     Result<std::unique_ptr<FrameSource>> opened = openFrameSource(uri, source_options);
     if (!opened.isOk()) return failure(kCommand, opened.status());
     std::unique_ptr<FrameSource> source = std::move(opened).value();
@@ -271,6 +273,7 @@ int runCalibrate(const std::vector<std::string>& arguments) {
     if (planar_only) {
         Result<PlanarStage> planar = learnPlanarTable(*source, cfg.planar, planarPrinter(quiet));
         if (!planar.isOk()) return failure(kCommand, planar.status());
+        if (initial) planar->table = composeTables(*initial, planar->table);
         if (Status s = planar->table.save(out); !s.isOk()) return failure(kCommand, s);
         if (!quiet) {
             std::printf(

@@ -136,9 +136,10 @@ constexpr const char* kUsage =
     "                     recordings and real cameras have none), none, or a dist-model.txt\n"
     "  --self-calibrate   learn the depth distortion table from the scan itself: learn the\n"
     "                     bend of the depth from each frame's planes (no poses), reconstruct\n"
-    "                     with it (into DIR/self_calibration/first), refine the table against\n"
-    "                     that model at the frames' poses (reference §7c), then reconstruct\n"
-    "                     again with it; writes DIR/depth_calibration.txt (use it with\n"
+    "                     with it (into DIR/self_calibration/first), estimate the table\n"
+    "                     against that model at the frames' poses (reference §7c), learn the\n"
+    "                     bend left after that table from the planes again, then reconstruct\n"
+    "                     with the result; writes DIR/depth_calibration.txt (use it with\n"
     "                     --depth-calibration for later scans by the same camera) and its\n"
     "                     coverage and before/after figures into metrics.json and the report.\n"
     "                     Takes about 2.5x the time; excludes --depth-calibration\n"
@@ -316,16 +317,17 @@ nlohmann::json mainFigures(const backend::PipelineResult& r) {
     return out;
 }
 
-/// `--self-calibrate`, first stage: the bend learned from the planes of the raw frames of `uri`
-/// (without colour), written to `path`.
+/// `--self-calibrate`: the bend learned from the planes of the frames of `uri` (without colour)
+/// undistorted by `undistort` ("none": the raw frames), composed with that table and written to
+/// `path`.
 Result<PlanarStage> planarStage(const std::string& uri, const Options& o,
-                                const SelfCalibrateConfig& sc, const std::filesystem::path& path) {
+                                const SelfCalibrateConfig& sc, const std::string& undistort,
+                                const std::filesystem::path& path) {
     SourceOptions raw_options = o.source_options;
-    raw_options.depth_calibration = "none";
+    raw_options.depth_calibration = undistort;
     raw_options.colour = false;
     Result<std::unique_ptr<FrameSource>> source = openFrameSource(uri, raw_options);
     if (!source.isOk()) return source.status();
-    log::info("self-calibration 1/4: learning the bend of the depth from each frame's planes");
     Result<PlanarStage> planar =
         learnPlanarTable(**source, sc.estimate.planar, [](const calibration::PlanarIteration& it) {
             log::info(
@@ -334,6 +336,11 @@ Result<PlanarStage> planarStage(const std::string& uri, const Options& o,
                 it.iteration + 1, it.segments, it.blocks, it.rms_sigmas, it.max_change);
         });
     if (!planar.isOk()) return prefixed(planar.status(), "self-calibration, planes");
+    if (undistort != "none") {
+        Result<sim::DistortionTable> first = sim::DistortionTable::load(undistort);
+        if (!first.isOk()) return first.status();
+        planar->table = composeTables(*first, planar->table);
+    }
     std::error_code ec;
     std::filesystem::create_directories(path.parent_path(), ec);
     if (Status s = planar->table.save(path); !s.isOk()) return s;
@@ -342,8 +349,8 @@ Result<PlanarStage> planarStage(const std::string& uri, const Options& o,
 
 /// `--self-calibrate`: a first reconstruction (`raw_source`, opened without depth calibration,
 /// or with the bend learned from the frames' planes when self_calibration.planar), the table
-/// estimated against it at its poses starting from that first table, and the reconstruction
-/// with the learned table into o.out.
+/// estimated against it at its poses, the bend left after that table learned from the planes
+/// again (self_calibration.planar), and the reconstruction with the learned table into o.out.
 Result<backend::PipelineResult> selfCalibratedRun(FrameSource& raw_source, const std::string& uri,
                                                   const Options& o, const ReconstructConfig& cfg,
                                                   const backend::PipelineInput& base) {
@@ -358,7 +365,8 @@ Result<backend::PipelineResult> selfCalibratedRun(FrameSource& raw_source, const
     SourceOptions first_options = raw_options;
     if (sc.planar) {
         const std::filesystem::path planar_path = o.out / "self_calibration" / "planar_table.txt";
-        Result<PlanarStage> p = planarStage(uri, o, sc, planar_path);
+        log::info("self-calibration 1/5: learning the bend of the depth from each frame's planes");
+        Result<PlanarStage> p = planarStage(uri, o, sc, "none", planar_path);
         if (p.isOk()) {
             planar = std::move(*p);
             first_options.depth_calibration = planar_path.string();
@@ -372,7 +380,7 @@ Result<backend::PipelineResult> selfCalibratedRun(FrameSource& raw_source, const
             return p.status();
         }
     }
-    log::info("self-calibration 2/4: reconstructing from the {} depth into {}",
+    log::info("self-calibration 2/5: reconstructing from the {} depth into {}",
               planar ? "planar-corrected" : "raw", first_dir.string());
     backend::PipelineConfig first = cfg.pipeline;
     first.compare_baseline = false;
@@ -392,7 +400,7 @@ Result<backend::PipelineResult> selfCalibratedRun(FrameSource& raw_source, const
     if (!posed.isOk()) return posed.status();
     const std::vector<DepthImage>& depth = posed->depth;  // frames not tracked have no pose
     const std::vector<Eigen::Isometry3d>& T_W_C = posed->T_W_C;
-    log::info("self-calibration 3/4: estimating the depth distortion table from {} frames",
+    log::info("self-calibration 3/5: estimating the depth distortion table from {} frames",
               depth.size());
     nlohmann::json iterations = nlohmann::json::array();
     auto observe = [&](const calibration::CalibrationIteration& it) {
@@ -415,14 +423,35 @@ Result<backend::PipelineResult> selfCalibratedRun(FrameSource& raw_source, const
     if (!learned.isOk()) return prefixed(learned.status(), "self-calibration");
     std::error_code ec;
     std::filesystem::create_directories(o.out, ec);
-    const std::filesystem::path table_path = o.out / "depth_calibration.txt";
-    if (Status s = learned->table.save(table_path); !s.isOk()) return s;
+    const std::filesystem::path refined_path = o.out / "self_calibration" / "refined_table.txt";
+    if (Status s = learned->table.save(refined_path); !s.isOk()) return s;
     const calibration::DistortionEstimate& last = learned->iterations.back().estimate;
     log::info("self-calibration: {} after {} iterations; table written to {}",
               learned->converged ? "converged" : "stopped at the iteration limit",
-              learned->iterations.size(), table_path.string());
+              learned->iterations.size(), refined_path.string());
+    // The refinement learns the table's cell-to-cell structure, but at poses that still carry
+    // the first reconstruction's error, which bends it back; the bend left in the frames it
+    // undistorts is what the planes show.
+    const std::filesystem::path table_path = o.out / "depth_calibration.txt";
+    std::optional<PlanarStage> final_planar;
+    if (sc.planar) {
+        log::info(
+            "self-calibration 4/5: learning the bend left in the frames the refined table "
+            "undistorts");
+        Result<PlanarStage> p = planarStage(uri, o, sc, refined_path.string(), table_path);
+        if (p.isOk()) {
+            final_planar = std::move(*p);
+        } else if (p.status().code() == StatusCode::kFailedPrecondition) {
+            log::warn("{}; the refined table is used as it is", p.status().message());
+        } else {
+            return p.status();
+        }
+    }
+    if (!final_planar) {
+        if (Status s = learned->table.save(table_path); !s.isOk()) return s;
+    }
 
-    log::info("self-calibration 4/4: reconstructing with the learned table");
+    log::info("self-calibration 5/5: reconstructing with the learned table");
     backend::PipelineInput input = base;
     input.self_calibration = {
         {"table", table_path.filename().string()},
@@ -437,6 +466,8 @@ Result<backend::PipelineResult> selfCalibratedRun(FrameSource& raw_source, const
         {"gauge_scale", last.gauge_scale},
         {"first_table", planar ? "self_calibration/planar_table.txt" : "none"},
         {"planar", planar ? planarFigures(*planar) : nlohmann::json(nullptr)},
+        {"refined_table", "self_calibration/refined_table.txt"},
+        {"final_planar", final_planar ? planarFigures(*final_planar) : nlohmann::json(nullptr)},
         {"first_reconstruction", "self_calibration/first"},
         {"before", mainFigures(*before)},
         {"first_reconstruction_seconds", raw_seconds},

@@ -1,7 +1,9 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "tools/plumb/planar_stage.hpp"
 
+#include <array>
 #include <utility>
+#include <vector>
 
 namespace plumb::tools {
 
@@ -24,6 +26,19 @@ Result<PlanarStage> learnPlanarTable(
     out.estimate = std::move(*estimate);
     out.table = out.estimate.model.toTable();
     return out;
+}
+
+sim::DistortionTable composeTables(const sim::DistortionTable& first,
+                                   const sim::DistortionTable& then) {
+    constexpr int n = sim::DistortionTable::kCellsPerSide;
+    std::vector<std::array<float, 5>> cells(static_cast<size_t>(n) * n);
+    for (int y = 0; y < n; ++y) {
+        for (int x = 0; x < n; ++x) {
+            std::array<float, 5>& c = cells[static_cast<size_t>(y) * n + x];
+            for (size_t b = 0; b < c.size(); ++b) c[b] = first.cell(x, y)[b] * then.cell(x, y)[b];
+        }
+    }
+    return sim::DistortionTable::fromCells(std::move(cells));
 }
 
 }  // namespace plumb::tools

@@ -27,4 +27,10 @@ Result<PlanarStage> learnPlanarTable(
     FrameSource& source, const calibration::PlanarDistortionConfig& config,
     const std::function<void(const calibration::PlanarIteration&)>& observer = {});
 
+/// The table that undistorts as `first` followed by `then`: per cell and bin the product of
+/// their factors (z_true = f_then * (f_first * z_raw), the bin of both taken at the same depth);
+/// a cell invalid in either is invalid.
+sim::DistortionTable composeTables(const sim::DistortionTable& first,
+                                   const sim::DistortionTable& then);
+
 }  // namespace plumb::tools
