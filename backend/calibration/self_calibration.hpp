@@ -111,9 +111,10 @@ struct SelfCalibrationConfig {
     /// speeds up that slow convergence (errors the data determine in one step oscillate with
     /// amplitude |1 - relaxation| instead).
     double relaxation = 1.5;
-    /// The first stage of `plumb calibrate` and `plumb reconstruct --self-calibrate`: the bend
-    /// from each frame's planes, without poses (planar_distortion.hpp); the alternation starts
-    /// from its table.
+    /// The planar stages of `plumb calibrate` and `plumb reconstruct --self-calibrate`: the bend
+    /// from each frame's planes, without poses (planar_distortion.hpp). `plumb calibrate`'s
+    /// alternation starts from its table; `--self-calibrate` makes its first reconstruction with
+    /// it and learns the bend left after the refined table with it again.
     PlanarDistortionConfig planar;
     /// The model: TSDF fused from the undistorted frames at their poses.
     tsdf::TsdfConfig tsdf = defaultTsdf();
