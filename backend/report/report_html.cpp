@@ -226,6 +226,12 @@ std::string stageTable(const nlohmann::json& stages) {
 std::string selfCalibrationSection(const nlohmann::json& metrics) {
     const nlohmann::json& sc = metrics["self_calibration"];
     std::ostringstream out;
+    if (sc.value("status", std::string()) == "not_determined") {
+        out << "<h2>Depth self-calibration</h2>\n<p>No table was learned: "
+            << escape(sc.value("reason", std::string("?")))
+            << ". This reconstruction used the raw depth.</p>\n";
+        return out.str();
+    }
     out << "<h2>Depth self-calibration</h2>\n<p>The depth distortion table <b>"
         << escape(sc.value("table", std::string("?"))) << "</b> was learned from "
         << sc.value("frames", 0) << " frames (one in " << sc.value("frame_step", 1)
@@ -252,6 +258,13 @@ std::string selfCalibrationSection(const nlohmann::json& metrics) {
         row(sc.value("first_table", std::string("none")) == "none" ? "raw depth"
                                                                    : "bend from the planes",
             before.value("ate_rmse_m", 0.0), before.value("recon_mean_m", 0.0));
+        int round = 0;
+        for (const nlohmann::json& r :
+             sc.value("intermediate_reconstructions", nlohmann::json::array())) {
+            const nlohmann::json f = r.value("figures", nlohmann::json::object());
+            const std::string name = fmt::format("after round {}", ++round);
+            row(name.c_str(), f.value("ate_rmse_m", 0.0), f.value("recon_mean_m", 0.0));
+        }
         const nlohmann::json& m = *main;
         row("self-calibrated", m.contains("ate") ? m["ate"].value("rmse_m", 0.0) : 0.0,
             m.contains("recon") ? m["recon"].value("mean_m", 0.0) : 0.0);

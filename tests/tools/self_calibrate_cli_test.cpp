@@ -118,7 +118,7 @@ TEST(PlumbReconstructCli, SelfCalibrateLearnsTheTableFromTheRawDepthAndReportsBe
     EXPECT_TRUE(fs::exists(fused / "fragment_000.ply"));
 }
 
-TEST(PlumbReconstructCli, ScanWhosePlanesDoNotDetermineTheBendStartsFromTheRawDepth) {
+TEST(PlumbReconstructCli, ScanWhosePlanesDoNotDetermineTheBendIsReconstructedFromTheRawDepth) {
     PLUMB_REQUIRE_SHARED_DATA(path, "redwood-noise/dist-model.txt");
     const fs::path logs = testing::freshTempDir("plumb_self_calibrate_cli_short_logs");
     const fs::path out = testing::freshTempDir("plumb_self_calibrate_cli_short");
@@ -128,13 +128,27 @@ TEST(PlumbReconstructCli, ScanWhosePlanesDoNotDetermineTheBendStartsFromTheRawDe
                "--no-baseline", "--set", "self_calibration.estimate.max_iterations=1", "--out",
                out.string()});
     ASSERT_EQ(run.exit_code, 0) << run.err;
-    EXPECT_NE(run.err.find("the first reconstruction is from the raw depth"), std::string::npos)
+    EXPECT_NE(run.err.find("no table is learned, the reconstruction uses the raw depth"),
+              std::string::npos)
         << run.err;
+    EXPECT_NE(run.out.find("self-calibration: no table learned"), std::string::npos) << run.out;
     const nlohmann::json m = nlohmann::json::parse(testing::slurp(out / "metrics.json"));
-    EXPECT_EQ(m.at("self_calibration").at("first_table"), "none");
-    EXPECT_TRUE(m.at("self_calibration").at("planar").is_null());
+    const nlohmann::json& sc = m.at("self_calibration");
+    EXPECT_EQ(sc.at("status"), "not_determined");
+    EXPECT_NE(sc.at("reason").get<std::string>().find("planar distortion"), std::string::npos);
+    EXPECT_TRUE(sc.at("table").is_null());
     EXPECT_FALSE(fs::exists(out / "self_calibration" / "planar_table.txt"));
-    EXPECT_TRUE(fs::exists(out / "depth_calibration.txt"));
+    EXPECT_FALSE(fs::exists(out / "self_calibration" / "first"));
+    EXPECT_FALSE(fs::exists(out / "depth_calibration.txt"));
+    // The reconstruction is that of the raw depth: the trajectory of a plain run.
+    const fs::path plain = testing::freshTempDir("plumb_self_calibrate_cli_short_plain");
+    const ProcessRun raw =
+        plumb("reconstruct", logs,
+              {"sim:living_room", "--intrinsics", "ci", "--frames", "30", "--no-baseline",
+               "--depth-calibration", "none", "--out", plain.string()});
+    ASSERT_EQ(raw.exit_code, 0) << raw.err;
+    EXPECT_EQ(testing::slurp(out / "trajectory.txt"), testing::slurp(plain / "trajectory.txt"));
+    EXPECT_NE(testing::slurp(out / "report.html").find("No table was learned"), std::string::npos);
 }
 
 TEST(PlumbReconstructCli, SelfCalibrateExcludesAGivenDepthCalibration) {

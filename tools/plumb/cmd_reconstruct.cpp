@@ -56,6 +56,13 @@ struct SelfCalibrateConfig {
     /// (median error at 3 m 0.66 % against 0.60 % with the reconstruction's poses) at 5x the
     /// time of the estimate (BENCHMARKS.md).
     bool refine_poses = false;
+    /// Refinement rounds: each estimates the table at the poses of the latest reconstruction
+    /// and learns the bend left after it from the planes; every round but the last is followed
+    /// by a reconstruction with its table. Each round after the first costs one reconstruction.
+    int rounds = 1;
+    /// Each round's estimate starts from the latest table (the planar one, then the previous
+    /// round's) instead of the neutral one.
+    bool warm_start = false;
     /// The estimator and its alternation (as `plumb calibrate`).
     calibration::SelfCalibrationConfig estimate;
 };
@@ -69,6 +76,14 @@ void describe(config::Schema& s, SelfCalibrateConfig& c) {
         .min(1);
     s.field("refine_poses", c.refine_poses,
             "re-align every compared frame to each iteration's model by frame-to-model ICP");
+    s.field("rounds", c.rounds,
+            "refinement rounds: each estimates the table at the latest reconstruction's poses; "
+            "every round but the last costs one more reconstruction")
+        .min(1)
+        .max(4);
+    s.field("warm_start", c.warm_start,
+            "each round's estimate starts from the latest table (the planar one, then the "
+            "previous round's); off: from the neutral table");
     s.section("estimate", c.estimate, "the table estimate and its alternation (reference §7c)");
 }
 
@@ -142,7 +157,10 @@ constexpr const char* kUsage =
     "                     with the result; writes DIR/depth_calibration.txt (use it with\n"
     "                     --depth-calibration for later scans by the same camera) and its\n"
     "                     coverage and before/after figures into metrics.json and the report.\n"
-    "                     Takes about 2.5x the time; excludes --depth-calibration\n"
+    "                     When the planes do not determine the bend (too few views, one\n"
+    "                     corner), no table is learned and the raw depth is reconstructed,\n"
+    "                     with a warning. Takes about 3x the time; excludes\n"
+    "                     --depth-calibration\n"
     "  --no-colour        read depth only, even when the source has colour\n"
     "  --gt DIR           ground truth folder (groundtruth.txt or trajectory.log,\n"
     "                     gt_points.ply, layout.json; default: the dataset folder)\n"
@@ -347,25 +365,119 @@ Result<PlanarStage> planarStage(const std::string& uri, const Options& o,
     return planar;
 }
 
+/// One refinement round of `--self-calibrate`: the table estimated at the poses of the
+/// reconstruction in `recon_dir` (reference §7c), written to `refined_path`, then the bend left
+/// in the frames it undistorts learned from the planes (self_calibration.planar) and composed
+/// with it; the round's table (the product, or the refined table when the planes do not
+/// determine the bend) is written to `table_path`.
+struct RefinementRound {
+    calibration::SelfCalibrationResult learned;
+    nlohmann::json iterations = nlohmann::json::array();
+    size_t frames = 0;
+    size_t unaligned = 0;
+    std::optional<PlanarStage> planar;  ///< the bend left after the refined table
+};
+
+Result<RefinementRound> refinementRound(const std::string& uri, const Options& o,
+                                        const SelfCalibrateConfig& sc, const PinholeCamera& camera,
+                                        const std::filesystem::path& recon_dir,
+                                        const std::filesystem::path& refined_path,
+                                        const std::filesystem::path& table_path,
+                                        const sim::DistortionTable* initial,
+                                        const std::string& step_refine,
+                                        const std::string& step_planar) {
+    RefinementRound round;
+    Result<PoseLookup> poses = PoseLookup::read(recon_dir / "trajectory.txt");
+    if (!poses.isOk()) return poses.status();
+    // The raw frames at the reconstruction's poses.
+    SourceOptions raw_options = o.source_options;
+    raw_options.depth_calibration = "none";
+    raw_options.colour = false;
+    Result<std::unique_ptr<FrameSource>> source = openFrameSource(uri, raw_options);
+    if (!source.isOk()) return source.status();
+    Result<PosedDepth> posed = readPosedDepth(**source, *poses, sc.frame_step);
+    if (!posed.isOk()) return posed.status();
+    const std::vector<DepthImage>& depth = posed->depth;  // frames not tracked have no pose
+    round.frames = depth.size();
+    log::info(
+        "self-calibration {}: estimating the depth distortion table from {} frames at the "
+        "poses of {}",
+        step_refine, depth.size(), recon_dir.string());
+    auto observe = [&](const calibration::CalibrationIteration& it) {
+        const calibration::DistortionEstimate& e = it.estimate;
+        log::info(
+            "self-calibration iteration {}: change median {:.5f} max {:.5f}; cells covered per "
+            "bin (1/3/5/7/9 m) {} {} {} {} {} of 6400",
+            it.iteration + 1, e.median_change, e.max_change, e.covered_cells[0], e.covered_cells[1],
+            e.covered_cells[2], e.covered_cells[3], e.covered_cells[4]);
+        round.iterations.push_back({{"change_median", e.median_change},
+                                    {"change_max", e.max_change},
+                                    {"covered_cells", e.covered_cells}});
+    };
+    const calibration::FrameAligner aligner =
+        sc.refine_poses ? icpFrameAligner(CalibrationAlignerConfig{}, &round.unaligned)
+                        : calibration::FrameAligner{};
+    Result<calibration::SelfCalibrationResult> learned = calibration::selfCalibrate(
+        depth, camera, posed->T_W_C, sc.estimate, initial, observe, aligner);
+    if (!learned.isOk()) return prefixed(learned.status(), "self-calibration");
+    round.learned = std::move(*learned);
+    std::error_code ec;
+    std::filesystem::create_directories(refined_path.parent_path(), ec);
+    if (Status s = round.learned.table.save(refined_path); !s.isOk()) return s;
+    log::info("self-calibration: {} after {} iterations; table written to {}",
+              round.learned.converged ? "converged" : "stopped at the iteration limit",
+              round.learned.iterations.size(), refined_path.string());
+    // The refinement learns the table's cell-to-cell structure, but at poses that still carry
+    // the reconstruction's error, which bends it back; the bend left in the frames it
+    // undistorts is what the planes show.
+    if (sc.planar) {
+        log::info(
+            "self-calibration {}: learning the bend left in the frames the refined table "
+            "undistorts",
+            step_planar);
+        Result<PlanarStage> p = planarStage(uri, o, sc, refined_path.string(), table_path);
+        if (p.isOk()) {
+            round.planar = std::move(*p);
+        } else if (p.status().code() == StatusCode::kFailedPrecondition) {
+            log::warn("{}; the refined table is used as it is", p.status().message());
+        } else {
+            return p.status();
+        }
+    }
+    if (!round.planar) {
+        if (Status s = round.learned.table.save(table_path); !s.isOk()) return s;
+    }
+    return round;
+}
+
 /// `--self-calibrate`: a first reconstruction (`raw_source`, opened without depth calibration,
-/// or with the bend learned from the frames' planes when self_calibration.planar), the table
-/// estimated against it at its poses, the bend left after that table learned from the planes
-/// again (self_calibration.planar), and the reconstruction with the learned table into o.out.
+/// or with the bend learned from the frames' planes when self_calibration.planar), then
+/// self_calibration.rounds refinement rounds (refinementRound), each but the last followed by a
+/// reconstruction with its table whose poses the next round uses, and the reconstruction with
+/// the last round's table into o.out.
 Result<backend::PipelineResult> selfCalibratedRun(FrameSource& raw_source, const std::string& uri,
                                                   const Options& o, const ReconstructConfig& cfg,
                                                   const backend::PipelineInput& base) {
     const auto start = std::chrono::steady_clock::now();
+    auto seconds = [&start] {
+        return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    };
     const SelfCalibrateConfig& sc = cfg.self_calibration;
+    const std::filesystem::path folder = o.out / "self_calibration";
+    const int steps = 2 + 3 * sc.rounds;
+    int step = 0;
+    auto next = [&] { return fmt::format("{}/{}", ++step, steps); };
     SourceOptions raw_options = o.source_options;
     raw_options.depth_calibration = "none";
-    const std::filesystem::path first_dir = o.out / "self_calibration" / "first";
     std::optional<PlanarStage> planar;
     std::unique_ptr<FrameSource> planar_source;
     FrameSource* first_source = &raw_source;
     SourceOptions first_options = raw_options;
+    const std::string planar_step = next();
     if (sc.planar) {
-        const std::filesystem::path planar_path = o.out / "self_calibration" / "planar_table.txt";
-        log::info("self-calibration 1/5: learning the bend of the depth from each frame's planes");
+        const std::filesystem::path planar_path = folder / "planar_table.txt";
+        log::info("self-calibration {}: learning the bend of the depth from each frame's planes",
+                  planar_step);
         Result<PlanarStage> p = planarStage(uri, o, sc, "none", planar_path);
         if (p.isOk()) {
             planar = std::move(*p);
@@ -375,105 +487,100 @@ Result<backend::PipelineResult> selfCalibratedRun(FrameSource& raw_source, const
             planar_source = std::move(*opened);
             first_source = planar_source.get();
         } else if (p.status().code() == StatusCode::kFailedPrecondition) {
-            log::warn("{}; the first reconstruction is from the raw depth", p.status().message());
+            // Without the bend, a table refined at poses tracked from the raw depth learns
+            // the poses' error as much as the camera's (on short real scans it made the ATE
+            // 1.2-4.7x worse): no table is learned, and the raw depth is reconstructed once.
+            log::warn("{}; no table is learned, the reconstruction uses the raw depth",
+                      p.status().message());
+            backend::PipelineInput input = base;
+            input.self_calibration = {{"status", "not_determined"},
+                                      {"reason", p.status().message()},
+                                      {"table", nullptr},
+                                      {"planar", nullptr}};
+            return reconstructOnce(raw_source, uri, raw_options, cfg, cfg.pipeline,
+                                   std::move(input), o.out, o);
         } else {
             return p.status();
         }
     }
-    log::info("self-calibration 2/5: reconstructing from the {} depth into {}",
-              planar ? "planar-corrected" : "raw", first_dir.string());
-    backend::PipelineConfig first = cfg.pipeline;
-    first.compare_baseline = false;
+    backend::PipelineConfig intermediate = cfg.pipeline;
+    intermediate.compare_baseline = false;
+    std::filesystem::path recon_dir = folder / "first";
+    log::info("self-calibration {}: reconstructing from the {} depth into {}", next(),
+              planar ? "planar-corrected" : "raw", recon_dir.string());
     Result<backend::PipelineResult> before =
-        reconstructOnce(*first_source, uri, first_options, cfg, first, base, first_dir, o);
+        reconstructOnce(*first_source, uri, first_options, cfg, intermediate, base, recon_dir, o);
     if (!before.isOk()) return prefixed(before.status(), "self-calibration, first reconstruction");
-    const double raw_seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    Result<PoseLookup> poses = PoseLookup::read(first_dir / "trajectory.txt");
-    if (!poses.isOk()) return poses.status();
+    const double first_seconds = seconds();
 
-    // The raw frames at the reconstruction's poses.
-    raw_options.colour = false;
-    Result<std::unique_ptr<FrameSource>> source = openFrameSource(uri, raw_options);
-    if (!source.isOk()) return source.status();
-    Result<PosedDepth> posed = readPosedDepth(**source, *poses, sc.frame_step);
-    if (!posed.isOk()) return posed.status();
-    const std::vector<DepthImage>& depth = posed->depth;  // frames not tracked have no pose
-    const std::vector<Eigen::Isometry3d>& T_W_C = posed->T_W_C;
-    log::info("self-calibration 3/5: estimating the depth distortion table from {} frames",
-              depth.size());
-    nlohmann::json iterations = nlohmann::json::array();
-    auto observe = [&](const calibration::CalibrationIteration& it) {
-        const calibration::DistortionEstimate& e = it.estimate;
-        log::info(
-            "self-calibration iteration {}: change median {:.5f} max {:.5f}; cells covered per "
-            "bin (1/3/5/7/9 m) {} {} {} {} {} of 6400",
-            it.iteration + 1, e.median_change, e.max_change, e.covered_cells[0], e.covered_cells[1],
-            e.covered_cells[2], e.covered_cells[3], e.covered_cells[4]);
-        iterations.push_back({{"change_median", e.median_change},
-                              {"change_max", e.max_change},
-                              {"covered_cells", e.covered_cells}});
-    };
-    size_t unaligned = 0;
-    const calibration::FrameAligner aligner =
-        sc.refine_poses ? icpFrameAligner(CalibrationAlignerConfig{}, &unaligned)
-                        : calibration::FrameAligner{};
-    Result<calibration::SelfCalibrationResult> learned = calibration::selfCalibrate(
-        depth, base.camera, T_W_C, sc.estimate, nullptr, observe, aligner);
-    if (!learned.isOk()) return prefixed(learned.status(), "self-calibration");
-    std::error_code ec;
-    std::filesystem::create_directories(o.out, ec);
-    const std::filesystem::path refined_path = o.out / "self_calibration" / "refined_table.txt";
-    if (Status s = learned->table.save(refined_path); !s.isOk()) return s;
-    const calibration::DistortionEstimate& last = learned->iterations.back().estimate;
-    log::info("self-calibration: {} after {} iterations; table written to {}",
-              learned->converged ? "converged" : "stopped at the iteration limit",
-              learned->iterations.size(), refined_path.string());
-    // The refinement learns the table's cell-to-cell structure, but at poses that still carry
-    // the first reconstruction's error, which bends it back; the bend left in the frames it
-    // undistorts is what the planes show.
     const std::filesystem::path table_path = o.out / "depth_calibration.txt";
-    std::optional<PlanarStage> final_planar;
-    if (sc.planar) {
-        log::info(
-            "self-calibration 4/5: learning the bend left in the frames the refined table "
-            "undistorts");
-        Result<PlanarStage> p = planarStage(uri, o, sc, refined_path.string(), table_path);
-        if (p.isOk()) {
-            final_planar = std::move(*p);
-        } else if (p.status().code() == StatusCode::kFailedPrecondition) {
-            log::warn("{}; the refined table is used as it is", p.status().message());
-        } else {
-            return p.status();
+    nlohmann::json intermediates = nlohmann::json::array();
+    std::optional<RefinementRound> round;
+    sim::DistortionTable latest = sim::DistortionTable::neutral();
+    for (int r = 1; r <= sc.rounds; ++r) {
+        const bool last = r == sc.rounds;
+        const std::filesystem::path refined_path =
+            folder /
+            (last ? std::string("refined_table.txt") : fmt::format("refined_table_round{}.txt", r));
+        const std::filesystem::path round_table =
+            last ? table_path : folder / fmt::format("table_round{}.txt", r);
+        const std::string refine_step = next();
+        const sim::DistortionTable* initial = nullptr;
+        if (sc.warm_start && r == 1 && planar) initial = &planar->table;
+        if (sc.warm_start && r > 1) initial = &latest;
+        Result<RefinementRound> done =
+            refinementRound(uri, o, sc, base.camera, recon_dir, refined_path, round_table, initial,
+                            refine_step, next());
+        if (!done.isOk()) return done.status();
+        round = std::move(*done);
+        if (last) break;
+        if (sc.warm_start) {
+            Result<sim::DistortionTable> table = sim::DistortionTable::load(round_table);
+            if (!table.isOk()) return table.status();
+            latest = std::move(*table);
         }
+        // A reconstruction with this round's table: its poses carry less of the bend, so the
+        // next round's estimate at them is closer to the truth.
+        SourceOptions options = o.source_options;
+        options.depth_calibration = round_table.string();
+        Result<std::unique_ptr<FrameSource>> opened = openFrameSource(uri, options);
+        if (!opened.isOk()) return opened.status();
+        recon_dir = folder / fmt::format("reconstruction{}", r + 1);
+        log::info("self-calibration {}: reconstructing with round {}'s table into {}", next(), r,
+                  recon_dir.string());
+        Result<backend::PipelineResult> again =
+            reconstructOnce(**opened, uri, options, cfg, intermediate, base, recon_dir, o);
+        if (!again.isOk()) return prefixed(again.status(), "self-calibration, reconstruction");
+        intermediates.push_back({{"reconstruction", recon_dir.lexically_relative(o.out).string()},
+                                 {"table", round_table.lexically_relative(o.out).string()},
+                                 {"figures", mainFigures(*again)}});
     }
-    if (!final_planar) {
-        if (Status s = learned->table.save(table_path); !s.isOk()) return s;
-    }
+    const calibration::DistortionEstimate& last = round->learned.iterations.back().estimate;
 
-    log::info("self-calibration 5/5: reconstructing with the learned table");
+    log::info("self-calibration {}: reconstructing with the learned table", next());
     backend::PipelineInput input = base;
     input.self_calibration = {
+        {"status", "learned"},
         {"table", table_path.filename().string()},
-        {"frames", depth.size()},
+        {"rounds", sc.rounds},
+        {"frames", round->frames},
         {"frame_step", sc.frame_step},
         {"refine_poses", sc.refine_poses},
-        {"frames_not_aligned", unaligned},
-        {"iterations", iterations},
-        {"converged", learned->converged},
+        {"frames_not_aligned", round->unaligned},
+        {"iterations", round->iterations},
+        {"converged", round->learned.converged},
         {"covered_cells", last.covered_cells},
         {"gauge_bin_m", sim::DistortionTable::binCentreM(last.gauge_bin)},
         {"gauge_scale", last.gauge_scale},
         {"first_table", planar ? "self_calibration/planar_table.txt" : "none"},
         {"planar", planar ? planarFigures(*planar) : nlohmann::json(nullptr)},
         {"refined_table", "self_calibration/refined_table.txt"},
-        {"final_planar", final_planar ? planarFigures(*final_planar) : nlohmann::json(nullptr)},
+        {"final_planar", round->planar ? planarFigures(*round->planar) : nlohmann::json(nullptr)},
         {"first_reconstruction", "self_calibration/first"},
         {"before", mainFigures(*before)},
-        {"first_reconstruction_seconds", raw_seconds},
-        {"estimate_seconds",
-         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() -
-             raw_seconds}};
+        {"intermediate_reconstructions", intermediates},
+        {"first_reconstruction_seconds", first_seconds},
+        {"estimate_seconds", seconds() - first_seconds}};
     SourceOptions calibrated = o.source_options;
     calibrated.depth_calibration = table_path.string();
     Result<std::unique_ptr<FrameSource>> calibrated_source = openFrameSource(uri, calibrated);
@@ -654,8 +761,11 @@ int runReconstruct(const std::vector<std::string>& arguments) {
     }
     if (!result.isOk()) return failure(kCommand, result.status());
     removeResumeFolder(o.out);  // complete: nothing left to resume
-    if (o.self_calibrate) {
-        const nlohmann::json& sc = result->metrics["self_calibration"];
+    const nlohmann::json& sc = result->metrics.value("self_calibration", nlohmann::json());
+    if (o.self_calibrate && sc.value("status", std::string()) == "not_determined") {
+        std::cout << "self-calibration: no table learned (" << sc.value("reason", std::string())
+                  << "); the reconstruction used the raw depth\n";
+    } else if (o.self_calibrate) {
         const nlohmann::json before = sc.value("before", nlohmann::json::object());
         std::cout << "self-calibration: table " << (o.out / "depth_calibration.txt").string();
         if (before.contains("ate_rmse_m")) {
