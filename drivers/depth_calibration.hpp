@@ -15,8 +15,8 @@
 #include <string>
 
 #include "common/core/status.hpp"
+#include "common/frame/frame_source.hpp"
 #include "common/image/image.hpp"
-#include "drivers/frame_source.hpp"
 #include "drivers/sim/noise.hpp"
 
 namespace plumb {

@@ -28,7 +28,7 @@
 #include <memory>
 #include <string>
 
-#include "drivers/frame_source.hpp"
+#include "common/frame/frame_source.hpp"
 
 namespace plumb {
 

@@ -19,7 +19,7 @@
 #include <mutex>
 #include <string>
 
-#include "drivers/frame_source.hpp"
+#include "common/frame/frame_source.hpp"
 
 namespace plumb {
 

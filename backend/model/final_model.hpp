@@ -21,9 +21,9 @@
 #include "common/core/progress.hpp"
 #include "common/core/status.hpp"
 #include "common/fragment/fragment.hpp"
+#include "common/frame/frame_source.hpp"
 #include "common/image/image.hpp"
 #include "common/io/trajectory.hpp"
-#include "drivers/frame_source.hpp"
 
 namespace plumb::backend {
 

@@ -37,8 +37,8 @@
 #include "common/camera/pinhole.hpp"
 #include "common/config/schema.hpp"
 #include "common/fragment/fragment.hpp"
+#include "common/frame/frame_source.hpp"
 #include "common/layout/layout.hpp"
-#include "drivers/frame_source.hpp"
 
 namespace plumb::backend {
 

@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 #pragma once
 
-// Every source of depth frames (sensors, recorded datasets, LCM-log replay, the simulated scanner)
+// The frame vocabulary shared by device and backend: every source of depth frames (sensors,
+// recorded datasets, LCM-log replay, the simulated scanner; their implementations live in drivers/)
 // sits behind FrameSource, so the pipeline cannot tell them apart.
 
 #include <Eigen/Geometry>

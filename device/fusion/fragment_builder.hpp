@@ -27,13 +27,13 @@
 #include <vector>
 
 #include "common/fragment/fragment.hpp"
+#include "common/frame/frame_source.hpp"
 #include "common/tsdf/raycast.hpp"
 #include "common/tsdf/surface.hpp"
 #include "common/tsdf/tsdf_volume.hpp"
 #include "device/fusion/fusion_config.hpp"
 #include "device/preprocess/preprocess.hpp"
 #include "device/tracking/icp.hpp"
-#include "drivers/frame_source.hpp"
 
 namespace plumb::device {
 

@@ -31,8 +31,8 @@
 #include <string>
 #include <vector>
 
+#include "common/frame/frame_source.hpp"
 #include "device/stream/device_config.hpp"
-#include "drivers/frame_source.hpp"
 #include "messages/spool.hpp"
 #include "messages/transport.hpp"
 

@@ -70,7 +70,7 @@
 
 #include "common/camera/pinhole.hpp"
 #include "common/core/status.hpp"
-#include "drivers/frame_source.hpp"
+#include "common/frame/frame_source.hpp"
 
 namespace plumb::dataset {
 

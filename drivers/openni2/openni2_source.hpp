@@ -33,7 +33,7 @@
 #include <string>
 #include <vector>
 
-#include "drivers/frame_source.hpp"
+#include "common/frame/frame_source.hpp"
 
 namespace plumb::openni2 {
 

@@ -11,8 +11,8 @@
 #include <optional>
 #include <string>
 
+#include "common/frame/frame_source.hpp"
 #include "common/io/trajectory.hpp"
-#include "drivers/frame_source.hpp"
 #include "drivers/sim/colour.hpp"
 #include "drivers/sim/noise.hpp"
 #include "drivers/sim/render.hpp"

@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "common/core/status.hpp"
-#include "drivers/frame_source.hpp"
+#include "common/frame/frame_source.hpp"
 
 namespace plumb::usb {
 

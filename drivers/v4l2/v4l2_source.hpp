@@ -35,8 +35,8 @@
 #include <string>
 #include <vector>
 
+#include "common/frame/frame_source.hpp"
 #include "drivers/device_clock.hpp"
-#include "drivers/frame_source.hpp"
 #include "drivers/v4l2/v4l2_io.hpp"
 
 namespace plumb::v4l2 {

@@ -7,7 +7,7 @@
 #include <atomic>
 #include <string>
 
-#include "drivers/frame_source.hpp"
+#include "common/frame/frame_source.hpp"
 
 namespace plumb::testing {
 

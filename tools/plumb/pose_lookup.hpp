@@ -11,8 +11,8 @@
 #include <vector>
 
 #include "common/core/status.hpp"
+#include "common/frame/frame_source.hpp"
 #include "common/io/trajectory.hpp"
-#include "drivers/frame_source.hpp"
 
 namespace plumb::tools {
 

@@ -18,9 +18,9 @@
 #include <vector>
 
 #include "common/core/status.hpp"
+#include "common/frame/frame_source.hpp"
 #include "common/io/trajectory.hpp"
 #include "device/fusion/fragment_builder.hpp"
-#include "drivers/frame_source.hpp"
 #include "messages/fragment_store.hpp"
 
 namespace plumb::tools {

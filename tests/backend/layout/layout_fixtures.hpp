@@ -12,9 +12,9 @@
 #include "common/camera/pinhole.hpp"
 #include "common/core/status.hpp"
 #include "common/fragment/fragment.hpp"
+#include "common/frame/frame_source.hpp"
 #include "common/tsdf/surface.hpp"
 #include "common/tsdf/tsdf_volume.hpp"
-#include "drivers/frame_source.hpp"
 
 namespace plumb::testing {
 
