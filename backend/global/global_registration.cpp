@@ -2,9 +2,6 @@
 #include "backend/global/global_registration.hpp"
 
 #include <fmt/format.h>
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-#include <tbb/task_arena.h>
 
 #include <Eigen/Sparse>
 #include <Eigen/SparseCholesky>
@@ -19,7 +16,10 @@
 #include <utility>
 
 #include "backend/global/residuals.hpp"
+#include "common/cloud/kd_tree.hpp"
 #include "common/config/config.hpp"
+#include "common/core/parallel.hpp"
+#include "common/geometry/polygon.hpp"
 
 namespace plumb::global {
 
@@ -99,25 +99,6 @@ void describe(config::Schema& s, GlobalConfig& c) {
 
 namespace {
 
-template <typename Fn>
-void parallelFor(int num_threads, size_t n, const Fn& fn) {
-    if (n == 0) return;
-    auto body = [&] {
-        tbb::parallel_for(tbb::blocked_range<size_t>(0, n),
-                          [&](const tbb::blocked_range<size_t>& r) {
-                              for (size_t i = r.begin(); i != r.end(); ++i) fn(i);
-                          });
-    };
-    if (num_threads == 1) {
-        for (size_t i = 0; i < n; ++i) fn(i);
-    } else if (num_threads > 1) {
-        tbb::task_arena arena(num_threads);
-        arena.execute(body);
-    } else {
-        body();
-    }
-}
-
 constexpr double kDegToRad = M_PI / 180.0;
 
 }  // namespace
@@ -125,28 +106,10 @@ constexpr double kDegToRad = M_PI / 180.0;
 // ---------------------------------------------------------------------------------------------
 // GlobalCloud
 
-struct GlobalCloud::Tree {
-    // Points by buffer pointer: a moved std::vector keeps its buffer, so the tree stays valid
-    // when its GlobalCloud is moved.
-    struct Adaptor {
-        const Eigen::Vector3d* points;
-        size_t count;
-        size_t kdtree_get_point_count() const { return count; }  // NOLINT
-        double kdtree_get_pt(size_t i, size_t dim) const {       // NOLINT
-            return points[i][static_cast<Eigen::Index>(dim)];
-        }
-        template <class BoundingBox>
-        bool kdtree_get_bbox(BoundingBox& /*bb*/) const {  // NOLINT
-            return false;
-        }
-    };
-    using Index = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<double, Adaptor>,
-                                                      Adaptor, 3, uint32_t>;
-    explicit Tree(const std::vector<Eigen::Vector3d>& points)
-        : adaptor{points.data(), points.size()},
-          index(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10)) {}
-    Adaptor adaptor;
-    Index index;
+// The tree keeps the points' buffer: a moved std::vector keeps it, so the tree stays valid when
+// its GlobalCloud is moved.
+struct GlobalCloud::Tree : PointKdTree<double> {
+    using PointKdTree<double>::PointKdTree;
 };
 
 GlobalCloud::GlobalCloud() = default;
@@ -157,7 +120,7 @@ GlobalCloud& GlobalCloud::operator=(GlobalCloud&&) noexcept = default;
 bool GlobalCloud::nearest(const Eigen::Vector3d& query, uint32_t* index,
                           double* distance_sq) const {
     if (points_.empty() || !tree_) return false;
-    tree_->index.knnSearch(query.data(), 1, index, distance_sq);
+    tree_->index().knnSearch(query.data(), 1, index, distance_sq);
     return true;
 }
 
@@ -167,7 +130,7 @@ bool GlobalCloud::nearestWithin(const Eigen::Vector3d& query, double max_distanc
     nanoflann::KNNResultSet<double, uint32_t, size_t> result(1);
     result.init(index, distance_sq);
     *distance_sq = max_distance_sq;  // the search keeps only points closer than this
-    tree_->index.findNeighbors(result, query.data(), nanoflann::SearchParams());
+    tree_->index().findNeighbors(result, query.data(), nanoflann::SearchParams());
     return result.size() == 1 && *distance_sq < max_distance_sq;
 }
 
@@ -272,19 +235,6 @@ double pointSegmentDistance(const Eigen::Vector2d& p, const Eigen::Vector2d& a,
     double s = len_sq > 0.0 ? (p - a).dot(e) / len_sq : 0.0;
     s = std::clamp(s, 0.0, 1.0);
     return (p - (a + s * e)).norm();
-}
-
-bool insidePolygon(const std::vector<Eigen::Vector2d>& poly, const Eigen::Vector2d& p) {
-    bool inside = false;
-    for (size_t k = 0, l = poly.size() - 1; k < poly.size(); l = k++) {
-        const Eigen::Vector2d& a = poly[k];
-        const Eigen::Vector2d& b = poly[l];
-        if ((a.y() > p.y()) != (b.y() > p.y())) {
-            const double x = (b.x() - a.x()) * (p.y() - a.y()) / (b.y() - a.y()) + a.x();
-            if (p.x() < x) inside = !inside;
-        }
-    }
-    return inside;
 }
 
 /// The layout prepared for correspondence search: planes in W, support regions in L.

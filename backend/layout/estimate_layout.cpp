@@ -16,6 +16,8 @@
 #include "backend/layout/tlinkage.hpp"
 #include "common/config/config.hpp"
 #include "common/config/schema.hpp"
+#include "common/core/timing.hpp"
+#include "common/geometry/polygon.hpp"
 
 namespace plumb::layout {
 
@@ -98,10 +100,6 @@ void describe(config::Schema& s, LayoutConfig& c) {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
-double msSince(Clock::time_point t0) {
-    return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
 constexpr double kDeg = std::numbers::pi / 180.0;
 
 struct Group {
@@ -229,23 +227,13 @@ Eigen::Vector3d fragmentViewpoint(const Fragment& fragment, const Eigen::Isometr
     return T_W_F * tracked[tracked.size() / 2]->T_F_C.translation();
 }
 
-double signedArea(const std::vector<Eigen::Vector2d>& poly) {
-    double a = 0.0;
-    for (size_t k = 0; k < poly.size(); ++k) {
-        const auto& p = poly[k];
-        const auto& q = poly[(k + 1) % poly.size()];
-        a += p.x() * q.y() - q.x() * p.y();
-    }
-    return 0.5 * a;
-}
-
 }  // namespace
 
 Result<LayoutEstimate> estimateLayout(const std::vector<Fragment>& fragments,
                                       const std::vector<FragmentPlanes>& planes,
                                       const std::vector<Eigen::Isometry3d>& T_W_F,
                                       const LayoutConfig& config) {
-    const auto t_start = Clock::now();
+    const auto t_start = SteadyClock::now();
     PLUMB_RETURN_IF_ERROR(config::validate(config));
     if (fragments.size() != planes.size() || fragments.size() != T_W_F.size()) {
         return invalidArgument(
@@ -271,7 +259,7 @@ Result<LayoutEstimate> estimateLayout(const std::vector<Fragment>& fragments,
     const double cell = config.grid_cell_m;
 
     // 1. Groups and all points in the world frame (reference §4.6).
-    auto t0 = Clock::now();
+    auto t0 = SteadyClock::now();
     std::vector<Group> groups;
     std::vector<Eigen::Vector3d> all_points;
     std::vector<size_t> points_begin;  // fragment i's points: [points_begin[i], points_begin[i+1])
@@ -416,7 +404,7 @@ Result<LayoutEstimate> estimateLayout(const std::vector<Fragment>& fragments,
 
     // 4. Occupancy grid on the base plane and its boundary (reference §4.8), with the space the
     // camera moved in.
-    t0 = Clock::now();
+    t0 = SteadyClock::now();
     const std::vector<Eigen::Vector3d> cameras_W = cameraPositions(fragments, T_W_F);
     diag.num_camera_positions = static_cast<int>(cameras_W.size());
     Eigen::Vector3d e1, e2;

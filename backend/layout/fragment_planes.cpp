@@ -20,6 +20,7 @@
 #include "backend/layout/tlinkage.hpp"
 #include "common/config/config.hpp"
 #include "common/config/schema.hpp"
+#include "common/core/timing.hpp"
 
 namespace plumb::layout {
 
@@ -80,11 +81,6 @@ void describe(config::Schema& s, FragmentPlaneConfig& c) {
 }
 
 namespace {
-
-using Clock = std::chrono::steady_clock;
-double msSince(Clock::time_point t0) {
-    return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
 
 struct Sample {
     std::vector<Eigen::Vector3d> points;
@@ -166,7 +162,7 @@ PottsProblem buildProblem(const Sample& sample, const std::vector<LabelPlane>& p
 
 Result<FragmentPlanes> extractFragmentPlanes(const Fragment& fragment,
                                              const FragmentPlaneConfig& config) {
-    const auto t_start = Clock::now();
+    const auto t_start = SteadyClock::now();
     PLUMB_RETURN_IF_ERROR(config::validate(config));
     if (fragment.points_F.empty()) {
         return invalidArgument(fmt::format("fragment {}: no points", fragment.id));
@@ -186,7 +182,7 @@ Result<FragmentPlanes> extractFragmentPlanes(const Fragment& fragment,
     const double point_area = config.sample_voxel_m * config.sample_voxel_m;
 
     // 1. Working sample (reference §4.1).
-    auto t0 = Clock::now();
+    auto t0 = SteadyClock::now();
     Sample sample = voxelSample(fragment.points_F, config.sample_voxel_m);
     diag.num_input_points = sample.num_input;
     if (sample.num_input == 0) {
@@ -242,7 +238,7 @@ Result<FragmentPlanes> extractFragmentPlanes(const Fragment& fragment,
     }
 
     // 2. Supervoxels (VCCS, reference §4.2).
-    t0 = Clock::now();
+    t0 = SteadyClock::now();
     auto normals = std::make_shared<pcl::PointCloud<pcl::Normal>>();
     normals->resize(n);
     for (int i = 0; i < n; ++i) {
@@ -295,7 +291,7 @@ Result<FragmentPlanes> extractFragmentPlanes(const Fragment& fragment,
     diag.ms_supervoxels = msSince(t0);
 
     // Per-supervoxel centre, plane and radius.
-    t0 = Clock::now();
+    t0 = SteadyClock::now();
     struct SvInfo {
         Eigen::Vector3d centre = Eigen::Vector3d::Zero();
         Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();
@@ -382,7 +378,7 @@ Result<FragmentPlanes> extractFragmentPlanes(const Fragment& fragment,
     diag.ms_hypotheses = msSince(t0);
 
     // 4. T-linkage over supervoxels (Eq. 2-3, reference §4.4).
-    t0 = Clock::now();
+    t0 = SteadyClock::now();
     std::vector<PreferenceVector> prefs(num_sv);
     for (int k = 0; k < num_sv; ++k) {
         if (members[k].empty()) continue;
@@ -428,7 +424,7 @@ Result<FragmentPlanes> extractFragmentPlanes(const Fragment& fragment,
     diag.ms_tlinkage = msSince(t0);
 
     // 5. Graph-cut multi-model fitting with refits (Eq. 4-5, reference §4.5).
-    t0 = Clock::now();
+    t0 = SteadyClock::now();
     std::vector<PottsEdge> edges;
     const double lambda = config.smoothness_factor * tau;
     for (int i = 0; i < n; ++i) {

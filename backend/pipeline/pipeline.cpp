@@ -21,6 +21,7 @@
 #include "common/core/logging.hpp"
 #include "common/core/progress.hpp"
 #include "common/io/ply.hpp"
+#include "common/io/text_file.hpp"
 #include "common/io/trajectory.hpp"
 #include "common/layout/layout_json.hpp"
 
@@ -52,21 +53,6 @@ ProgressOptions progressOptions(bool show) {
     ProgressOptions o;
     if (!show) o.mode = ProgressOptions::Mode::kQuiet;
     return o;
-}
-
-Status writeText(const fs::path& path, const std::string& text) {
-    const fs::path tmp = path.string() + ".tmp";
-    {
-        std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-        if (!out) return ioError(fmt::format("{}: cannot open for writing", tmp.string()));
-        out << text;
-        out.flush();
-        if (!out) return ioError(fmt::format("{}: write failed (disk full?)", tmp.string()));
-    }
-    std::error_code ec;
-    fs::rename(tmp, path, ec);
-    if (ec) return ioError(fmt::format("{}: {}", path.string(), ec.message()));
-    return Status::ok();
 }
 
 /// The pose-graph edges that survived, as the priors E_pair of the global registration.
@@ -403,10 +389,11 @@ Status stopIfRequested(const PipelineInput& input, const char* after) {
 Status writeDocuments(const fs::path& out_dir, const PipelineInput& input,
                       const nlohmann::json& metrics, ReportFigures& figures) {
     figures.floorplan_svg = inlineSvg(out_dir / "floorplan.svg");
-    PLUMB_RETURN_IF_ERROR(writeText(out_dir / "metrics.json", metrics.dump(2) + "\n"));
-    PLUMB_RETURN_IF_ERROR(writeText(out_dir / "report.html", renderReportHtml(metrics, figures)));
+    PLUMB_RETURN_IF_ERROR(io::writeTextReplacing(out_dir / "metrics.json", metrics.dump(2) + "\n"));
+    PLUMB_RETURN_IF_ERROR(
+        io::writeTextReplacing(out_dir / "report.html", renderReportHtml(metrics, figures)));
     if (!input.config_toml.empty())
-        PLUMB_RETURN_IF_ERROR(writeText(out_dir / "config.toml", input.config_toml));
+        PLUMB_RETURN_IF_ERROR(io::writeTextReplacing(out_dir / "config.toml", input.config_toml));
     return Status::ok();
 }
 

@@ -9,10 +9,7 @@
 
 namespace plumb::registration::detail {
 
-KdTree3::KdTree3(const std::vector<Eigen::Vector3f>& points) {
-    adaptor_.points = &points;
-    tree_ = std::make_unique<Tree>(3, adaptor_, nanoflann::KDTreeSingleIndexAdaptorParams(10));
-}
+KdTree3::KdTree3(const std::vector<Eigen::Vector3f>& points) : tree_(points) {}
 
 bool KdTree3::nearest(const Eigen::Vector3f& q, float max_dist_sq, uint32_t* index,
                       float* dist_sq) const {
@@ -25,7 +22,7 @@ bool KdTree3::nearest(const Eigen::Vector3f& q, float max_dist_sq, uint32_t* ind
     // partial overlap have no neighbour within it, and an unbounded search would walk the tree
     // far for a point it then discards (same neighbour when there is one).
     d = std::nextafter(max_dist_sq, std::numeric_limits<float>::infinity());
-    tree_->findNeighbors(result, q.data(), nanoflann::SearchParams());
+    tree_.index().findNeighbors(result, q.data(), nanoflann::SearchParams());
     if (result.size() == 0 || d > max_dist_sq) return false;
     *index = idx;
     *dist_sq = d;
@@ -40,7 +37,7 @@ size_t KdTree3::knnWithin(const Eigen::Vector3f& q, size_t k, float radius_sq, u
     // The search prunes at the worst distance so far: starting it at the radius keeps it from
     // visiting points beyond (same neighbours, same order).
     dists_sq[k - 1] = std::nextafter(radius_sq, std::numeric_limits<float>::infinity());
-    tree_->findNeighbors(result, q.data(), nanoflann::SearchParams());
+    tree_.index().findNeighbors(result, q.data(), nanoflann::SearchParams());
     size_t n = result.size();
     while (n > 0 && dists_sq[n - 1] > radius_sq) --n;
     return n;

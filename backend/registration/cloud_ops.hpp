@@ -5,31 +5,18 @@
 // over Eigen float points, deterministic voxel downsampling, and a chunked parallel reduction whose
 // result does not depend on the thread count.
 
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-#include <tbb/task_arena.h>
-
 #include <Eigen/Core>
+#include <algorithm>
 #include <cstdint>
 #include <memory>
-#include <nanoflann.hpp>
 #include <utility>
 #include <vector>
 
+#include "common/cloud/kd_tree.hpp"
 #include "common/cloud/point_cloud.hpp"
+#include "common/core/parallel.hpp"
 
 namespace plumb::registration::detail {
-
-/// nanoflann dataset adaptor over a vector of points (the vector must outlive the tree).
-struct PointsAdaptor {
-    const std::vector<Eigen::Vector3f>* points = nullptr;
-    size_t kdtree_get_point_count() const { return points->size(); }
-    float kdtree_get_pt(size_t i, size_t dim) const { return (*points)[i][static_cast<int>(dim)]; }
-    template <class Box>
-    bool kdtree_get_bbox(Box& /*bb*/) const {
-        return false;
-    }
-};
 
 /// A 3-D k-d tree over `points` (kept by pointer: the vector must outlive the tree and not move).
 /// Queries are const and thread-safe.
@@ -45,14 +32,10 @@ class KdTree3 {
     /// Up to `k` nearest points within sqrt(radius_sq), closest first; returns the count.
     size_t knnWithin(const Eigen::Vector3f& q, size_t k, float radius_sq, uint32_t* indices,
                      float* dists_sq) const;
-    size_t size() const { return adaptor_.points->size(); }
+    size_t size() const { return tree_.size(); }
 
   private:
-    using Tree = nanoflann::KDTreeSingleIndexAdaptor<
-        nanoflann::L2_Simple_Adaptor<float, PointsAdaptor, float, uint32_t>, PointsAdaptor, 3,
-        uint32_t>;
-    PointsAdaptor adaptor_;
-    std::unique_ptr<Tree> tree_;
+    PointKdTree<float> tree_;
 };
 
 /// Averages points (and normals, renormalised, when present) per voxel of edge `voxel_m`. Output
@@ -61,27 +44,7 @@ class KdTree3 {
 /// (the input order is kept). Points with a non-finite coordinate are skipped.
 PointCloud voxelDownsample(const PointCloud& cloud, double voxel_m);
 
-/// Calls fn(i) for i in [0, n) on up to `num_threads` workers (0 = TBB default, 1 = inline).
-template <typename Fn>
-void parallelFor(int num_threads, size_t n, const Fn& fn) {
-    if (n == 0) return;
-    if (num_threads == 1 || n == 1) {
-        for (size_t i = 0; i < n; ++i) fn(i);
-        return;
-    }
-    auto body = [&] {
-        tbb::parallel_for(tbb::blocked_range<size_t>(0, n),
-                          [&](const tbb::blocked_range<size_t>& r) {
-                              for (size_t i = r.begin(); i != r.end(); ++i) fn(i);
-                          });
-    };
-    if (num_threads > 1) {
-        tbb::task_arena arena(num_threads);
-        arena.execute(body);
-    } else {
-        body();
-    }
-}
+using plumb::parallelFor;  // common/core/parallel.hpp
 
 /// Deterministic reduction: [0, n) is cut into fixed chunks of `chunk` items (independent of the
 /// thread count); chunk c accumulates into its own Acc (fn(acc, i)), and the chunk results are

@@ -6,6 +6,8 @@
 #include <nlohmann/json.hpp>
 #include <system_error>
 
+#include "common/io/text_file.hpp"
+
 namespace plumb::registration {
 
 namespace {
@@ -20,15 +22,6 @@ Json matrixJson(const Eigen::MatrixXd& m) {
         rows.push_back(std::move(row));
     }
     return rows;
-}
-
-Status writeText(const std::filesystem::path& path, const std::string& text) {
-    std::ofstream out(path, std::ios::binary | std::ios::trunc);
-    if (!out) return ioError(path.string() + ": cannot open for writing");
-    out << text;
-    out.flush();
-    if (!out) return ioError(path.string() + ": write failed");
-    return Status::ok();
 }
 
 }  // namespace
@@ -80,7 +73,7 @@ std::string poseGraphJson(const PoseGraph& graph, const posegraph::PoseGraphRepo
 
 Status writePoseGraphJson(const std::filesystem::path& path, const PoseGraph& graph,
                           const posegraph::PoseGraphReport& report) {
-    return writeText(path, poseGraphJson(graph, report));
+    return io::writeText(path, poseGraphJson(graph, report));
 }
 
 Result<io::Trajectory> frameTrajectory(const std::vector<Fragment>& fragments,

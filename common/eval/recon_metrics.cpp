@@ -2,34 +2,15 @@
 #include "common/eval/recon_metrics.hpp"
 
 #include <fmt/format.h>
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <cmath>
-#include <nanoflann.hpp>
+
+#include "common/cloud/kd_tree.hpp"
+#include "common/core/parallel.hpp"
 
 namespace plumb::eval {
 namespace {
-
-/// nanoflann dataset adaptor over a vector of points (no copy).
-struct PointsAdaptor {
-    const std::vector<Eigen::Vector3f>& points;
-
-    size_t kdtree_get_point_count() const { return points.size(); }  // NOLINT
-    float kdtree_get_pt(size_t i, size_t dim) const {                // NOLINT
-        return points[i][static_cast<Eigen::Index>(dim)];
-    }
-    template <class BoundingBox>
-    bool kdtree_get_bbox(BoundingBox& /*bb*/) const {  // NOLINT
-        return false;
-    }
-};
-
-using KdTree =
-    nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, PointsAdaptor>,
-                                        PointsAdaptor, 3, uint32_t>;
 
 Status checkFinite(const std::vector<Eigen::Vector3f>& points, const char* what) {
     for (size_t i = 0; i < points.size(); ++i) {
@@ -65,26 +46,14 @@ Result<std::vector<double>> closestPointDistances(const std::vector<Eigen::Vecto
     if (reference.empty()) return invalidArgument("the reference point set is empty");
     PLUMB_RETURN_IF_ERROR(checkFinite(queries, "query"));
     PLUMB_RETURN_IF_ERROR(checkFinite(reference, "reference"));
-    const PointsAdaptor adaptor{reference};
-    const KdTree tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
+    const PointKdTree<float> tree(reference);
     std::vector<double> distances(queries.size(), 0.0);
-    auto work = [&] {
-        tbb::parallel_for(tbb::blocked_range<size_t>(0, queries.size(), 1024),
-                          [&](const tbb::blocked_range<size_t>& range) {
-                              for (size_t i = range.begin(); i != range.end(); ++i) {
-                                  uint32_t index = 0;
-                                  float dist_sq = 0.0f;
-                                  tree.knnSearch(queries[i].data(), 1, &index, &dist_sq);
-                                  distances[i] = std::sqrt(static_cast<double>(dist_sq));
-                              }
-                          });
-    };
-    if (num_threads > 0) {
-        tbb::task_arena arena(num_threads);
-        arena.execute(work);
-    } else {
-        work();
-    }
+    parallelFor(num_threads, queries.size(), [&](size_t i) {
+        uint32_t index = 0;
+        float dist_sq = 0.0f;
+        tree.index().knnSearch(queries[i].data(), 1, &index, &dist_sq);
+        distances[i] = std::sqrt(static_cast<double>(dist_sq));
+    });
     return distances;
 }
 

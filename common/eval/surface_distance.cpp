@@ -2,35 +2,14 @@
 #include "common/eval/surface_distance.hpp"
 
 #include <fmt/format.h>
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <cmath>
-#include <nanoflann.hpp>
+
+#include "common/cloud/kd_tree.hpp"
+#include "common/core/parallel.hpp"
 
 namespace plumb::eval {
-namespace {
-
-struct CloudAdaptor {
-    const std::vector<Eigen::Vector3f>& points;
-
-    size_t kdtree_get_point_count() const { return points.size(); }  // NOLINT
-    float kdtree_get_pt(size_t i, size_t dim) const {                // NOLINT
-        return points[i][static_cast<Eigen::Index>(dim)];
-    }
-    template <class BoundingBox>
-    bool kdtree_get_bbox(BoundingBox& /*bb*/) const {  // NOLINT
-        return false;
-    }
-};
-
-using KdTree =
-    nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, CloudAdaptor>,
-                                        CloudAdaptor, 3, uint32_t>;
-
-}  // namespace
 
 Result<std::vector<double>> pointToSurfaceDistances(const std::vector<Eigen::Vector3f>& queries,
                                                     const PointCloud& reference,
@@ -47,34 +26,20 @@ Result<std::vector<double>> pointToSurfaceDistances(const std::vector<Eigen::Vec
         }
     }
     const bool normals = reference.hasNormals();
-    const CloudAdaptor adaptor{reference.points};
-    const KdTree tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
+    const PointKdTree<float> tree(reference.points);
     std::vector<double> out(queries.size(), 0.0);
-    auto body = [&] {
-        tbb::parallel_for(
-            tbb::blocked_range<size_t>(0, queries.size(), 1024),
-            [&](const tbb::blocked_range<size_t>& r) {
-                for (size_t i = r.begin(); i != r.end(); ++i) {
-                    uint32_t index = 0;
-                    float dist_sq = 0.0f;
-                    tree.knnSearch(queries[i].data(), 1, &index, &dist_sq);
-                    const double point_dist = std::sqrt(double{dist_sq});
-                    if (!normals ||
-                        (max_point_distance_m > 0.0 && point_dist > max_point_distance_m)) {
-                        out[i] = point_dist;
-                        continue;
-                    }
-                    const Eigen::Vector3f d = queries[i] - reference.points[index];
-                    out[i] = std::abs(static_cast<double>(reference.normals[index].dot(d)));
-                }
-            });
-    };
-    if (num_threads > 0) {
-        tbb::task_arena arena(num_threads);
-        arena.execute(body);
-    } else {
-        body();
-    }
+    parallelFor(num_threads, queries.size(), [&](size_t i) {
+        uint32_t index = 0;
+        float dist_sq = 0.0f;
+        tree.index().knnSearch(queries[i].data(), 1, &index, &dist_sq);
+        const double point_dist = std::sqrt(double{dist_sq});
+        if (!normals || (max_point_distance_m > 0.0 && point_dist > max_point_distance_m)) {
+            out[i] = point_dist;
+            return;
+        }
+        const Eigen::Vector3f d = queries[i] - reference.points[index];
+        out[i] = std::abs(static_cast<double>(reference.normals[index].dot(d)));
+    });
     return out;
 }
 

@@ -14,6 +14,8 @@
 #include <system_error>
 #include <tuple>
 
+#include "common/io/text_file.hpp"
+
 namespace plumb::io {
 namespace {
 
@@ -181,19 +183,6 @@ Result<Eigen::Isometry3d> blockToPose(const fs::path& path, const Block& block) 
     }
     T.matrix().row(3) << 0.0, 0.0, 0.0, 1.0;
     return lie::orthonormalized(T);
-}
-
-/// Writes `text` to `path`, reporting open and write failures (full disk) with the path.
-Status writeText(const fs::path& path, const std::string& text) {
-    std::ofstream out(path, std::ios::binary | std::ios::trunc);
-    if (!out) {
-        return ioError(
-            fmt::format("{}: cannot open for writing: {}", path.string(), std::strerror(errno)));
-    }
-    out.write(text.data(), static_cast<std::streamsize>(text.size()));
-    out.close();
-    if (!out) return ioError(fmt::format("{}: write failed (disk full?)", path.string()));
-    return Status::ok();
 }
 
 void appendMatrixRows(std::string* text, const Eigen::MatrixXd& M) {

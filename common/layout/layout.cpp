@@ -10,11 +10,6 @@ namespace {
 
 constexpr double kMinEdgeLengthM = 1e-3;
 
-/// Twice the signed area of triangle (a, b, c): positive when counter-clockwise.
-double cross2(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& c) {
-    return (b - a).x() * (c - a).y() - (b - a).y() * (c - a).x();
-}
-
 bool onSegment(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& p) {
     return std::min(a.x(), b.x()) <= p.x() && p.x() <= std::max(a.x(), b.x()) &&
            std::min(a.y(), b.y()) <= p.y() && p.y() <= std::max(a.y(), b.y());
@@ -93,20 +88,6 @@ std::vector<int> polygonEdgeWalls(const Layout& layout, double tolerance_m) {
         }
     }
     return out;
-}
-
-bool insidePolygon(const std::vector<Eigen::Vector2d>& polygon, const Eigen::Vector2d& q) {
-    if (polygon.size() < 3) return false;
-    bool inside = false;
-    for (size_t k = 0, j = polygon.size() - 1; k < polygon.size(); j = k++) {
-        const Eigen::Vector2d& a = polygon[k];
-        const Eigen::Vector2d& b = polygon[j];
-        if ((a.y() > q.y()) != (b.y() > q.y()) &&
-            q.x() < (b.x() - a.x()) * (q.y() - a.y()) / (b.y() - a.y()) + a.x()) {
-            inside = !inside;
-        }
-    }
-    return inside;
 }
 
 double polygonArea(const std::vector<Eigen::Vector2d>& polygon) {

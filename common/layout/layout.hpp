@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "common/core/status.hpp"
+#include "common/geometry/polygon.hpp"  // insidePolygon, signedArea (room polygons)
 
 namespace plumb {
 
@@ -73,10 +74,6 @@ std::vector<int> polygonEdgeWalls(const Layout& layout, double tolerance_m = 0.0
 /// The fraction of the room polygon's perimeter that lies on walls (polygonEdgeWalls != -1); 0
 /// for a polygon with fewer than 3 vertices.
 double wallBoundedFraction(const Layout& layout, double tolerance_m = 0.05);
-
-/// True when `q` lies inside the polygon (even-odd rule; a point on an edge may count either
-/// way). Any orientation; fewer than 3 vertices contain nothing.
-bool insidePolygon(const std::vector<Eigen::Vector2d>& polygon, const Eigen::Vector2d& q);
 
 /// The polygon's area (absolute value of the shoelace sum), m^2 for a polygon in metres.
 double polygonArea(const std::vector<Eigen::Vector2d>& polygon);

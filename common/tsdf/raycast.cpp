@@ -7,7 +7,7 @@
 #include <vector>
 
 #include "common/core/check.hpp"
-#include "common/tsdf/parallel.hpp"
+#include "common/core/parallel.hpp"
 
 namespace plumb::tsdf {
 namespace {

@@ -6,7 +6,7 @@
 #include <utility>
 #include <vector>
 
-#include "common/tsdf/parallel.hpp"
+#include "common/core/parallel.hpp"
 
 namespace plumb::tsdf {
 namespace {

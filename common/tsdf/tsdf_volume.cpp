@@ -10,8 +10,8 @@
 #include <limits>
 #include <string>
 
+#include "common/core/parallel.hpp"
 #include "common/geometry/lie.hpp"
-#include "common/tsdf/parallel.hpp"
 
 namespace plumb::tsdf {
 namespace {

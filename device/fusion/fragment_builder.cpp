@@ -5,16 +5,9 @@
 #include <string>
 #include <utility>
 
+#include "common/core/timing.hpp"
+
 namespace plumb::device {
-namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double msSince(Clock::time_point t0) {
-    return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
-
-}  // namespace
 
 Status FusionConfig::validate() const {
     if (raycast_interval < 1 || raycast_interval_rgbd < 1) {
@@ -84,7 +77,7 @@ Fragment FragmentBuilder::closeFragment(FragmentEnd end, FrameTiming* timing) {
     Fragment fragment = std::move(*current_);
     current_.reset();
     fragment.end = end;
-    const Clock::time_point t0 = Clock::now();
+    const SteadyClock::time_point t0 = SteadyClock::now();
     fragment.points_F = tsdf::extractSurfacePoints(volume_, config_.surface);
     if (timing != nullptr) timing->extract_ms += msSince(t0);
     fragment.tracking_quality = quality_count_ > 0 ? quality_sum_ / quality_count_ : 0.0;
@@ -93,7 +86,7 @@ Fragment FragmentBuilder::closeFragment(FragmentEnd end, FrameTiming* timing) {
 
 bool FragmentBuilder::integrate(const FramePyramid& pyramid, const Eigen::Isometry3d& T_F_C,
                                 FrameReport* report) {
-    const Clock::time_point t0 = Clock::now();
+    const SteadyClock::time_point t0 = SteadyClock::now();
     Result<tsdf::IntegrationStats> r = volume_.integrate(pyramid.depth, camera_, T_F_C, colour_);
     report->timing.integrate_ms += msSince(t0);
     if (!r.isOk()) {
@@ -114,14 +107,14 @@ void FragmentBuilder::setReference(const FramePyramid& pyramid,
 }
 
 Result<FrameReport> FragmentBuilder::process(const Frame& frame) {
-    const Clock::time_point t0 = Clock::now();
+    const SteadyClock::time_point t0 = SteadyClock::now();
     Result<FrameReport> report = processImpl(frame);
     if (report.isOk()) report->timing.total_ms = msSince(t0);
     return report;
 }
 
 Result<FrameReport> FragmentBuilder::processImpl(const Frame& frame) {
-    const Clock::time_point t_pre = Clock::now();
+    const SteadyClock::time_point t_pre = SteadyClock::now();
     Result<FramePyramid> pyr = preprocess(frame.depth, camera_, config_.preprocess);
     if (!pyr.isOk()) {
         return Status(pyr.status().code(),
@@ -161,7 +154,7 @@ Result<FrameReport> FragmentBuilder::processImpl(const Frame& frame) {
         return report;
     }
 
-    const Clock::time_point t_track = Clock::now();
+    const SteadyClock::time_point t_track = SteadyClock::now();
     if (handover_ &&
         (!current_ || static_cast<int>(current_->frames.size()) >= config_.handover_frames)) {
         handover_ = false;  // the new fragment's own volume is the model from now on
@@ -174,7 +167,7 @@ Result<FrameReport> FragmentBuilder::processImpl(const Frame& frame) {
     const int interval =
         intensity.empty() ? config_.raycast_interval : config_.raycast_interval_rgbd;
     if (model_.empty() || model_uses_ >= interval) {
-        const Clock::time_point t_raycast = Clock::now();
+        const SteadyClock::time_point t_raycast = SteadyClock::now();
         T_X_P_ = T_X_M * T_M_last_;
         model_ = predictModel(model_volume, pyramid, T_X_P_, config_.raycast, config_.model_level,
                               last_depth_.empty() ? nullptr : &last_depth_);

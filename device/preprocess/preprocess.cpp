@@ -9,7 +9,7 @@
 #include <immintrin.h>
 #endif
 
-#include "common/tsdf/parallel.hpp"
+#include "common/core/parallel.hpp"
 
 namespace plumb::device {
 
@@ -131,7 +131,7 @@ DepthImage bilateralFilter(const DepthImage& depth, const PreprocessConfig& conf
     DepthImage out(w, h, 0.0f);
     const int side = 2 * r + 1;
     const bool use_avx2 = simd_level == simd::Level::kAvx2;
-    tsdf::parallelFor(config.num_threads, h, [&](int v) {
+    parallelFor(config.num_threads, h, [&](int v) {
         const bool interior_row = v >= r && v < h - r;
         [[maybe_unused]] bool vector_span = interior_row && use_avx2;
         for (int u = 0; u < w; ++u) {
@@ -225,13 +225,13 @@ void computeVertexNormalMaps(const DepthImage& depth, const PinholeCamera& camer
     const int w = depth.width(), h = depth.height();
     *points_C = PointImage(w, h, tsdf::invalidPoint());
     *normals_C = PointImage(w, h, tsdf::invalidPoint());
-    tsdf::parallelFor(num_threads, h, [&](int v) {
+    parallelFor(num_threads, h, [&](int v) {
         for (int u = 0; u < w; ++u) {
             const float d = depth(u, v);
             if (d > 0.0f) (*points_C)(u, v) = camera.unproject(u, v, d).cast<float>();
         }
     });
-    tsdf::parallelFor(num_threads, h, [&](int v) {
+    parallelFor(num_threads, h, [&](int v) {
         for (int u = 0; u < w; ++u) {
             Eigen::Vector3f n;
             if (!tsdf::neighbourNormal(*points_C, depth, u, v, max_depth_jump_m, &n)) continue;

@@ -17,9 +17,9 @@
 #include <immintrin.h>
 #endif
 
+#include "common/core/parallel.hpp"
 #include "common/core/simd.hpp"
 #include "common/geometry/solution_remapping.hpp"
-#include "common/tsdf/parallel.hpp"
 
 namespace plumb::device {
 namespace {
@@ -159,7 +159,7 @@ Accumulator buildSystem(const PyramidLevel& level, const ModelLevel& model,
     cp.min_cos = min_cos;
     cp.model_normals = reinterpret_cast<const float*>(model.normals_M.data());
     cp.model_points = reinterpret_cast<const float*>(model.points_M.data());
-    tsdf::parallelFor(config.num_threads, num_chunks, [&](int c) {
+    parallelFor(config.num_threads, num_chunks, [&](int c) {
         Accumulator& acc = chunks[static_cast<size_t>(c)];
         // Per row: the 21 upper-triangular entries of J^T J, the 6 of J^T r and r^2 summed in
         // float (at most one image row of terms), then added to the chunk's double sums.
@@ -317,7 +317,7 @@ std::vector<ModelLevel> predictModel(const tsdf::TsdfVolume& volume, const Frame
         model[l].points_M = PointImage(w, h, tsdf::invalidPoint());
         model[l].normals_M = PointImage(w, h, tsdf::invalidPoint());
         const int fw = finer.points_M.width(), fh = finer.points_M.height();
-        tsdf::parallelFor(config.num_threads, h, [&](int v) {
+        parallelFor(config.num_threads, h, [&](int v) {
             for (int u = 0; u < w; ++u) {
                 Eigen::Vector3f ps = Eigen::Vector3f::Zero(), ns = Eigen::Vector3f::Zero();
                 const Eigen::Vector3f* ref = nullptr;

@@ -6,7 +6,7 @@
 #include <cmath>
 #include <utility>
 
-#include "common/tsdf/parallel.hpp"
+#include "common/core/parallel.hpp"
 
 namespace plumb::device {
 namespace {
@@ -25,7 +25,7 @@ Image<float> gaussianBlur(const Image<float>& in, float sigma_px, int num_thread
     for (float& w : k) w /= sum;
     const int w = in.width(), h = in.height();
     Image<float> tmp(w, h), out(w, h);
-    tsdf::parallelFor(num_threads, h, [&](int v) {
+    parallelFor(num_threads, h, [&](int v) {
         for (int u = 0; u < w; ++u) {
             float s = 0.0f;
             for (int i = -radius; i <= radius; ++i) {
@@ -34,7 +34,7 @@ Image<float> gaussianBlur(const Image<float>& in, float sigma_px, int num_thread
             tmp(u, v) = s;
         }
     });
-    tsdf::parallelFor(num_threads, h, [&](int v) {
+    parallelFor(num_threads, h, [&](int v) {
         for (int u = 0; u < w; ++u) {
             float s = 0.0f;
             for (int i = -radius; i <= radius; ++i) {
@@ -50,7 +50,7 @@ Image<float> gaussianBlur(const Image<float>& in, float sigma_px, int num_thread
 Image<float> intensityOf(const ColourImage& colour, int num_threads) {
     Image<float> out(colour.width(), colour.height());
     const int w = colour.width();
-    tsdf::parallelFor(num_threads, colour.height(), [&](int v) {
+    parallelFor(num_threads, colour.height(), [&](int v) {
         for (int u = 0; u < w; ++u) out(u, v) = intensity(colour(u, v));
     });
     return out;
@@ -59,7 +59,7 @@ Image<float> intensityOf(const ColourImage& colour, int num_threads) {
 /// 2x2 mean to the given size (pixel centres kept: level l+1 pixel u covers 2u and 2u+1).
 Image<float> halve(const Image<float>& in, int w, int h, int num_threads) {
     Image<float> out(w, h);
-    tsdf::parallelFor(num_threads, h, [&](int v) {
+    parallelFor(num_threads, h, [&](int v) {
         for (int u = 0; u < w; ++u) {
             out(u, v) = 0.25f * (in(2 * u, 2 * v) + in(2 * u + 1, 2 * v) + in(2 * u, 2 * v + 1) +
                                  in(2 * u + 1, 2 * v + 1));
@@ -73,7 +73,7 @@ void gradients(const Image<float>& I, Image<float>* gu, Image<float>* gv, int nu
     const int w = I.width(), h = I.height();
     *gu = Image<float>(w, h);
     *gv = Image<float>(w, h);
-    tsdf::parallelFor(num_threads, h, [&](int v) {
+    parallelFor(num_threads, h, [&](int v) {
         const int v0 = std::max(v - 1, 0), v1 = std::min(v + 1, h - 1);
         for (int u = 0; u < w; ++u) {
             const int u0 = std::max(u - 1, 0), u1 = std::min(u + 1, w - 1);
@@ -266,7 +266,7 @@ PhotometricSystem buildPhotometricSystem(const std::vector<ReferencePoint>& refe
         size_t visible = 0, used = 0, inliers = 0;
     };
     std::vector<Sums> chunks(static_cast<size_t>(num_chunks));
-    tsdf::parallelFor(num_threads, num_chunks, [&](int c) {
+    parallelFor(num_threads, num_chunks, [&](int c) {
         std::array<float, 33> f{};
         Sums& out = chunks[static_cast<size_t>(c)];
         const int end = std::min(n, (c + 1) * kChunk);

@@ -10,22 +10,12 @@
 
 #include <fmt/format.h>
 
+#include "common/geometry/polygon.hpp"
+
 namespace plumb::sim {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-
-double cross2(const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
-    return a.x() * b.y() - a.y() * b.x();
-}
-
-double signedArea(const std::vector<Eigen::Vector2d>& poly) {
-    double area = 0.0;
-    for (size_t i = 0; i < poly.size(); ++i) {
-        area += cross2(poly[i], poly[(i + 1) % poly.size()]);
-    }
-    return 0.5 * area;
-}
 
 // Proper or touching intersection of closed segments [a, b] and [c, d].
 bool segmentsIntersect(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& c,
@@ -548,20 +538,6 @@ std::optional<FurniturePattern> parseFurniturePattern(const std::string& name) {
     if (name == "stripes") return FurniturePattern::kStripes;
     if (name == "checker") return FurniturePattern::kChecker;
     return std::nullopt;
-}
-
-bool insidePolygon(const std::vector<Eigen::Vector2d>& polygon, const Eigen::Vector2d& p) {
-    bool inside = false;
-    const size_t n = polygon.size();
-    for (size_t i = 0, j = n - 1; i < n; j = i++) {
-        const Eigen::Vector2d& a = polygon[i];
-        const Eigen::Vector2d& b = polygon[j];
-        if ((a.y() > p.y()) != (b.y() > p.y())) {
-            const double x = a.x() + (p.y() - a.y()) * (b.x() - a.x()) / (b.y() - a.y());
-            if (p.x() < x) inside = !inside;
-        }
-    }
-    return inside;
 }
 
 Status validateScene(const Scene& s) {

@@ -21,6 +21,7 @@
 
 #include "common/cloud/point_cloud.hpp"
 #include "common/core/status.hpp"
+#include "common/geometry/polygon.hpp"
 
 namespace plumb::sim {
 
@@ -178,7 +179,7 @@ Status checkSceneName(const std::string& name_or_path);
 /// surfaces into free space.
 PointCloud sampleSurfaces(const Scene& scene, double spacing_m);
 
-/// True when (x, y) lies strictly inside the floor polygon.
-bool insidePolygon(const std::vector<Eigen::Vector2d>& polygon, const Eigen::Vector2d& p);
+/// Whether (x, y) lies inside the floor polygon (common/geometry/polygon.hpp).
+using plumb::insidePolygon;
 
 }  // namespace plumb::sim

@@ -9,6 +9,7 @@
 #include <system_error>
 
 #include "common/io/ply.hpp"
+#include "common/io/text_file.hpp"
 #include "common/layout/layout.hpp"
 #include "common/layout/layout_json.hpp"
 #include "drivers/dataset/depth_png.hpp"
@@ -29,15 +30,6 @@ const char* distortionName(DistortionKind kind) {
             return "parametric";
     }
     return "?";
-}
-
-Status writeText(const std::filesystem::path& path, const std::string& text) {
-    std::ofstream out(path, std::ios::binary | std::ios::trunc);
-    if (!out) return ioError(fmt::format("{}: cannot open for writing", path.string()));
-    out << text;
-    out.flush();
-    if (!out) return ioError(fmt::format("{}: write failed (disk full?)", path.string()));
-    return Status::ok();
 }
 
 }  // namespace
@@ -214,8 +206,8 @@ Status writeSimDataset(const SimSource& source, const std::filesystem::path& dir
         depth_txt += fmt::format("{:.6f} depth/{}\n", f.frame.timestamp_s, name);
         gt.push_back({f.frame.timestamp_s, *f.frame.T_W_C_gt});
     }
-    PLUMB_RETURN_IF_ERROR(writeText(dir / "depth.txt", depth_txt));
-    if (write_rgb) PLUMB_RETURN_IF_ERROR(writeText(dir / "rgb.txt", rgb_txt));
+    PLUMB_RETURN_IF_ERROR(io::writeText(dir / "depth.txt", depth_txt));
+    if (write_rgb) PLUMB_RETURN_IF_ERROR(io::writeText(dir / "rgb.txt", rgb_txt));
     PLUMB_RETURN_IF_ERROR(io::writeTumTrajectory(dir / "groundtruth.txt", gt));
     PLUMB_RETURN_IF_ERROR(io::writeLogTrajectory(dir / "trajectory.log", gt));
     PLUMB_RETURN_IF_ERROR(
@@ -283,7 +275,7 @@ Status writeSimDataset(const SimSource& source, const std::filesystem::path& dir
     colour["exposure_jumps"] = jumps;
     colour["response"] = "linear";
     meta["colour"] = colour;
-    PLUMB_RETURN_IF_ERROR(writeText(dir / "sim.json", meta.dump(2) + "\n"));
+    PLUMB_RETURN_IF_ERROR(io::writeText(dir / "sim.json", meta.dump(2) + "\n"));
     return Status::ok();
 }
 

@@ -8,6 +8,7 @@
 #include <random>
 
 #include "common/geometry/lie.hpp"
+#include "common/geometry/polygon.hpp"
 #include "drivers/sim/noise.hpp"
 
 namespace plumb::sim {
@@ -16,10 +17,6 @@ namespace {
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kDeg = kPi / 180.0;
 constexpr double kStep = 0.01;  // arc-length sampling of the path, metres
-
-double cross2(const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
-    return a.x() * b.y() - a.y() * b.x();
-}
 
 double distanceToSegment(const Eigen::Vector2d& p, const Eigen::Vector2d& a,
                          const Eigen::Vector2d& b) {

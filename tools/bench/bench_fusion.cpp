@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "common/config/config.hpp"
+#include "common/core/timing.hpp"
 #include "common/tsdf/tsdf_volume.hpp"
 #include "device/fusion/fragment_builder.hpp"
 #include "device/fusion/fusion_config.hpp"
@@ -35,11 +36,8 @@
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
-
-double msSince(Clock::time_point t0) {
-    return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
+using plumb::msSince;
+using plumb::SteadyClock;
 
 /// CPU time of the whole process (all threads), milliseconds.
 double processCpuMs() {
@@ -247,7 +245,7 @@ int main(int argc, char** argv) {
                 T_W_F = *frames[k].T_W_C_gt;
             }
             const Eigen::Isometry3d T_F_C = T_W_F.inverse() * *frames[k].T_W_C_gt;
-            const Clock::time_point t0 = Clock::now();
+            const SteadyClock::time_point t0 = SteadyClock::now();
             auto r = volume.integrate(frames[k].depth, camera, T_F_C);
             ours_ms.push_back(msSince(t0));
             if (!r.isOk()) {
@@ -310,7 +308,7 @@ int main(int argc, char** argv) {
                     for (int c = 0; c < 4; ++c) extrinsic[r][c] = T_C_F(r, c);
                 }
                 const double c0 = processCpuMs();
-                const Clock::time_point t0 = Clock::now();
+                const SteadyClock::time_point t0 = SteadyClock::now();
                 const o3c::Tensor coords = vbg->GetUniqueBlockCoordinates(
                     depth_mm[k], K, extrinsic, 1000.0f, config.tsdf.max_depth_m, trunc_mult);
                 vbg->Integrate(coords, depth_mm[k], K, extrinsic, 1000.0f, config.tsdf.max_depth_m,

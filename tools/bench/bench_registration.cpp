@@ -56,6 +56,7 @@
 #include "backend/registration/prepared_fragment.hpp"
 #include "backend/registration/register_fragments.hpp"
 #include "common/camera/pinhole.hpp"
+#include "common/core/timing.hpp"
 #include "common/geometry/lie.hpp"
 #include "device/fusion/fragment_builder.hpp"
 #include "drivers/sim/sim_source.hpp"
@@ -68,11 +69,6 @@
 namespace {
 
 using namespace plumb;
-using Clock = std::chrono::steady_clock;
-
-double msSince(Clock::time_point t0) {
-    return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
 
 double mean(const std::vector<double>& v) {
     double s = 0.0;
@@ -460,7 +456,7 @@ int main(int argc, char** argv) {
 #endif
 
     int exit_code = 1;
-    const Clock::time_point t_sim = Clock::now();
+    const SteadyClock::time_point t_sim = SteadyClock::now();
     Result<Scan> scan_or = simulateScan(o, &exit_code);
     if (!scan_or.isOk()) {
         std::fprintf(stderr, "plumb-bench-registration: %s\n", scan_or.status().toString().c_str());
@@ -479,7 +475,7 @@ int main(int argc, char** argv) {
     double prepare_ms = 0.0;
     size_t total_points = 0;
     for (const Fragment& f : scan.fragments) {
-        const Clock::time_point t0 = Clock::now();
+        const SteadyClock::time_point t0 = SteadyClock::now();
         auto p = registration::prepareFragment(f, pc);
         prepare_ms += msSince(t0);
         if (!p.isOk()) {
@@ -502,7 +498,7 @@ int main(int argc, char** argv) {
 
     double fpfh_ms = std::numeric_limits<double>::max();
     for (int rep = 0; rep < o.repeat; ++rep) {
-        const Clock::time_point t0 = Clock::now();
+        const SteadyClock::time_point t0 = SteadyClock::now();
         for (const registration::PreparedFragment& p : prepared) {
             const auto fpfh =
                 registration::computeFpfh(p.points, pc.fpfh_radius_m, pc.fpfh_max_nn, o.threads);
@@ -524,7 +520,7 @@ int main(int argc, char** argv) {
         double best = std::numeric_limits<double>::max();
         const open3d::geometry::KDTreeSearchParamHybrid param(pc.fpfh_radius_m, pc.fpfh_max_nn);
         for (int rep = 0; rep < o.repeat; ++rep) {
-            const Clock::time_point t0 = Clock::now();
+            const SteadyClock::time_point t0 = SteadyClock::now();
             for (size_t k = 0; k < nf; ++k) {
                 o3d_fpfh[k] = o3reg::ComputeFPFHFeature(*o3d_coarse[k], param);
             }
@@ -574,11 +570,11 @@ int main(int argc, char** argv) {
     std::vector<registration::FragmentIndex> index;
     double index_ms = 0.0, index_plane_ms = 0.0;
     for (size_t k = 0; k < nf; ++k) {
-        Clock::time_point t0 = Clock::now();
+        SteadyClock::time_point t0 = SteadyClock::now();
         const registration::FragmentIndex plane_only =
             registration::buildFragmentIndex(scan.fragments[k], prepared[k], icp_plane);
         index_plane_ms += msSince(t0);
-        t0 = Clock::now();
+        t0 = SteadyClock::now();
         index.push_back(registration::buildFragmentIndex(scan.fragments[k], prepared[k], icp));
         index_ms += msSince(t0);
     }
@@ -666,7 +662,7 @@ int main(int argc, char** argv) {
         r.ms = std::numeric_limits<double>::max();
         for (int rep = 0; rep < o.repeat && (rep == 0 || r.ms < kNoRepeatMs); ++rep) {
             double stages[3] = {};
-            const Clock::time_point t0 = Clock::now();
+            const SteadyClock::time_point t0 = SteadyClock::now();
             const registration::PairResult ransac =
                 registration::ransacFeatureMatching(index[i], index[j], rc, seedOf(i, j));
             stages[0] = msSince(t0);
@@ -674,7 +670,7 @@ int main(int argc, char** argv) {
             r.reason = ransac.reason;
             r.T = ransac.T_source_target;
             if (r.registered) {
-                const Clock::time_point t1 = Clock::now();
+                const SteadyClock::time_point t1 = SteadyClock::now();
                 const registration::PairResult refined =
                     registration::multiScaleIcp(index[i], index[j], r.T, icp_plane);
                 stages[1] = msSince(t1);
@@ -682,7 +678,7 @@ int main(int argc, char** argv) {
                 r.reason = refined.reason;
                 r.T = refined.T_source_target;
                 if (r.registered) {
-                    const Clock::time_point t2 = Clock::now();
+                    const SteadyClock::time_point t2 = SteadyClock::now();
                     const registration::PairResult eval =
                         registration::evaluateAlignment(index[i], index[j], r.T, tau, o.threads);
                     stages[2] = msSince(t2);
@@ -696,7 +692,7 @@ int main(int argc, char** argv) {
         PairOutcome& st = stage[k];
         st.ms = std::numeric_limits<double>::max();
         for (int rep = 0; rep < o.repeat && (rep == 0 || st.ms < kNoRepeatMs); ++rep) {
-            const Clock::time_point t0 = Clock::now();
+            const SteadyClock::time_point t0 = SteadyClock::now();
             const registration::PoseGraphEdge e = registration::registerLoopPair(
                 index[i], index[j], stage_config,
                 registration::odometryBetween(scan.fragments[i], scan.fragments[j]));
@@ -725,7 +721,7 @@ int main(int argc, char** argv) {
         for (int rep = 0; rep < o.repeat && (rep == 0 || q.ms < kNoRepeatMs); ++rep) {
             open3d::utility::random::Seed(static_cast<int>(seedOf(i, j)));
             double stages[3] = {};
-            const Clock::time_point t0 = Clock::now();
+            const SteadyClock::time_point t0 = SteadyClock::now();
             const o3reg::RegistrationResult ransac =
                 o3reg::RegistrationRANSACBasedOnFeatureMatching(
                     *o3d_coarse[j], *o3d_coarse[i], *o3d_fpfh[j], *o3d_fpfh[i], rc.mutual_filter,
@@ -738,7 +734,7 @@ int main(int argc, char** argv) {
             q.registered = !T.isIdentity(0.0);
             q.reason = q.registered ? "" : "RANSAC returned the identity";
             if (q.registered) {
-                const Clock::time_point t1 = Clock::now();
+                const SteadyClock::time_point t1 = SteadyClock::now();
                 for (size_t l = 0; l < icp.voxel_sizes_m.size() && l < src_levels.size(); ++l) {
                     const o3reg::RegistrationResult step = o3reg::RegistrationICP(
                         *tgt_levels[l], *src_levels[l], icp.distance_factor * icp.voxel_sizes_m[l],
@@ -748,7 +744,7 @@ int main(int argc, char** argv) {
                     T = step.transformation_;
                 }
                 stages[1] = msSince(t1);
-                const Clock::time_point t2 = Clock::now();
+                const SteadyClock::time_point t2 = SteadyClock::now();
                 const Eigen::Matrix6d info = o3reg::GetInformationMatrixFromPointClouds(
                     *o3d_coarse[j], *o3d_coarse[i], tau, T);
                 stages[2] = msSince(t2);
@@ -900,7 +896,7 @@ int main(int argc, char** argv) {
         for (int m = 0; m < 2; ++m) {
             IcpRun& r = runs[static_cast<size_t>(m)];
             for (int rep = 0; rep < o.repeat && (rep == 0 || r.ms < kNoRepeatMs); ++rep) {
-                const Clock::time_point t0 = Clock::now();
+                const SteadyClock::time_point t0 = SteadyClock::now();
                 const registration::PairResult res =
                     registration::multiScaleIcp(index[i], index[j], init, m == 0 ? icp : icp_plane);
                 r.ms = std::min(r.ms, msSince(t0));
@@ -921,7 +917,7 @@ int main(int argc, char** argv) {
         for (int m = 2; m < kIcpMethods; ++m) {
             IcpRun& r = runs[static_cast<size_t>(m)];
             for (int rep = 0; rep < o.repeat && (rep == 0 || r.ms < kNoRepeatMs); ++rep) {
-                const Clock::time_point t0 = Clock::now();
+                const SteadyClock::time_point t0 = SteadyClock::now();
                 Eigen::Matrix4d T = init.matrix();
                 bool ok = true;
                 for (size_t l = 0; ok && l < icp.voxel_sizes_m.size() && l < src_levels.size();
@@ -1073,7 +1069,7 @@ int main(int argc, char** argv) {
     posegraph::PoseGraphReport report;
     for (int rep = 0; rep < o.repeat; ++rep) {
         posegraph::PoseGraph g = sg.graph;
-        const Clock::time_point t0 = Clock::now();
+        const SteadyClock::time_point t0 = SteadyClock::now();
         auto r = posegraph::optimisePoseGraph(g, pgc);
         pg_ms = std::min(pg_ms, msSince(t0));
         if (!r.isOk()) {
@@ -1101,7 +1097,7 @@ int main(int argc, char** argv) {
         o3reg::PoseGraph result;
         for (int rep = 0; rep < o.repeat; ++rep) {
             o3reg::PoseGraph g = toOpen3d(sg.graph);
-            const Clock::time_point t0 = Clock::now();
+            const SteadyClock::time_point t0 = SteadyClock::now();
             optimiseOpen3d(g);
             o3d_pg_ms = std::min(o3d_pg_ms, msSince(t0));
             result = std::move(g);

@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "common/geometry/polygon.hpp"
+
 namespace plumb::monitor {
 
 Eigen::Isometry3d viewFromWorld(const Layout* layout) {
@@ -43,20 +45,6 @@ std::vector<Eigen::Vector2d> convexHull(std::vector<Eigen::Vector2d> points) {
     }
     hull.resize(k - 1);  // the last point repeats the first
     return hull;
-}
-
-bool insidePolygon(const std::vector<Eigen::Vector2d>& polygon, const Eigen::Vector2d& p) {
-    bool inside = false;
-    const size_t n = polygon.size();
-    for (size_t i = 0, j = n - 1; i < n; j = i++) {
-        const Eigen::Vector2d& a = polygon[i];
-        const Eigen::Vector2d& b = polygon[j];
-        if ((a.y() > p.y()) != (b.y() > p.y()) &&
-            p.x() < (b.x() - a.x()) * (p.y() - a.y()) / (b.y() - a.y()) + a.x()) {
-            inside = !inside;
-        }
-    }
-    return inside;
 }
 
 double CoverageGrid::coverageFraction() const {

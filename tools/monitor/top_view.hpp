@@ -25,9 +25,6 @@ Eigen::Isometry3d viewFromWorld(const Layout* layout);
 /// first vertex and without collinear vertices. Fewer than 3 distinct points: those points.
 std::vector<Eigen::Vector2d> convexHull(std::vector<Eigen::Vector2d> points);
 
-/// Even-odd point-in-polygon test (the polygon may be given in either orientation).
-bool insidePolygon(const std::vector<Eigen::Vector2d>& polygon, const Eigen::Vector2d& p);
-
 struct CoverageConfig {
     /// Edge length of a coverage cell on the floor, metres.
     double cell_m = 0.25;

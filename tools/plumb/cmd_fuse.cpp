@@ -32,6 +32,7 @@
 #include "common/geometry/lie.hpp"
 #include "common/io/ply.hpp"
 #include "common/io/state_archive.hpp"
+#include "common/io/text_file.hpp"
 #include "common/io/trajectory.hpp"
 #include "device/fusion/fragment_builder.hpp"
 #include "drivers/sim/scene.hpp"
@@ -146,14 +147,6 @@ nlohmann::json poseJson(const Eigen::Isometry3d& T) {
         rows.push_back({T.matrix()(r, 0), T.matrix()(r, 1), T.matrix()(r, 2), T.matrix()(r, 3)});
     }
     return rows;
-}
-
-Status writeText(const std::filesystem::path& path, const std::string& text) {
-    std::ofstream f(path);
-    f << text;
-    f.close();
-    if (!f) return ioError("cannot write " + path.string());
-    return Status::ok();
 }
 
 /// Ground truth known for the frames of the stream, by frame index.
@@ -494,7 +487,7 @@ Status FuseRun::emit(const Fragment& f) {
     j["frames_depth_only"] = num_depth_only;
     t_.frames_unconstrained += num_unconstrained;
     j["frames_unconstrained"] = num_unconstrained;
-    PLUMB_RETURN_IF_ERROR(writeText(o_.out / (stem + ".json"), j.dump(2) + "\n"));
+    PLUMB_RETURN_IF_ERROR(io::writeText(o_.out / (stem + ".json"), j.dump(2) + "\n"));
     j.erase("frames");
     j["num_frames"] = f.frames.size();
     t_.fragment_list.push_back(std::move(j));
@@ -740,7 +733,7 @@ Result<std::string> FuseRun::writeComplete(const std::string& source_description
     PLUMB_RETURN_IF_ERROR(io::writeTumTrajectory(o_.out / "trajectory.txt", t_.odometry));
     auto [j, text] = summary(source_description);
     j["status"] = "complete";
-    PLUMB_RETURN_IF_ERROR(writeText(o_.out / "fragments.json", j.dump(2) + "\n"));
+    PLUMB_RETURN_IF_ERROR(io::writeText(o_.out / "fragments.json", j.dump(2) + "\n"));
     return text;
 }
 
@@ -853,7 +846,7 @@ int runFuse(const std::vector<std::string>& arguments) {
     Result<std::unique_ptr<FrameSource>> opened = openFrameSource(uri, o.source_options);
     if (!opened.isOk()) return failure(kCommand, opened.status());
     std::unique_ptr<FrameSource> source = std::move(opened).value();
-    if (Status s = writeText(o.out / "config.toml", config_toml); !s.isOk()) {
+    if (Status s = io::writeText(o.out / "config.toml", config_toml); !s.isOk()) {
         return failure(kCommand, s);
     }
     log::info("fusing {} into {}", source->description(), o.out.string());

@@ -14,6 +14,7 @@
 #include "common/eval/layout_metrics.hpp"
 #include "common/layout/layout_json.hpp"
 #include "tools/plumb/command.hpp"
+#include "tools/plumb/flag_reader.hpp"
 
 namespace plumb::tools {
 namespace {
@@ -53,32 +54,13 @@ constexpr const char* kCommand = "eval layout";
 
 std::optional<std::string> parseArgs(const std::vector<std::string>& args, Options* options) {
     std::vector<std::string> positional;
-    for (size_t i = 0; i < args.size(); ++i) {
-        std::string flag = args[i];
-        std::optional<std::string> inline_value;
-        if (flag.rfind("--", 0) == 0 && flag.find('=') != std::string::npos) {
-            inline_value = flag.substr(flag.find('=') + 1);
-            flag = flag.substr(0, flag.find('='));
-        }
-        auto value = [&]() -> std::optional<std::string> {
-            if (inline_value) return inline_value;
-            if (i + 1 >= args.size()) return std::nullopt;
-            return args[++i];
-        };
-        auto positive = [&](double* out, const char* what) -> std::optional<std::string> {
-            const std::optional<std::string> text = value();
-            if (!text) return flag + " needs a value (" + what + ")";
-            double v = 0.0;
-            if (!parseNumber(*text, &v) || !(v > 0.0)) {
-                return flag + " takes " + what + " > 0, got '" + *text + "'";
-            }
-            *out = v;
-            return std::nullopt;
-        };
-        if (flag == "--json" && inline_value) return "--json takes no value";
+    FlagReader reader(args);
+    while (reader.next()) {
+        const std::string& flag = reader.flag();
+        if (flag == "--json" && reader.hasInlineValue()) return "--json takes no value";
 
         if (flag == "--frame") {
-            const std::optional<std::string> text = value();
+            const std::optional<std::string> text = reader.value();
             if (!text) return "--frame needs a value (gt or world)";
             if (*text == "gt") {
                 options->config.frame = eval::LayoutFrame::kGroundTruthLayout;
@@ -88,19 +70,20 @@ std::optional<std::string> parseArgs(const std::vector<std::string>& args, Optio
                 return "--frame takes gt or world, got '" + *text + "'";
             }
         } else if (flag == "--angle-weight") {
-            if (auto e = positive(&options->config.angle_weight_m_per_rad, "metres per radian")) {
+            if (auto e =
+                    reader.positive(&options->config.angle_weight_m_per_rad, "metres per radian")) {
                 return e;
             }
         } else if (flag == "--max-angle") {
-            if (auto e = positive(&options->config.max_match_angle_deg, "degrees")) return e;
+            if (auto e = reader.positive(&options->config.max_match_angle_deg, "degrees")) return e;
         } else if (flag == "--max-distance") {
-            if (auto e = positive(&options->config.max_match_distance_m, "metres")) return e;
+            if (auto e = reader.positive(&options->config.max_match_distance_m, "metres")) return e;
         } else if (flag == "--json") {
             options->json = true;
-        } else if (flag.size() > 1 && flag[0] == '-') {
-            return "unknown option '" + args[i] + "'";
+        } else if (reader.isOption()) {
+            return "unknown option '" + reader.arg() + "'";
         } else {
-            positional.push_back(args[i]);
+            positional.push_back(reader.arg());
         }
     }
     if (positional.size() != 2) {

@@ -21,6 +21,7 @@
 #include "common/io/ply.hpp"
 #include "common/io/trajectory.hpp"
 #include "tools/plumb/command.hpp"
+#include "tools/plumb/flag_reader.hpp"
 
 namespace plumb::tools {
 namespace {
@@ -71,49 +72,31 @@ constexpr const char* kCommand = "eval recon";
 
 std::optional<std::string> parseArgs(const std::vector<std::string>& args, Options* options) {
     std::vector<std::string> positional;
-    for (size_t i = 0; i < args.size(); ++i) {
-        std::string flag = args[i];
-        std::optional<std::string> inline_value;
-        if (flag.rfind("--", 0) == 0 && flag.find('=') != std::string::npos) {
-            inline_value = flag.substr(flag.find('=') + 1);
-            flag = flag.substr(0, flag.find('='));
-        }
-        auto value = [&]() -> std::optional<std::string> {
-            if (inline_value) return inline_value;
-            if (i + 1 >= args.size()) return std::nullopt;
-            return args[++i];
-        };
-        auto positive = [&](double* out, const char* what) -> std::optional<std::string> {
-            const std::optional<std::string> text = value();
-            if (!text) return flag + " needs a value (" + what + ")";
-            double v = 0.0;
-            if (!parseNumber(*text, &v) || !(v > 0.0)) {
-                return flag + " takes " + what + " > 0, got '" + *text + "'";
-            }
-            *out = v;
-            return std::nullopt;
-        };
-        if (flag == "--json" && inline_value) return "--json takes no value";
+    FlagReader reader(args);
+    while (reader.next()) {
+        const std::string& flag = reader.flag();
+        if (flag == "--json" && reader.hasInlineValue()) return "--json takes no value";
 
         if (flag == "--transform" || flag == "--gt-pose") {
-            const std::optional<std::string> text = value();
+            const std::optional<std::string> text = reader.value();
             if (!text) return flag + " needs a file";
             (flag == "--transform" ? options->transform_file : options->gt_pose_file) = *text;
         } else if (flag == "--threshold") {
-            if (auto e = positive(&options->config.completeness_threshold_m, "metres")) return e;
+            if (auto e = reader.positive(&options->config.completeness_threshold_m, "metres"))
+                return e;
         } else if (flag == "--gt-spacing") {
-            if (auto e = positive(&options->gt_spacing_m, "metres")) return e;
+            if (auto e = reader.positive(&options->gt_spacing_m, "metres")) return e;
         } else if (flag == "--threads") {
             double n = 0.0;
-            if (auto e = positive(&n, "a number of threads")) return e;
+            if (auto e = reader.positive(&n, "a number of threads")) return e;
             if (n != std::floor(n) || n > 1024) return "--threads takes an integer in 1..1024";
             options->config.num_threads = static_cast<int>(n);
         } else if (flag == "--json") {
             options->json = true;
-        } else if (flag.size() > 1 && flag[0] == '-') {
-            return "unknown option '" + args[i] + "'";
+        } else if (reader.isOption()) {
+            return "unknown option '" + reader.arg() + "'";
         } else {
-            positional.push_back(args[i]);
+            positional.push_back(reader.arg());
         }
     }
     if (options->transform_file && options->gt_pose_file) {

@@ -16,6 +16,7 @@
 #include "common/eval/trajectory_metrics.hpp"
 #include "common/io/trajectory.hpp"
 #include "tools/plumb/command.hpp"
+#include "tools/plumb/flag_reader.hpp"
 
 namespace plumb::tools {
 namespace {
@@ -74,36 +75,20 @@ Result<io::Trajectory> readTrajectory(const std::string& path, Format format) {
 /// Fills `options` from the command line; returns an error message for a usage error.
 std::optional<std::string> parseArgs(const std::vector<std::string>& args, Options* options) {
     std::vector<std::string> positional;
-    for (size_t i = 0; i < args.size(); ++i) {
-        std::string flag = args[i];
-        std::optional<std::string> inline_value;
-        if (flag.rfind("--", 0) == 0 && flag.find('=') != std::string::npos) {
-            inline_value = flag.substr(flag.find('=') + 1);
-            flag = flag.substr(0, flag.find('='));
-        }
-        // The value of a flag that takes one: `--flag V` or `--flag=V`.
-        auto value = [&]() -> std::optional<std::string> {
-            if (inline_value) return inline_value;
-            if (i + 1 >= args.size()) return std::nullopt;
-            return args[++i];
-        };
-        auto number = [&](double* out, const char* what) -> std::optional<std::string> {
-            const std::optional<std::string> text = value();
-            if (!text) return flag + " needs a value (" + what + ")";
-            if (!parseNumber(*text, out)) return flag + " takes " + what + ", got '" + *text + "'";
-            return std::nullopt;
-        };
+    FlagReader reader(args);
+    while (reader.next()) {
+        const std::string& flag = reader.flag();
         const bool takes_no_value = flag == "--no-align" || flag == "--json";
-        if (takes_no_value && inline_value) return flag + " takes no value";
+        if (takes_no_value && reader.hasInlineValue()) return flag + " takes no value";
 
         if (flag == "--max-diff") {
-            if (auto e = number(&options->config.max_difference_s, "seconds")) return e;
+            if (auto e = reader.number(&options->config.max_difference_s, "seconds")) return e;
             if (!(options->config.max_difference_s > 0.0)) return "--max-diff must be positive";
         } else if (flag == "--offset") {
-            if (auto e = number(&options->config.offset_s, "seconds")) return e;
+            if (auto e = reader.number(&options->config.offset_s, "seconds")) return e;
         } else if (flag == "--delta") {
             double delta = 0.0;
-            if (auto e = number(&delta, "a number of frames")) return e;
+            if (auto e = reader.number(&delta, "a number of frames")) return e;
             if (delta < 1.0 || delta != std::floor(delta)) {
                 return "--delta takes an integer number of frames >= 1, got " +
                        fmt::format("{}", delta);
@@ -112,12 +97,12 @@ std::optional<std::string> parseArgs(const std::vector<std::string>& args, Optio
             options->config.rpe.delta_unit = eval::DeltaUnit::kFrames;
         } else if (flag == "--delta-s") {
             double delta = 0.0;
-            if (auto e = number(&delta, "seconds")) return e;
+            if (auto e = reader.number(&delta, "seconds")) return e;
             if (!(delta > 0.0)) return "--delta-s must be positive";
             options->config.rpe.delta = delta;
             options->config.rpe.delta_unit = eval::DeltaUnit::kSeconds;
         } else if (flag == "--format") {
-            const std::optional<std::string> text = value();
+            const std::optional<std::string> text = reader.value();
             if (!text) return "--format needs a value (tum or log)";
             if (*text == "tum") {
                 options->format = Format::kTum;
@@ -130,10 +115,10 @@ std::optional<std::string> parseArgs(const std::vector<std::string>& args, Optio
             options->config.ate.align = false;
         } else if (flag == "--json") {
             options->json = true;
-        } else if (flag.size() > 1 && flag[0] == '-') {
-            return "unknown option '" + args[i] + "'";
+        } else if (reader.isOption()) {
+            return "unknown option '" + reader.arg() + "'";
         } else {
-            positional.push_back(args[i]);
+            positional.push_back(reader.arg());
         }
     }
     if (positional.size() != 2) {
