@@ -227,50 +227,29 @@ Eigen::Vector3d fragmentViewpoint(const Fragment& fragment, const Eigen::Isometr
     return T_W_F * tracked[tracked.size() / 2]->T_F_C.translation();
 }
 
-}  // namespace
+// ---- The steps of estimateLayout, in the order of the header's list ----
 
-Result<LayoutEstimate> estimateLayout(const std::vector<Fragment>& fragments,
-                                      const std::vector<FragmentPlanes>& planes,
-                                      const std::vector<Eigen::Isometry3d>& T_W_F,
-                                      const LayoutConfig& config) {
-    const auto t_start = SteadyClock::now();
-    PLUMB_RETURN_IF_ERROR(config::validate(config));
-    if (fragments.size() != planes.size() || fragments.size() != T_W_F.size()) {
-        return invalidArgument(
-            fmt::format("estimateLayout: {} fragments, {} plane sets and {} poses (must be equal)",
-                        fragments.size(), planes.size(), T_W_F.size()));
-    }
-    if (fragments.empty()) return invalidArgument("estimateLayout: no fragments");
-    for (size_t i = 0; i < T_W_F.size(); ++i) {
-        if (!isRigid(T_W_F[i])) {
-            return invalidArgument(
-                fmt::format("estimateLayout: pose of fragment {} is not a finite rigid transform",
-                            fragments[i].id));
-        }
-        if (planes[i].labels.size() != planes[i].sample_F.size()) {
-            return invalidArgument(
-                fmt::format("estimateLayout: plane set {} has {} labels for {} sample points", i,
-                            planes[i].labels.size(), planes[i].sample_F.size()));
-        }
-    }
-    LayoutEstimate est;
-    LayoutDiagnostics& diag = est.diagnostics;
-    diag.num_fragments = static_cast<int>(fragments.size());
-    const double cell = config.grid_cell_m;
-
-    // 1. Groups and all points in the world frame (reference §4.6).
-    auto t0 = SteadyClock::now();
+/// Step 1's output: the labelled point groups and every sample point, in the world frame.
+struct WorldPoints {
     std::vector<Group> groups;
-    std::vector<Eigen::Vector3d> all_points;
-    std::vector<size_t> points_begin;  // fragment i's points: [points_begin[i], points_begin[i+1])
+    std::vector<Eigen::Vector3d> all;  ///< every sample point of every fragment
+    /// Fragment i's points are all[begin[i] .. begin[i + 1]).
+    std::vector<size_t> begin;
+};
+
+/// Step 1 (reference §4.6): every labelled point group (fragment i, plane l) of at least 3
+/// points and its plane go to the world frame by T_W_F[i].
+WorldPoints groupsInWorld(const std::vector<FragmentPlanes>& planes,
+                          const std::vector<Eigen::Isometry3d>& T_W_F, const LayoutConfig& config) {
+    WorldPoints w;
     for (size_t i = 0; i < planes.size(); ++i) {
-        points_begin.push_back(all_points.size());
+        w.begin.push_back(w.all.size());
         const FragmentPlanes& fp = planes[i];
         const Eigen::Isometry3d& T = T_W_F[i];
         std::vector<std::vector<Eigen::Vector3d>> by_label(fp.planes.size());
         for (size_t k = 0; k < fp.sample_F.size(); ++k) {
             const Eigen::Vector3d p = T * fp.sample_F.points[k].cast<double>();
-            all_points.push_back(p);
+            w.all.push_back(p);
             const int l = fp.labels[k];
             if (l >= 0 && l < static_cast<int>(fp.planes.size())) by_label[l].push_back(p);
         }
@@ -285,18 +264,21 @@ Result<LayoutEstimate> estimateLayout(const std::vector<Fragment>& fragments,
             const size_t stride =
                 (g.all.size() + config.max_group_points - 1) / config.max_group_points;
             for (size_t k = 0; k < g.all.size(); k += stride) g.capped.push_back(g.all[k]);
-            groups.push_back(std::move(g));
+            w.groups.push_back(std::move(g));
         }
     }
-    points_begin.push_back(all_points.size());
-    const int num_groups = static_cast<int>(groups.size());
-    diag.num_groups = num_groups;
-    diag.num_hypotheses = num_groups;
-    if (num_groups == 0) {
-        return failedPrecondition("estimateLayout: no plane in any fragment");
-    }
+    w.begin.push_back(w.all.size());
+    return w;
+}
 
-    // 2. Second T-linkage: items = groups, hypotheses = the groups' planes.
+/// Step 2 (reference §4.6): the second T-linkage, items = the groups, hypotheses = the groups'
+/// planes, residual = mean |n.p + d| of a group's points (infinite beyond max_group_angle_deg).
+/// Each cluster becomes a dominant plane refitted to its groups' points, kept when its occupied
+/// area reaches min_dominant_area_m2; sorted by area, largest first, id = position.
+std::vector<SupportedPlane> dominantPlanes(const std::vector<Group>& groups,
+                                           const std::vector<Fragment>& fragments,
+                                           const LayoutConfig& config, LayoutDiagnostics* diag) {
+    const int num_groups = static_cast<int>(groups.size());
     const double cos_group = std::cos(config.max_group_angle_deg * kDeg);
     std::vector<PreferenceVector> prefs(num_groups);
     for (int g = 0; g < num_groups; ++g) {
@@ -313,7 +295,7 @@ Result<LayoutEstimate> estimateLayout(const std::vector<Fragment>& fragments,
             config.tau_m, config.cutoff_factor);
     }
     const TLinkageResult tl = tLinkage(prefs);
-    diag.num_clusters = tl.num_clusters;
+    diag->num_clusters = tl.num_clusters;
     std::vector<SupportedPlane> dominant;
     for (const std::vector<int>& cl : tl.members) {
         SupportedPlane sp;
@@ -327,7 +309,7 @@ Result<LayoutEstimate> estimateLayout(const std::vector<Fragment>& fragments,
         sp.n = nsum.normalized();
         sp.d = groups[cl.front()].d;
         refitPlane(&sp, 3.0 * config.tau_m);
-        sp.area = occupiedArea(sp, cell);
+        sp.area = occupiedArea(sp, config.grid_cell_m);
         if (sp.area < config.min_dominant_area_m2) continue;
         dominant.push_back(std::move(sp));
     }
@@ -348,36 +330,51 @@ Result<LayoutEstimate> estimateLayout(const std::vector<Fragment>& fragments,
         std::sort(dp.fragments.begin(), dp.fragments.end());
         dp.fragments.erase(std::unique(dp.fragments.begin(), dp.fragments.end()),
                            dp.fragments.end());
-        diag.dominant_planes.push_back(dp);
+        diag->dominant_planes.push_back(dp);
     }
-    diag.ms_clustering = msSince(t0);
-    if (dominant.empty()) {
-        return failedPrecondition("estimateLayout: no dominant plane with enough area");
-    }
+    return dominant;
+}
 
-    // 3. Base plane (reference §4.7): largest area among one-sided, roughly horizontal planes.
+/// Counts the points farther than `margin` from plane p on its positive and negative sides.
+void sideCounts(const SupportedPlane& p, const std::vector<Eigen::Vector3d>& points, double margin,
+                size_t* pos, size_t* neg) {
+    *pos = *neg = 0;
+    for (const Eigen::Vector3d& x : points) {
+        const double s = p.n.dot(x) + p.d;
+        if (s > margin) ++*pos;
+        if (s < -margin) ++*neg;
+    }
+}
+
+/// The base plane: which dominant plane it is and whether it is the floor (else the ceiling).
+struct BaseChoice {
+    int index = -1;
+    bool is_floor = true;
+};
+
+/// Step 3 (reference §4.7): the base plane is the largest dominant plane with (almost) all
+/// points on one side that is, with a gravity hint (camera_up_C averaged over the fragments'
+/// rotations), roughly horizontal; failing both tests, the largest horizontal one; failing that,
+/// the largest. It is oriented into the room (most points on its positive side). `dominant` must
+/// not be empty.
+BaseChoice chooseBasePlane(std::vector<SupportedPlane>& dominant,
+                           const std::vector<Eigen::Vector3d>& all_points,
+                           const std::vector<Eigen::Isometry3d>& T_W_F, const LayoutConfig& config,
+                           LayoutDiagnostics* diag) {
     Eigen::Vector3d up_hint = Eigen::Vector3d::Zero();
     if (config.camera_up_C.norm() > 1e-9) {
         for (const Eigen::Isometry3d& T : T_W_F) up_hint += T.linear() * config.camera_up_C;
         if (up_hint.norm() > 1e-9) up_hint.normalize();
     }
-    diag.up_hint_W = up_hint;
+    diag->up_hint_W = up_hint;
     const bool have_hint = up_hint.squaredNorm() > 0.5;
-    auto sideCounts = [&](const SupportedPlane& p, size_t* pos, size_t* neg) {
-        *pos = *neg = 0;
-        for (const Eigen::Vector3d& x : all_points) {
-            const double s = p.n.dot(x) + p.d;
-            if (s > config.base_side_margin_m) ++*pos;
-            if (s < -config.base_side_margin_m) ++*neg;
-        }
-    };
     const double cos_tilt = std::cos(config.base_max_tilt_deg * kDeg);
     int base = -1;
     for (int pass = 0; pass < 3 && base < 0; ++pass) {
         for (size_t k = 0; k < dominant.size(); ++k) {
             const bool horizontal = !have_hint || std::abs(dominant[k].n.dot(up_hint)) >= cos_tilt;
             size_t pos = 0, neg = 0;
-            sideCounts(dominant[k], &pos, &neg);
+            sideCounts(dominant[k], all_points, config.base_side_margin_m, &pos, &neg);
             const double one_sided =
                 pos + neg == 0 ? 1.0 : static_cast<double>(std::max(pos, neg)) / (pos + neg);
             const bool sided = one_sided >= config.base_min_one_sided;
@@ -389,34 +386,64 @@ Result<LayoutEstimate> estimateLayout(const std::vector<Fragment>& fragments,
         }
     }
     SupportedPlane& bp = dominant[base];
-    {
-        size_t pos = 0, neg = 0;
-        sideCounts(bp, &pos, &neg);
-        if (neg > pos) {  // orient into the room
-            bp.n = -bp.n;
-            bp.d = -bp.d;
-        }
+    size_t pos = 0, neg = 0;
+    sideCounts(bp, all_points, config.base_side_margin_m, &pos, &neg);
+    if (neg > pos) {  // orient into the room
+        bp.n = -bp.n;
+        bp.d = -bp.d;
     }
-    const Eigen::Vector3d n_b = bp.n;
-    const bool base_is_floor = !have_hint || n_b.dot(up_hint) >= 0.0;
-    diag.base_plane_id = bp.id;
-    diag.base_kind = base_is_floor ? "floor" : "ceiling";
+    BaseChoice choice;
+    choice.index = base;
+    choice.is_floor = !have_hint || bp.n.dot(up_hint) >= 0.0;
+    diag->base_plane_id = bp.id;
+    diag->base_kind = choice.is_floor ? "floor" : "ceiling";
+    return choice;
+}
 
-    // 4. Occupancy grid on the base plane and its boundary (reference §4.8), with the space the
-    // camera moved in.
-    t0 = SteadyClock::now();
-    const std::vector<Eigen::Vector3d> cameras_W = cameraPositions(fragments, T_W_F);
-    diag.num_camera_positions = static_cast<int>(cameras_W.size());
-    Eigen::Vector3d e1, e2;
-    planeBasis(n_b, &e1, &e2);
+/// The occupancy grid on the base plane (step 4): cell (u, v) holds the points x with
+/// e1.x in [umin + u cell, umin + (u + 1) cell) and likewise e2.x from vmin.
+struct BaseGrid {
+    Eigen::Vector3d e1 = Eigen::Vector3d::UnitX(), e2 = Eigen::Vector3d::UnitY();
+    double umin = 0.0, vmin = 0.0, cell = 0.0;
+    int width = 0, height = 0;
+    cv::Mat room;                    ///< CV_8U, 255 in the room region (the outer contour, filled)
+    cv::Mat distance;                ///< CV_32F, distance of each cell to the boundary dO, cells
+    std::vector<cv::Point> contour;  ///< dO: the outer contour of the room region
+
+    /// The cell x falls in, clamped to the grid.
+    cv::Point cellOf(const Eigen::Vector3d& x) const {
+        return cv::Point(std::clamp(static_cast<int>((e1.dot(x) - umin) / cell), 0, width - 1),
+                         std::clamp(static_cast<int>((e2.dot(x) - vmin) / cell), 0, height - 1));
+    }
+    /// True when x falls in a cell of the room region (false outside the grid).
+    bool inRoom(const Eigen::Vector3d& x) const {
+        const double u = (e1.dot(x) - umin) / cell, v = (e2.dot(x) - vmin) / cell;
+        if (u < 0 || v < 0 || u >= width || v >= height) return false;
+        return room.at<uint8_t>(static_cast<int>(v), static_cast<int>(u)) != 0;
+    }
+};
+
+/// Step 4 (reference §4.8): the occupancy grid of all points projected on the base plane (normal
+/// n_b), with the space the camera moved in (cells near camera positions, lines of sight from
+/// each fragment's middle camera to its points), closed; the largest outer contour is the
+/// boundary dO, the region it encloses (holes filled) the room region.
+Result<BaseGrid> occupancyGrid(const Eigen::Vector3d& n_b, const WorldPoints& points,
+                               const std::vector<Eigen::Vector3d>& cameras_W,
+                               const std::vector<Fragment>& fragments,
+                               const std::vector<Eigen::Isometry3d>& T_W_F,
+                               const LayoutConfig& config, LayoutDiagnostics* diag) {
+    BaseGrid grid;
+    const double cell = config.grid_cell_m;
+    grid.cell = cell;
+    planeBasis(n_b, &grid.e1, &grid.e2);
     double umin = 1e300, umax = -1e300, vmin = 1e300, vmax = -1e300;
     for (const std::vector<Eigen::Vector3d>* set :
-         std::initializer_list<const std::vector<Eigen::Vector3d>*>{&all_points, &cameras_W}) {
+         std::initializer_list<const std::vector<Eigen::Vector3d>*>{&points.all, &cameras_W}) {
         for (const Eigen::Vector3d& x : *set) {
-            umin = std::min(umin, e1.dot(x));
-            umax = std::max(umax, e1.dot(x));
-            vmin = std::min(vmin, e2.dot(x));
-            vmax = std::max(vmax, e2.dot(x));
+            umin = std::min(umin, grid.e1.dot(x));
+            umax = std::max(umax, grid.e1.dot(x));
+            vmin = std::min(vmin, grid.e2.dot(x));
+            vmax = std::max(vmax, grid.e2.dot(x));
         }
     }
     const int pad = 2 + config.closing_kernel_cells;
@@ -429,32 +456,32 @@ Result<LayoutEstimate> estimateLayout(const std::vector<Fragment>& fragments,
             "estimateLayout: the points span {:.1f} x {:.1f} m, too large for a {} m grid",
             umax - umin, vmax - vmin, cell));
     }
-    diag.grid_width = gw;
-    diag.grid_height = gh;
-    auto toCell = [&](const Eigen::Vector3d& x) {
-        return cv::Point(std::clamp(static_cast<int>((e1.dot(x) - umin) / cell), 0, gw - 1),
-                         std::clamp(static_cast<int>((e2.dot(x) - vmin) / cell), 0, gh - 1));
-    };
+    grid.umin = umin;
+    grid.vmin = vmin;
+    grid.width = gw;
+    grid.height = gh;
+    diag->grid_width = gw;
+    diag->grid_height = gh;
     cv::Mat counts = cv::Mat::zeros(gh, gw, CV_32S);
-    for (const Eigen::Vector3d& x : all_points) ++counts.at<int>(toCell(x));
+    for (const Eigen::Vector3d& x : points.all) ++counts.at<int>(grid.cellOf(x));
     cv::Mat occ = counts >= config.min_cell_points;  // CV_8U, 255 = occupied
     if (config.path_occupancy_radius_m > 0.0) {
         const int r = static_cast<int>(std::lround(config.path_occupancy_radius_m / cell));
         for (const Eigen::Vector3d& c : cameras_W) {
-            cv::circle(occ, toCell(c), r, cv::Scalar(255), cv::FILLED);
+            cv::circle(occ, grid.cellOf(c), r, cv::Scalar(255), cv::FILLED);
         }
     }
     // Lines of sight are free space inside the room: from each fragment's middle camera to a
     // subsample of its points (this joins the path to the floor it saw from afar).
     if (config.free_space_rays_per_fragment > 0) {
         for (size_t i = 0; i < fragments.size(); ++i) {
-            const size_t b = points_begin[i], e = points_begin[i + 1];
+            const size_t b = points.begin[i], e = points.begin[i + 1];
             if (e == b) continue;
-            const cv::Point from = toCell(fragmentViewpoint(fragments[i], T_W_F[i]));
+            const cv::Point from = grid.cellOf(fragmentViewpoint(fragments[i], T_W_F[i]));
             const size_t n = static_cast<size_t>(config.free_space_rays_per_fragment);
             const size_t stride = std::max<size_t>(1, (e - b + n - 1) / n);
             for (size_t k = b; k < e; k += stride) {
-                cv::line(occ, from, toCell(all_points[k]), cv::Scalar(255), 1);
+                cv::line(occ, from, grid.cellOf(points.all[k]), cv::Scalar(255), 1);
             }
         }
     }
@@ -474,254 +501,324 @@ Result<LayoutEstimate> estimateLayout(const std::vector<Fragment>& fragments,
     }
     // The room region = the largest outer contour, filled (interior holes, i.e. furniture
     // shadows, become occupied); its 1-cell outline is dO.
-    cv::Mat room = cv::Mat::zeros(gh, gw, CV_8U);
-    cv::drawContours(room, contours, static_cast<int>(largest), cv::Scalar(255), cv::FILLED);
+    grid.room = cv::Mat::zeros(gh, gw, CV_8U);
+    cv::drawContours(grid.room, contours, static_cast<int>(largest), cv::Scalar(255), cv::FILLED);
     cv::Mat boundary = cv::Mat::zeros(gh, gw, CV_8U);
     cv::drawContours(boundary, contours, static_cast<int>(largest), cv::Scalar(255), 1);
-    diag.occupied_cells = cv::countNonZero(room);
-    diag.boundary_cells = cv::countNonZero(boundary);
+    diag->occupied_cells = cv::countNonZero(grid.room);
+    diag->boundary_cells = cv::countNonZero(boundary);
     cv::Mat not_boundary = boundary == 0;
-    cv::Mat dist;
-    cv::distanceTransform(not_boundary, dist, cv::DIST_L2, cv::DIST_MASK_PRECISE);
-    diag.ms_grid = msSince(t0);
-    const std::vector<cv::Point>& contour = contours[largest];
+    cv::distanceTransform(not_boundary, grid.distance, cv::DIST_L2, cv::DIST_MASK_PRECISE);
+    grid.contour = contours[largest];
+    return grid;
+}
 
-    // 5. Walls (Eq. 6-7) and the opposite plane.
+/// Height of x above the (oriented) base plane.
+double heightAbove(const SupportedPlane& base, const Eigen::Vector3d& x) {
+    return base.n.dot(x) + base.d;
+}
+
+/// Step 5, the opposite plane: the largest dominant plane other than the base within
+/// opposite_max_angle_deg of it whose points' mean lies at least min_room_height_m above it; -1
+/// when there is none.
+int oppositePlane(const std::vector<SupportedPlane>& dominant, int base,
+                  const LayoutConfig& config) {
+    const SupportedPlane& bp = dominant[base];
     const double cos_opp = std::cos(config.opposite_max_angle_deg * kDeg);
-    std::vector<int> wall_ids;
-    int opposite = -1;
-    auto heightAboveBase = [&](const Eigen::Vector3d& x) { return n_b.dot(x) + bp.d; };
-    for (size_t k = 0; k < dominant.size(); ++k) {  // the opposite plane first (largest)
+    for (size_t k = 0; k < dominant.size(); ++k) {  // sorted by area: the first is the largest
         const SupportedPlane& p = dominant[k];
-        if (static_cast<int>(k) == base || std::abs(p.n.dot(n_b)) < cos_opp) continue;
+        if (static_cast<int>(k) == base || std::abs(p.n.dot(bp.n)) < cos_opp) continue;
         PlaneMoments m;
         for (const Eigen::Vector3d* x : p.capped) m.add(*x);
-        if (heightAboveBase(m.mean()) >= config.min_room_height_m) {
-            opposite = static_cast<int>(k);
-            break;
-        }
+        if (heightAbove(bp, m.mean()) >= config.min_room_height_m) return static_cast<int>(k);
     }
-    double room_height = 0.0;
-    if (opposite >= 0) {
+    return -1;
+}
+
+/// How far plane p's points stay from the ceiling (from the floor when the base is the
+/// ceiling), 99th percentile; without an opposite plane, min_wall_height_m minus their span.
+/// Layout walls span floor to ceiling; furniture never reaches it.
+double reachGap(const SupportedPlane& p, const SupportedPlane& base, bool base_is_floor,
+                bool have_opposite, double room_height, const LayoutConfig& config) {
+    std::vector<double> h;
+    for (const Eigen::Vector3d* x : p.capped) h.push_back(heightAbove(base, *x));
+    std::sort(h.begin(), h.end());
+    if (h.empty()) return 0.0;
+    const double lo = h[h.size() / 100], hi = h[h.size() - 1 - h.size() / 100];
+    if (have_opposite) return base_is_floor ? room_height - hi : lo;
+    return config.min_wall_height_m - (hi - lo);
+}
+
+/// Merges wall candidate p into an already kept wall within wall_merge_angle_deg and
+/// wall_merge_offset_m of it and refits that wall; returns its index into `dominant`, or -1 when
+/// no kept wall is near-coplanar.
+int mergeIntoKeptWall(std::vector<SupportedPlane>& dominant, const std::vector<int>& wall_ids,
+                      const SupportedPlane& p, const LayoutConfig& config) {
+    for (int w : wall_ids) {
+        SupportedPlane& q = dominant[w];
+        if (std::abs(q.n.dot(p.n)) < std::cos(config.wall_merge_angle_deg * kDeg)) continue;
         PlaneMoments m;
-        for (const Eigen::Vector3d* x : dominant[opposite].capped) m.add(*x);
-        room_height = heightAboveBase(m.mean());
+        for (const Eigen::Vector3d* x : p.capped) m.add(*x);
+        if (std::abs(q.n.dot(m.mean()) + q.d) > config.wall_merge_offset_m) continue;
+        q.all.insert(q.all.end(), p.all.begin(), p.all.end());
+        q.capped.insert(q.capped.end(), p.capped.begin(), p.capped.end());
+        q.groups.insert(q.groups.end(), p.groups.begin(), p.groups.end());
+        refitPlane(&q, 3.0 * config.tau_m);
+        return w;
+    }
+    return -1;
+}
+
+/// The walls of step 5 and the plane opposite the base.
+struct WallSelection {
+    std::vector<int> wall_ids;  ///< into `dominant`, in area order
+    int opposite = -1;          ///< into `dominant`, -1 when none
+};
+
+/// Step 5 (Eq. 6-7): a dominant plane is a wall when |n . n_base| < tau1 (Eq. 6), the mean
+/// distance g(dO, pi) of its points to the boundary dO is below tau2 (Eq. 7), its area reaches
+/// min_wall_area_m2 and it reaches the ceiling (reachGap); near-coplanar walls are merged. One
+/// WallDecision per dominant plane goes into diag->walls, in the order of `dominant`.
+WallSelection selectWalls(std::vector<SupportedPlane>& dominant, const BaseChoice& base,
+                          const BaseGrid& grid, const LayoutConfig& config,
+                          LayoutDiagnostics* diag) {
+    WallSelection sel;
+    const SupportedPlane& bp = dominant[base.index];
+    const Eigen::Vector3d n_b = bp.n;
+    sel.opposite = oppositePlane(dominant, base.index, config);
+    double room_height = 0.0;
+    if (sel.opposite >= 0) {
+        PlaneMoments m;
+        for (const Eigen::Vector3d* x : dominant[sel.opposite].capped) m.add(*x);
+        room_height = heightAbove(bp, m.mean());
     }
     for (size_t k = 0; k < dominant.size(); ++k) {
         const SupportedPlane& p = dominant[k];
-        // Layout walls span floor to ceiling: their points must reach the ceiling (the side
-        // furniture never reaches), or, without a ceiling, span min_wall_height_m.
-        double reach_gap = 0.0;
-        {
-            std::vector<double> h;
-            for (const Eigen::Vector3d* x : p.capped) h.push_back(heightAboveBase(*x));
-            std::sort(h.begin(), h.end());
-            if (!h.empty()) {
-                const double lo = h[h.size() / 100], hi = h[h.size() - 1 - h.size() / 100];
-                if (opposite >= 0) {
-                    reach_gap = base_is_floor ? room_height - hi : lo;
-                } else {
-                    reach_gap = config.min_wall_height_m - (hi - lo);
-                }
-            }
-        }
+        const double reach_gap =
+            reachGap(p, bp, base.is_floor, sel.opposite >= 0, room_height, config);
         WallDecision wd;
         wd.plane_id = p.id;
-        wd.abs_dot_base = std::abs(p.n.dot(n_b));
+        wd.abs_dot_base = std::abs(p.n.dot(n_b));  // Eq. 6
         wd.top_gap_m = reach_gap;
-        if (static_cast<int>(k) == base) {
+        if (static_cast<int>(k) == base.index) {
             wd.reason = "base plane";
-            diag.walls.push_back(wd);
+            diag->walls.push_back(wd);
             continue;
         }
-        double g = 0.0;
-        for (const Eigen::Vector3d* x : p.capped) g += dist.at<float>(toCell(*x));
-        wd.boundary_distance_m = p.capped.empty() ? 1e9 : g / p.capped.size() * cell;
+        double g = 0.0;  // Eq. 7: g(dO, pi), the mean distance of the points to dO
+        for (const Eigen::Vector3d* x : p.capped) g += grid.distance.at<float>(grid.cellOf(*x));
+        wd.boundary_distance_m = p.capped.empty() ? 1e9 : g / p.capped.size() * grid.cell;
         if (wd.abs_dot_base >= config.tau1) {
-            wd.reason = static_cast<int>(k) == opposite ? "opposite plane" : "not vertical";
+            wd.reason = static_cast<int>(k) == sel.opposite ? "opposite plane" : "not vertical";
         } else if (wd.boundary_distance_m >= config.tau2_m) {
             wd.reason = "far from boundary";
         } else if (p.area < config.min_wall_area_m2) {
             wd.reason = "too small";
         } else if (reach_gap > config.wall_top_margin_m) {
-            wd.reason = opposite >= 0 ? "does not reach the ceiling" : "too low";
+            wd.reason = sel.opposite >= 0 ? "does not reach the ceiling" : "too low";
+        } else if (const int merged = mergeIntoKeptWall(dominant, sel.wall_ids, p, config);
+                   merged >= 0) {
+            wd.reason = fmt::format("merged into {}", dominant[merged].id);
         } else {
-            // Merge into an already kept, near-coplanar wall.
-            int merged = -1;
-            for (int w : wall_ids) {
-                SupportedPlane& q = dominant[w];
-                if (std::abs(q.n.dot(p.n)) < std::cos(config.wall_merge_angle_deg * kDeg)) continue;
-                PlaneMoments m;
-                for (const Eigen::Vector3d* x : p.capped) m.add(*x);
-                if (std::abs(q.n.dot(m.mean()) + q.d) > config.wall_merge_offset_m) continue;
-                merged = w;
+            wd.kept = true;
+            wd.reason = "wall";
+            sel.wall_ids.push_back(static_cast<int>(k));
+        }
+        diag->walls.push_back(wd);
+    }
+    diag->opposite_plane_id = sel.opposite >= 0 ? dominant[sel.opposite].id : -1;
+    return sel;
+}
+
+/// A wall seen from above: a point on it, its direction, its extent along the direction
+/// (0.5 % / 99.5 % of its points) and its horizontal normal into the room.
+struct WallSide {
+    Eigen::Vector3d m = Eigen::Vector3d::Zero();
+    Eigen::Vector3d dir = Eigen::Vector3d::Zero();
+    Eigen::Vector3d u = Eigen::Vector3d::Zero();
+    double tmin = 0.0, tmax = 0.0;
+};
+
+/// Wall p seen from above. Its room side is the side where the room region lies, probed along
+/// its extent just beyond tau2 (the band within which it counts as on the boundary); when no
+/// side tells, the side most camera positions are on.
+WallSide wallSide(const SupportedPlane& p, const Eigen::Vector3d& n_b, const BaseGrid& grid,
+                  const std::vector<Eigen::Vector3d>& cameras_W, const LayoutConfig& config) {
+    WallSide ws;
+    PlaneMoments mm;
+    for (const Eigen::Vector3d* x : p.capped) mm.add(*x);
+    ws.m = mm.mean();
+    Eigen::Vector3d u = (p.n - p.n.dot(n_b) * n_b).normalized();
+    ws.dir = n_b.cross(u);
+    std::vector<double> ts;
+    ts.reserve(p.all.size());
+    for (const Eigen::Vector3d* x : p.all) ts.push_back(ws.dir.dot(*x));
+    std::sort(ts.begin(), ts.end());
+    ws.tmin = ts[ts.size() / 200];
+    ws.tmax = ts[ts.size() - 1 - ts.size() / 200];
+    const double probe = config.tau2_m + 2.0 * grid.cell;
+    int plus = 0, minus = 0;
+    for (double t = ws.tmin; t <= ws.tmax; t += grid.cell) {
+        const Eigen::Vector3d q = ws.m + (t - ws.dir.dot(ws.m)) * ws.dir;
+        const bool a = grid.inRoom(q + probe * u), b = grid.inRoom(q - probe * u);
+        if (a && !b) ++plus;
+        if (b && !a) ++minus;
+    }
+    if (plus == minus) {  // no side tells: the side most camera positions are on
+        for (const Eigen::Vector3d& c : cameras_W) (u.dot(c - ws.m) >= 0 ? plus : minus)++;
+    }
+    ws.u = minus > plus ? Eigen::Vector3d(-u) : u;
+    return ws;
+}
+
+/// Rule a (header): the walls without more than max_camera_behind_fraction of the camera
+/// positions within their extent behind them; the others are marked "camera behind it".
+std::vector<int> wallsWithoutCameraBehind(const std::vector<int>& wall_ids,
+                                          const std::vector<WallSide>& sides,
+                                          const std::vector<Eigen::Vector3d>& cameras_W,
+                                          const LayoutConfig& config, LayoutDiagnostics* diag) {
+    std::vector<int> kept;
+    for (int k : wall_ids) {
+        const WallSide& ws = sides[k];
+        int within = 0, behind = 0;
+        for (const Eigen::Vector3d& c : cameras_W) {
+            const double t = ws.dir.dot(c);
+            if (t < ws.tmin || t > ws.tmax) continue;
+            ++within;
+            if (ws.u.dot(c - ws.m) < -config.camera_behind_margin_m) ++behind;
+        }
+        WallDecision& wd = diag->walls[k];
+        if (within > 0) wd.camera_behind_fraction = static_cast<double>(behind) / within;
+        if (within > 0 && wd.camera_behind_fraction > config.max_camera_behind_fraction) {
+            wd.kept = false;
+            wd.reason = "camera behind it";
+        } else {
+            kept.push_back(k);
+        }
+    }
+    return kept;
+}
+
+/// Two stacked walls: the inner one (a front) before the outer one, gap_m apart.
+struct Front {
+    int inner = -1, outer = -1;
+    double gap_m = 0.0;
+};
+
+/// Rule b (header): for each wall, the farthest same-facing parallel wall behind it more than
+/// wall_merge_offset_m and at most stacked_wall_max_gap_m away makes it a front.
+std::vector<Front> stackedFronts(const std::vector<int>& kept, const std::vector<WallSide>& sides,
+                                 const LayoutConfig& config) {
+    std::vector<Front> fronts;
+    const double cos_stack = std::cos(config.stacked_wall_angle_deg * kDeg);
+    if (!(config.stacked_wall_max_gap_m > 0.0)) return fronts;
+    for (int i : kept) {
+        Front best;
+        for (int o : kept) {
+            if (o == i || sides[i].u.dot(sides[o].u) < cos_stack) continue;
+            const double gap = sides[o].u.dot(sides[i].m - sides[o].m);
+            if (gap > config.wall_merge_offset_m && gap <= config.stacked_wall_max_gap_m &&
+                gap > best.gap_m) {
+                best = Front{i, o, gap};
+            }
+        }
+        if (best.inner >= 0) fronts.push_back(best);
+    }
+    return fronts;
+}
+
+/// Rule c (header): true when (95 % of) p's points lie in the slab between front f's outer
+/// wall and the front (10 cm margin), within the front's extent: p is the side of that block.
+bool isBlockSide(const SupportedPlane& p, const Front& f, const std::vector<WallSide>& sides) {
+    const double margin = 0.1;
+    const WallSide& o = sides[f.outer];
+    const WallSide& in = sides[f.inner];
+    size_t between = 0;
+    for (const Eigen::Vector3d* x : p.capped) {
+        const double s = o.u.dot(*x - o.m), t = in.dir.dot(*x);
+        if (s >= -margin && s <= f.gap_m + margin && t >= in.tmin - 2 * margin &&
+            t <= in.tmax + 2 * margin) {
+            ++between;
+        }
+    }
+    return !p.capped.empty() && between >= 0.95 * static_cast<double>(p.capped.size());
+}
+
+/// Step 5, then: walls must bound the space the camera moved in (rules a-c in the header).
+/// Returns the walls kept, marking the others in diag->walls (diag->walls[k] is the decision on
+/// dominant[k]).
+std::vector<int> boundingWalls(const std::vector<SupportedPlane>& dominant,
+                               const std::vector<int>& wall_ids, const Eigen::Vector3d& n_b,
+                               const BaseGrid& grid, const std::vector<Eigen::Vector3d>& cameras_W,
+                               const LayoutConfig& config, LayoutDiagnostics* diag) {
+    std::vector<WallSide> sides(dominant.size());
+    for (int k : wall_ids) sides[k] = wallSide(dominant[k], n_b, grid, cameras_W, config);
+    const std::vector<int> kept =
+        wallsWithoutCameraBehind(wall_ids, sides, cameras_W, config, diag);  // a
+    const std::vector<Front> fronts = stackedFronts(kept, sides, config);    // b
+    const double cos_stack = std::cos(config.stacked_wall_angle_deg * kDeg);
+    std::vector<int> bounding;
+    for (int k : kept) {
+        WallDecision& wd = diag->walls[k];
+        bool inner = false;
+        for (const Front& f : fronts) {
+            if (f.inner == k) {
+                wd.kept = false;
+                wd.reason = fmt::format("in front of wall {}", dominant[f.outer].id);
+                inner = true;
+            }
+        }
+        if (inner) continue;
+        for (const Front& f : fronts) {  // c
+            if (std::abs(sides[k].u.dot(sides[f.outer].u)) >= cos_stack) continue;
+            if (isBlockSide(dominant[k], f, sides)) {
+                wd.kept = false;
+                wd.reason =
+                    fmt::format("side of a block in front of wall {}", dominant[f.outer].id);
                 break;
             }
-            if (merged >= 0) {
-                SupportedPlane& q = dominant[merged];
-                q.all.insert(q.all.end(), p.all.begin(), p.all.end());
-                q.capped.insert(q.capped.end(), p.capped.begin(), p.capped.end());
-                q.groups.insert(q.groups.end(), p.groups.begin(), p.groups.end());
-                refitPlane(&q, 3.0 * config.tau_m);
-                wd.reason = fmt::format("merged into {}", q.id);
-            } else {
-                wd.kept = true;
-                wd.reason = "wall";
-                wall_ids.push_back(static_cast<int>(k));
-            }
         }
-        diag.walls.push_back(wd);
+        if (wd.kept) bounding.push_back(k);
     }
-    diag.opposite_plane_id = opposite >= 0 ? dominant[opposite].id : -1;
+    return bounding;
+}
 
-    // 5b. Walls bound the space the camera moved in (rules a-c in the header). diag.walls[k] is
-    // the decision on dominant[k].
-    {
-        // A wall seen from above: a point on it, its direction, its extent along the direction
-        // (0.5 % / 99.5 % of its points) and its horizontal normal into the room.
-        struct WallSide {
-            Eigen::Vector3d m = Eigen::Vector3d::Zero();
-            Eigen::Vector3d dir = Eigen::Vector3d::Zero();
-            Eigen::Vector3d u = Eigen::Vector3d::Zero();
-            double tmin = 0.0, tmax = 0.0;
-        };
-        auto inRoom = [&](const Eigen::Vector3d& x) {
-            const double u = (e1.dot(x) - umin) / cell, v = (e2.dot(x) - vmin) / cell;
-            if (u < 0 || v < 0 || u >= gw || v >= gh) return false;
-            return room.at<uint8_t>(static_cast<int>(v), static_cast<int>(u)) != 0;
-        };
-        auto wallSide = [&](const SupportedPlane& p) {
-            WallSide ws;
-            PlaneMoments mm;
-            for (const Eigen::Vector3d* x : p.capped) mm.add(*x);
-            ws.m = mm.mean();
-            Eigen::Vector3d u = (p.n - p.n.dot(n_b) * n_b).normalized();
-            ws.dir = n_b.cross(u);
-            std::vector<double> ts;
-            ts.reserve(p.all.size());
-            for (const Eigen::Vector3d* x : p.all) ts.push_back(ws.dir.dot(*x));
-            std::sort(ts.begin(), ts.end());
-            ws.tmin = ts[ts.size() / 200];
-            ws.tmax = ts[ts.size() - 1 - ts.size() / 200];
-            // The room lies on one side of a boundary wall: probe both sides along its extent,
-            // just beyond the band within which it counts as on the boundary.
-            const double probe = config.tau2_m + 2.0 * cell;
-            int plus = 0, minus = 0;
-            for (double t = ws.tmin; t <= ws.tmax; t += cell) {
-                const Eigen::Vector3d q = ws.m + (t - ws.dir.dot(ws.m)) * ws.dir;
-                const bool a = inRoom(q + probe * u), b = inRoom(q - probe * u);
-                if (a && !b) ++plus;
-                if (b && !a) ++minus;
-            }
-            if (plus == minus) {  // no side tells: the side most camera positions are on
-                for (const Eigen::Vector3d& c : cameras_W) (u.dot(c - ws.m) >= 0 ? plus : minus)++;
-            }
-            ws.u = minus > plus ? Eigen::Vector3d(-u) : u;
-            return ws;
-        };
-        std::vector<WallSide> sides(dominant.size());
-        // a. No camera behind a wall.
-        std::vector<int> kept;
-        for (int k : wall_ids) {
-            sides[k] = wallSide(dominant[k]);
-            const WallSide& ws = sides[k];
-            int within = 0, behind = 0;
-            for (const Eigen::Vector3d& c : cameras_W) {
-                const double t = ws.dir.dot(c);
-                if (t < ws.tmin || t > ws.tmax) continue;
-                ++within;
-                if (ws.u.dot(c - ws.m) < -config.camera_behind_margin_m) ++behind;
-            }
-            WallDecision& wd = diag.walls[k];
-            if (within > 0) wd.camera_behind_fraction = static_cast<double>(behind) / within;
-            if (within > 0 && wd.camera_behind_fraction > config.max_camera_behind_fraction) {
-                wd.kept = false;
-                wd.reason = "camera behind it";
-            } else {
-                kept.push_back(k);
-            }
-        }
-        // b. The inner of two stacked walls (a front before the wall behind it).
-        struct Front {
-            int inner = -1, outer = -1;
-            double gap_m = 0.0;
-        };
-        std::vector<Front> fronts;
-        const double cos_stack = std::cos(config.stacked_wall_angle_deg * kDeg);
-        if (config.stacked_wall_max_gap_m > 0.0) {
-            for (int i : kept) {
-                Front best;
-                for (int o : kept) {
-                    if (o == i || sides[i].u.dot(sides[o].u) < cos_stack) continue;
-                    const double gap = sides[o].u.dot(sides[i].m - sides[o].m);
-                    if (gap > config.wall_merge_offset_m && gap <= config.stacked_wall_max_gap_m &&
-                        gap > best.gap_m) {
-                        best = Front{i, o, gap};
-                    }
-                }
-                if (best.inner >= 0) fronts.push_back(best);
-            }
-        }
-        auto isInner = [&](int k) {
-            return std::any_of(fronts.begin(), fronts.end(),
-                               [&](const Front& f) { return f.inner == k; });
-        };
-        std::vector<int> bounding;
-        for (int k : kept) {
-            WallDecision& wd = diag.walls[k];
-            for (const Front& f : fronts) {
-                if (f.inner == k) {
-                    wd.kept = false;
-                    wd.reason = fmt::format("in front of wall {}", dominant[f.outer].id);
-                }
-            }
-            if (isInner(k)) continue;
-            // c. The side of a block whose front was rejected: (almost) all its points between
-            // the outer wall and the front, within the front's extent.
-            const double margin = 0.1;
-            for (const Front& f : fronts) {
-                const WallSide& o = sides[f.outer];
-                const WallSide& in = sides[f.inner];
-                if (std::abs(sides[k].u.dot(o.u)) >= cos_stack) continue;
-                const SupportedPlane& p = dominant[k];
-                size_t between = 0;
-                for (const Eigen::Vector3d* x : p.capped) {
-                    const double s = o.u.dot(*x - o.m), t = in.dir.dot(*x);
-                    if (s >= -margin && s <= f.gap_m + margin && t >= in.tmin - 2 * margin &&
-                        t <= in.tmax + 2 * margin) {
-                        ++between;
-                    }
-                }
-                if (!p.capped.empty() && between >= 0.95 * static_cast<double>(p.capped.size())) {
-                    wd.kept = false;
-                    wd.reason =
-                        fmt::format("side of a block in front of wall {}", dominant[f.outer].id);
-                    break;
-                }
-            }
-            if (wd.kept) bounding.push_back(k);
-        }
-        wall_ids = std::move(bounding);
-    }
+/// The walls after step 6, parallel to the wall list.
+struct SnappedWalls {
+    std::vector<Eigen::Vector3d> n;  ///< vertical unit normals, W
+    std::vector<double> d;           ///< offsets refitted for those normals
+    std::vector<bool> snapped;
+    int ref = -1;  ///< the reference (largest) wall, -1 without walls
+};
 
-    // 6. Weak-Manhattan snapping (reference §4.10).
-    std::vector<Eigen::Vector3d> wall_n(wall_ids.size());
-    std::vector<double> wall_d(wall_ids.size());
-    std::vector<bool> snapped(wall_ids.size(), false);
-    const int ref = wall_ids.empty() ? -1 : 0;  // walls are in area order: the first is largest
+/// Step 6 (reference §4.10), weak-Manhattan snapping: walls made exactly vertical; those within
+/// snap_angle_deg of a multiple of 90 degrees from the largest wall made exactly orthogonal or
+/// parallel to it, the others keep their angle; offsets re-estimated with the normals fixed.
+SnappedWalls snapWeakManhattan(const std::vector<SupportedPlane>& dominant,
+                               const std::vector<int>& wall_ids, const Eigen::Vector3d& n_b,
+                               const BaseGrid& grid, const LayoutConfig& config,
+                               LayoutDiagnostics* diag) {
+    SnappedWalls sw;
+    sw.n.resize(wall_ids.size());
+    sw.d.resize(wall_ids.size());
+    sw.snapped.assign(wall_ids.size(), false);
+    sw.ref = wall_ids.empty() ? -1 : 0;  // walls are in area order: the first is largest
+    const int ref = sw.ref;
+    const Eigen::Vector3d& e1 = grid.e1;
+    const Eigen::Vector3d& e2 = grid.e2;
     for (size_t w = 0; w < wall_ids.size(); ++w) {
         const SupportedPlane& p = dominant[wall_ids[w]];
-        wall_n[w] = (p.n - p.n.dot(n_b) * n_b).normalized();
+        sw.n[w] = (p.n - p.n.dot(n_b) * n_b).normalized();
     }
     if (ref >= 0) {
-        const double phi_ref = std::atan2(wall_n[ref].dot(e2), wall_n[ref].dot(e1));
+        const double phi_ref = std::atan2(sw.n[ref].dot(e2), sw.n[ref].dot(e1));
         int num_snapped = 0;
         for (size_t w = 0; w < wall_ids.size(); ++w) {
             SnapDecision sd;
             sd.plane_id = dominant[wall_ids[w]].id;
-            sd.normal_before_W = wall_n[w];
+            sd.normal_before_W = sw.n[w];
             sd.reference = static_cast<int>(w) == ref;
-            const double phi = std::atan2(wall_n[w].dot(e2), wall_n[w].dot(e1));
+            const double phi = std::atan2(sw.n[w].dot(e2), sw.n[w].dot(e1));
             double rel = std::fmod((phi - phi_ref) / kDeg, 180.0);
             if (rel < 0) rel += 180.0;
             sd.angle_to_reference_deg = rel;
@@ -729,43 +826,55 @@ Result<LayoutEstimate> estimateLayout(const std::vector<Fragment>& fragments,
             sd.residual_deg = std::abs(rel - nearest);
             if (!sd.reference && sd.residual_deg <= config.snap_angle_deg) {
                 const double target = phi + (nearest - rel) * kDeg;
-                wall_n[w] = std::cos(target) * e1 + std::sin(target) * e2;
+                sw.n[w] = std::cos(target) * e1 + std::sin(target) * e2;
                 sd.snapped = true;
-                snapped[w] = true;
+                sw.snapped[w] = true;
                 ++num_snapped;
             }
-            diag.snapping.push_back(sd);
+            diag->snapping.push_back(sd);
         }
         if (num_snapped > 0) {
-            snapped[ref] = true;
-            diag.snapping[ref].snapped = true;
+            sw.snapped[ref] = true;
+            diag->snapping[ref].snapped = true;
         }
     }
     for (size_t w = 0; w < wall_ids.size(); ++w) {
-        wall_d[w] = refitOffset(dominant[wall_ids[w]], wall_n[w], config.refit_band_m);
+        sw.d[w] = refitOffset(dominant[wall_ids[w]], sw.n[w], config.refit_band_m);
     }
-    const double d_base = refitOffset(bp, n_b, config.refit_band_m);
-    double d_opp = 0.0;
-    if (opposite >= 0) d_opp = refitOffset(dominant[opposite], -n_b, config.refit_band_m);
+    return sw;
+}
 
-    // 7. Layout frame: z up along the floor normal, floor at z = 0.
+/// Step 7's frame: z up along the floor normal, floor at z = 0, x along `x_hint` made
+/// horizontal.
+struct LayoutFrame {
+    Eigen::Isometry3d T_W_L = Eigen::Isometry3d::Identity();
+    bool have_ceiling = false;
+    double height = 0.0;  ///< ceiling height above the floor (with have_ceiling)
+};
+
+/// Step 7, the layout frame L from the base plane (n_b, d_base refitted) and the opposite plane
+/// (offset d_opp for the normal -n_b, when there is one). A ceiling base without an opposite
+/// floor puts the floor at the lowest points (1st percentile; diag->floor_inferred).
+LayoutFrame layoutFrame(const Eigen::Vector3d& n_b, bool base_is_floor, double d_base,
+                        bool have_opposite, double d_opp,
+                        const std::vector<Eigen::Vector3d>& all_points,
+                        const Eigen::Vector3d& x_hint, LayoutDiagnostics* diag) {
+    LayoutFrame frame;
     Eigen::Vector3d up;
     double d_floor;  // floor plane: up.x + d_floor = 0
-    double height = 0.0;
-    bool have_ceiling = false;
     if (base_is_floor) {
         up = n_b;
         d_floor = d_base;
-        if (opposite >= 0) {
-            have_ceiling = true;
+        if (have_opposite) {
+            frame.have_ceiling = true;
             // Ceiling oriented by -n_b: -up.x + d_opp = 0, i.e. at height d_opp + d_floor.
-            height = d_opp + d_floor;
+            frame.height = d_opp + d_floor;
         }
     } else {
         up = -n_b;
-        have_ceiling = true;
+        frame.have_ceiling = true;
         // Ceiling: n_b.x + d_base = 0 -> up.x = d_base.
-        if (opposite >= 0) {
+        if (have_opposite) {
             d_floor = d_opp;  // opposite oriented with -n_b = up: up.x + d_opp = 0
         } else {
             std::vector<double> heights;
@@ -774,40 +883,38 @@ Result<LayoutEstimate> estimateLayout(const std::vector<Fragment>& fragments,
             const size_t q = heights.size() / 100;
             std::nth_element(heights.begin(), heights.begin() + q, heights.end());
             d_floor = -heights[q];
-            diag.floor_inferred = true;
+            diag->floor_inferred = true;
         }
-        height = d_base + d_floor;
+        frame.height = d_base + d_floor;
     }
-    Eigen::Vector3d x_axis;
-    if (ref >= 0) {
-        x_axis = wall_n[ref];
-    } else {
-        x_axis = e1;
-    }
+    Eigen::Vector3d x_axis = x_hint;
     x_axis = (x_axis - x_axis.dot(up) * up).normalized();
     const Eigen::Vector3d y_axis = up.cross(x_axis);
-    Eigen::Isometry3d T_W_L = Eigen::Isometry3d::Identity();
-    T_W_L.linear().col(0) = x_axis;
-    T_W_L.linear().col(1) = y_axis;
-    T_W_L.linear().col(2) = up;
-    T_W_L.translation() = -d_floor * up;
-    const Eigen::Isometry3d T_L_W = T_W_L.inverse();
-    Layout& layout = est.layout;
-    layout.T_W_L = T_W_L;
-    layout.ceiling_height_m = have_ceiling ? height : 0.0;
+    frame.T_W_L.linear().col(0) = x_axis;
+    frame.T_W_L.linear().col(1) = y_axis;
+    frame.T_W_L.linear().col(2) = up;
+    frame.T_W_L.translation() = -d_floor * up;
+    return frame;
+}
 
-    // Walls as 2-D lines in L with the extent of their points.
-    struct Wall2 {
-        Line2 line;
-        double tmin = 0.0, tmax = 0.0;  // extent along the direction (-n.y, n.x)
-        int index = 0;                  // into wall_ids
-    };
+/// A wall as a 2-D line in L with the extent of its points.
+struct Wall2 {
+    Line2 line;
+    double tmin = 0.0, tmax = 0.0;  // extent along the direction (-n.y, n.x)
+    int index = 0;                  // into the wall list
+};
+
+/// The snapped walls as lines in L, each with the extent (0.5 % / 99.5 %) of its points.
+std::vector<Wall2> wallLines(const std::vector<SupportedPlane>& dominant,
+                             const std::vector<int>& wall_ids, const SnappedWalls& walls,
+                             const Eigen::Isometry3d& T_W_L) {
+    const Eigen::Isometry3d T_L_W = T_W_L.inverse();
     std::vector<Wall2> walls2(wall_ids.size());
     for (size_t w = 0; w < wall_ids.size(); ++w) {
-        const Eigen::Vector3d nL = T_L_W.linear() * wall_n[w];
+        const Eigen::Vector3d nL = T_L_W.linear() * walls.n[w];
         Wall2& w2 = walls2[w];
         w2.line.n = Eigen::Vector2d(nL.x(), nL.y()).normalized();
-        w2.line.d = wall_d[w] + wall_n[w].dot(T_W_L.translation());
+        w2.line.d = walls.d[w] + walls.n[w].dot(T_W_L.translation());
         w2.index = static_cast<int>(w);
         const Eigen::Vector2d dir(-w2.line.n.y(), w2.line.n.x());
         std::vector<double> ts;
@@ -819,92 +926,123 @@ Result<LayoutEstimate> estimateLayout(const std::vector<Fragment>& fragments,
         w2.tmin = ts[ts.size() / 200];
         w2.tmax = ts[ts.size() - 1 - ts.size() / 200];
     }
-    // Contour cells in L (2-D).
-    auto cellToL = [&](const cv::Point& c) {
-        const Eigen::Vector3d x =
-            (umin + (c.x + 0.5) * cell) * e1 + (vmin + (c.y + 0.5) * cell) * e2 - bp.d * n_b;
+    return walls2;
+}
+
+/// The base grid seen from the layout frame.
+struct GridInLayout {
+    const BaseGrid& grid;
+    const SupportedPlane& base;
+    Eigen::Isometry3d T_W_L;
+    Eigen::Isometry3d T_L_W;
+
+    /// The centre of cell c on the base plane, in L (2-D).
+    Eigen::Vector2d cellCentre(const cv::Point& c) const {
+        const Eigen::Vector3d x = (grid.umin + (c.x + 0.5) * grid.cell) * grid.e1 +
+                                  (grid.vmin + (c.y + 0.5) * grid.cell) * grid.e2 - base.d * base.n;
         return Eigen::Vector2d((T_L_W * x).head<2>());
-    };
-    auto insideRoom = [&](const Eigen::Vector2d& q) {
-        const Eigen::Vector3d x = T_W_L * Eigen::Vector3d(q.x(), q.y(), 0.0);
-        const double u = (e1.dot(x) - umin) / cell, v = (e2.dot(x) - vmin) / cell;
-        if (u < 0 || v < 0 || u >= gw || v >= gh) return false;
-        return room.at<uint8_t>(static_cast<int>(v), static_cast<int>(u)) != 0;
-    };
-    // Label each contour cell with the nearest wall line it lies on (within tau2 and the wall's
-    // extent), compress runs, and intersect consecutive walls.
-    std::vector<int> seq;
-    {
-        std::vector<int> lab(contour.size(), -1);
-        for (size_t c = 0; c < contour.size(); ++c) {
-            const Eigen::Vector2d q = cellToL(contour[c]);
-            double best = config.tau2_m;
-            for (const Wall2& w2 : walls2) {
-                const double dd = std::abs(w2.line.n.dot(q) + w2.line.d);
-                const double t = Eigen::Vector2d(-w2.line.n.y(), w2.line.n.x()).dot(q);
-                if (dd < best && t >= w2.tmin - 0.3 && t <= w2.tmax + 0.3) {
-                    best = dd;
-                    lab[c] = w2.index;
-                }
-            }
-        }
-        std::vector<std::pair<int, int>> runs;  // (label, length)
-        for (int l : lab) {
-            if (!runs.empty() && runs.back().first == l) {
-                ++runs.back().second;
-            } else {
-                runs.emplace_back(l, 1);
-            }
-        }
-        if (runs.size() > 1 && runs.front().first == runs.back().first) {
-            runs.front().second += runs.back().second;
-            runs.pop_back();
-        }
-        std::vector<std::pair<int, int>> kept;  // labelled runs long enough, neighbours merged
-        for (const auto& [l, len] : runs) {
-            if (l < 0 || len < config.min_contour_run_cells) continue;
-            if (!kept.empty() && kept.back().first == l) {
-                kept.back().second += len;
-            } else {
-                kept.emplace_back(l, len);
-            }
-        }
-        // Where the contour rounds a corner its cells can alternate between the two walls
-        // (A B A B): of a run B between two runs of the same wall A, the shortest of the three
-        // is dropped (B: the two A runs merge; one A: a stray stretch of A's line, e.g. where a
-        // partial scan's contour passes near it again), until no such triple is left.
-        auto mergeEqualNeighbours = [&](size_t at) {  // kept[at] and kept[at + 1] (wrapping)
-            const size_t m = kept.size();
-            const size_t nx = (at + 1) % m;
-            if (m < 2 || kept[at].first != kept[nx].first) return;
-            kept[at].second += kept[nx].second;
-            kept.erase(kept.begin() + static_cast<std::ptrdiff_t>(nx));
-        };
-        for (bool changed = true; changed && kept.size() > 3;) {
-            changed = false;
-            const size_t m = kept.size();
-            size_t drop = m;
-            for (size_t k = 0; k < m; ++k) {
-                const size_t prev = (k + m - 1) % m, next = (k + 1) % m;
-                if (kept[prev].first != kept[next].first) continue;
-                for (size_t c : {k, prev, next}) {
-                    if (drop == m || kept[c].second < kept[drop].second) drop = c;
-                }
-            }
-            if (drop == m) break;
-            kept.erase(kept.begin() + static_cast<std::ptrdiff_t>(drop));
-            mergeEqualNeighbours((drop + kept.size() - 1) % kept.size());
-            changed = true;
-        }
-        for (const auto& run : kept) {
-            if (!seq.empty() && seq.back() == run.first) continue;
-            seq.push_back(run.first);
-        }
-        while (seq.size() > 1 && seq.front() == seq.back()) seq.pop_back();
     }
-    std::vector<Eigen::Vector2d> polygon;
-    std::vector<int> edge_wall;  // wall index of polygon edge k (vertex k -> k + 1)
-    bool polygon_ok = false;
+    /// True when the point q of the floor (L, 2-D) falls in the room region.
+    bool inRoom(const Eigen::Vector2d& q) const {
+        return grid.inRoom(T_W_L * Eigen::Vector3d(q.x(), q.y(), 0.0));
+    }
+};
+
+/// Where the contour rounds a corner its cells can alternate between the two walls (A B A B):
+/// of a run B between two runs of the same wall A, the shortest of the three is dropped (B: the
+/// two A runs merge; one A: a stray stretch of A's line, e.g. where a partial scan's contour
+/// passes near it again), until no such triple is left. `runs` are (wall, length), cyclic.
+void dropAlternatingRuns(std::vector<std::pair<int, int>>* runs) {
+    std::vector<std::pair<int, int>>& kept = *runs;
+    auto mergeEqualNeighbours = [&](size_t at) {  // kept[at] and kept[at + 1] (wrapping)
+        const size_t m = kept.size();
+        const size_t nx = (at + 1) % m;
+        if (m < 2 || kept[at].first != kept[nx].first) return;
+        kept[at].second += kept[nx].second;
+        kept.erase(kept.begin() + static_cast<std::ptrdiff_t>(nx));
+    };
+    for (bool changed = true; changed && kept.size() > 3;) {
+        changed = false;
+        const size_t m = kept.size();
+        size_t drop = m;
+        for (size_t k = 0; k < m; ++k) {
+            const size_t prev = (k + m - 1) % m, next = (k + 1) % m;
+            if (kept[prev].first != kept[next].first) continue;
+            for (size_t c : {k, prev, next}) {
+                if (drop == m || kept[c].second < kept[drop].second) drop = c;
+            }
+        }
+        if (drop == m) break;
+        kept.erase(kept.begin() + static_cast<std::ptrdiff_t>(drop));
+        mergeEqualNeighbours((drop + kept.size() - 1) % kept.size());
+        changed = true;
+    }
+}
+
+/// Step 7, the walls in the order the boundary contour meets them: each contour cell is
+/// labelled with the nearest wall line it lies on (within tau2 and 0.3 m of the wall's extent),
+/// runs shorter than min_contour_run_cells are ignored, alternating runs at corners resolved.
+std::vector<int> contourWallSequence(const GridInLayout& view, const std::vector<Wall2>& walls2,
+                                     const LayoutConfig& config) {
+    const std::vector<cv::Point>& contour = view.grid.contour;
+    std::vector<int> lab(contour.size(), -1);
+    for (size_t c = 0; c < contour.size(); ++c) {
+        const Eigen::Vector2d q = view.cellCentre(contour[c]);
+        double best = config.tau2_m;
+        for (const Wall2& w2 : walls2) {
+            const double dd = std::abs(w2.line.n.dot(q) + w2.line.d);
+            const double t = Eigen::Vector2d(-w2.line.n.y(), w2.line.n.x()).dot(q);
+            if (dd < best && t >= w2.tmin - 0.3 && t <= w2.tmax + 0.3) {
+                best = dd;
+                lab[c] = w2.index;
+            }
+        }
+    }
+    std::vector<std::pair<int, int>> runs;  // (label, length)
+    for (int l : lab) {
+        if (!runs.empty() && runs.back().first == l) {
+            ++runs.back().second;
+        } else {
+            runs.emplace_back(l, 1);
+        }
+    }
+    if (runs.size() > 1 && runs.front().first == runs.back().first) {
+        runs.front().second += runs.back().second;
+        runs.pop_back();
+    }
+    std::vector<std::pair<int, int>> kept;  // labelled runs long enough, neighbours merged
+    for (const auto& [l, len] : runs) {
+        if (l < 0 || len < config.min_contour_run_cells) continue;
+        if (!kept.empty() && kept.back().first == l) {
+            kept.back().second += len;
+        } else {
+            kept.emplace_back(l, len);
+        }
+    }
+    dropAlternatingRuns(&kept);
+    std::vector<int> seq;
+    for (const auto& run : kept) {
+        if (!seq.empty() && seq.back() == run.first) continue;
+        seq.push_back(run.first);
+    }
+    while (seq.size() > 1 && seq.front() == seq.back()) seq.pop_back();
+    return seq;
+}
+
+/// The room polygon in L, counter-clockwise, and the wall of each edge.
+struct RoomPolygon {
+    std::vector<Eigen::Vector2d> vertices;
+    std::vector<int> edge_wall;  ///< wall index of edge k (vertex k -> k + 1), -1 for none
+    bool from_walls = false;     ///< false: the fallback from the contour
+};
+
+/// Step 7, the room polygon: consecutive walls of the contour sequence intersected (parallel
+/// neighbours joined by a step); when that gives no valid room, the contour simplified.
+RoomPolygon roomPolygon(const std::vector<int>& seq, const std::vector<Wall2>& walls2,
+                        const GridInLayout& view) {
+    RoomPolygon room;
+    std::vector<Eigen::Vector2d>& polygon = room.vertices;
+    std::vector<int>& edge_wall = room.edge_wall;
     if (seq.size() >= 3) {
         const size_t m = seq.size();
         for (size_t k = 0; k < m; ++k) {
@@ -942,49 +1080,85 @@ Result<LayoutEstimate> estimateLayout(const std::vector<Fragment>& fragments,
             }
             edge_wall.swap(fixed);
         }
-        polygon_ok = makeRoomLayout(polygon, 1.0).isOk();
+        room.from_walls = makeRoomLayout(polygon, 1.0).isOk();
     }
-    if (!polygon_ok) {
+    if (!room.from_walls) {
         std::vector<cv::Point> approx;
-        cv::approxPolyDP(contour, approx, 2.0, true);
+        cv::approxPolyDP(view.grid.contour, approx, 2.0, true);
         polygon.clear();
         edge_wall.clear();
-        for (const cv::Point& c : approx) polygon.push_back(cellToL(c));
+        for (const cv::Point& c : approx) polygon.push_back(view.cellCentre(c));
         if (signedArea(polygon) < 0) std::reverse(polygon.begin(), polygon.end());
         edge_wall.assign(polygon.size(), -1);
-        diag.polygon_method = "contour";
-    } else {
-        diag.polygon_method = "walls";
     }
-    layout.room_polygon_L = polygon;
-    if (!cameras_W.empty() && polygon.size() >= 3) {
-        size_t inside = 0;
-        for (const Eigen::Vector3d& c : cameras_W) {
-            if (insidePolygon(polygon, (T_L_W * c).head<2>())) ++inside;
-        }
-        diag.path_inside_fraction = static_cast<double>(inside) / cameras_W.size();
-    } else if (!cameras_W.empty()) {
-        diag.path_inside_fraction = 0.0;
-    }
+    return room;
+}
 
-    // Planes in L.
+/// Step 7, wall w2 as a layout plane: its segment is the longest polygon edge on it, else the
+/// extent of its points; its normal points into the room (the left of a counter-clockwise
+/// polygon edge, else the side of the segment's midpoint where the room region lies).
+LayoutPlane wallPlane(const Wall2& w2, int w, const RoomPolygon& room, const GridInLayout& view) {
+    const std::vector<Eigen::Vector2d>& polygon = room.vertices;
+    LayoutPlane lp;
+    lp.kind = LayoutPlaneKind::kWall;
+    double best_len = -1.0;
+    for (size_t k = 0; k < room.edge_wall.size(); ++k) {
+        if (room.edge_wall[k] != w) continue;
+        const Eigen::Vector2d& a = polygon[k];
+        const Eigen::Vector2d& b = polygon[(k + 1) % polygon.size()];
+        if ((b - a).norm() > best_len) {
+            best_len = (b - a).norm();
+            lp.start_L = a;
+            lp.end_L = b;
+        }
+    }
+    Eigen::Vector2d n2 = w2.line.n;
+    double d2 = w2.line.d;
+    const Eigen::Vector2d dir(-n2.y(), n2.x());
+    if (best_len < 0) {
+        const Eigen::Vector2d p0 = -d2 * n2;
+        lp.start_L = p0 + w2.tmin * dir;
+        lp.end_L = p0 + w2.tmax * dir;
+    }
+    bool flip = false;
+    if (best_len >= 0) {
+        const Eigen::Vector2d e = lp.end_L - lp.start_L;
+        flip = n2.dot(Eigen::Vector2d(-e.y(), e.x())) < 0;
+    } else {
+        const Eigen::Vector2d mid = 0.5 * (lp.start_L + lp.end_L);
+        flip = !view.inRoom(mid + 0.2 * n2) && view.inRoom(mid - 0.2 * n2);
+    }
+    if (flip) {
+        n2 = -n2;
+        d2 = -d2;
+    }
+    lp.normal_L = Eigen::Vector3d(n2.x(), n2.y(), 0.0);
+    lp.d_L = d2;
+    return lp;
+}
+
+/// Step 7, the planes of the layout in L: the floor (id 0), the ceiling (id 1) when there is
+/// one, then the walls from id 2, those on the polygon first in polygon order.
+std::vector<LayoutPlane> layoutPlanes(const LayoutFrame& frame, const std::vector<Wall2>& walls2,
+                                      const SnappedWalls& walls, const RoomPolygon& room,
+                                      const GridInLayout& view) {
+    std::vector<LayoutPlane> planes;
     LayoutPlane floor;
     floor.id = 0;
     floor.kind = LayoutPlaneKind::kFloor;
     floor.normal_L = Eigen::Vector3d::UnitZ();
     floor.d_L = 0.0;
-    layout.planes.push_back(floor);
-    if (have_ceiling) {
+    planes.push_back(floor);
+    if (frame.have_ceiling) {
         LayoutPlane ceiling;
         ceiling.id = 1;
         ceiling.kind = LayoutPlaneKind::kCeiling;
         ceiling.normal_L = -Eigen::Vector3d::UnitZ();
-        ceiling.d_L = height;
-        layout.planes.push_back(ceiling);
+        ceiling.d_L = frame.height;
+        planes.push_back(ceiling);
     }
-    // Walls: polygon order first, then the others.
     std::vector<int> order;
-    for (int w : edge_wall) {
+    for (int w : room.edge_wall) {
         if (w >= 0 && std::find(order.begin(), order.end(), w) == order.end()) order.push_back(w);
     }
     for (size_t w = 0; w < walls2.size(); ++w) {
@@ -994,49 +1168,115 @@ Result<LayoutEstimate> estimateLayout(const std::vector<Fragment>& fragments,
     }
     int next_id = 2;
     for (int w : order) {
-        const Wall2& w2 = walls2[w];
-        LayoutPlane lp;
+        LayoutPlane lp = wallPlane(walls2[w], w, room, view);
         lp.id = next_id++;
-        lp.kind = LayoutPlaneKind::kWall;
-        lp.manhattan_snapped = snapped[w];
-        // Segment: the longest polygon edge on this wall, else the points' extent.
-        double best_len = -1.0;
-        for (size_t k = 0; k < edge_wall.size(); ++k) {
-            if (edge_wall[k] != w) continue;
-            const Eigen::Vector2d& a = polygon[k];
-            const Eigen::Vector2d& b = polygon[(k + 1) % polygon.size()];
-            if ((b - a).norm() > best_len) {
-                best_len = (b - a).norm();
-                lp.start_L = a;
-                lp.end_L = b;
-            }
-        }
-        Eigen::Vector2d n2 = w2.line.n;
-        double d2 = w2.line.d;
-        const Eigen::Vector2d dir(-n2.y(), n2.x());
-        if (best_len < 0) {
-            const Eigen::Vector2d p0 = -d2 * n2;
-            lp.start_L = p0 + w2.tmin * dir;
-            lp.end_L = p0 + w2.tmax * dir;
-        }
-        // Normal into the room: the left of a counter-clockwise polygon edge, else the side of
-        // the segment's midpoint where the occupancy region lies.
-        bool flip = false;
-        if (best_len >= 0) {
-            const Eigen::Vector2d e = lp.end_L - lp.start_L;
-            flip = n2.dot(Eigen::Vector2d(-e.y(), e.x())) < 0;
-        } else {
-            const Eigen::Vector2d mid = 0.5 * (lp.start_L + lp.end_L);
-            flip = !insideRoom(mid + 0.2 * n2) && insideRoom(mid - 0.2 * n2);
-        }
-        if (flip) {
-            n2 = -n2;
-            d2 = -d2;
-        }
-        lp.normal_L = Eigen::Vector3d(n2.x(), n2.y(), 0.0);
-        lp.d_L = d2;
-        layout.planes.push_back(lp);
+        lp.manhattan_snapped = walls.snapped[w];
+        planes.push_back(lp);
     }
+    return planes;
+}
+
+/// The fraction of the camera positions inside the room polygon (1 without camera positions, 0
+/// without a polygon).
+double pathInsideFraction(const std::vector<Eigen::Vector3d>& cameras_W,
+                          const std::vector<Eigen::Vector2d>& polygon,
+                          const Eigen::Isometry3d& T_L_W) {
+    if (cameras_W.empty()) return 1.0;
+    if (polygon.size() < 3) return 0.0;
+    size_t inside = 0;
+    for (const Eigen::Vector3d& c : cameras_W) {
+        if (insidePolygon(polygon, (T_L_W * c).head<2>())) ++inside;
+    }
+    return static_cast<double>(inside) / cameras_W.size();
+}
+
+/// Checks the inputs of estimateLayout.
+Status checkInputs(const std::vector<Fragment>& fragments,
+                   const std::vector<FragmentPlanes>& planes,
+                   const std::vector<Eigen::Isometry3d>& T_W_F, const LayoutConfig& config) {
+    PLUMB_RETURN_IF_ERROR(config::validate(config));
+    if (fragments.size() != planes.size() || fragments.size() != T_W_F.size()) {
+        return invalidArgument(
+            fmt::format("estimateLayout: {} fragments, {} plane sets and {} poses (must be equal)",
+                        fragments.size(), planes.size(), T_W_F.size()));
+    }
+    if (fragments.empty()) return invalidArgument("estimateLayout: no fragments");
+    for (size_t i = 0; i < T_W_F.size(); ++i) {
+        if (!isRigid(T_W_F[i])) {
+            return invalidArgument(
+                fmt::format("estimateLayout: pose of fragment {} is not a finite rigid transform",
+                            fragments[i].id));
+        }
+        if (planes[i].labels.size() != planes[i].sample_F.size()) {
+            return invalidArgument(
+                fmt::format("estimateLayout: plane set {} has {} labels for {} sample points", i,
+                            planes[i].labels.size(), planes[i].sample_F.size()));
+        }
+    }
+    return Status::ok();
+}
+
+}  // namespace
+
+Result<LayoutEstimate> estimateLayout(const std::vector<Fragment>& fragments,
+                                      const std::vector<FragmentPlanes>& planes,
+                                      const std::vector<Eigen::Isometry3d>& T_W_F,
+                                      const LayoutConfig& config) {
+    const auto t_start = SteadyClock::now();
+    PLUMB_RETURN_IF_ERROR(checkInputs(fragments, planes, T_W_F, config));
+    LayoutEstimate est;
+    LayoutDiagnostics& diag = est.diagnostics;
+    diag.num_fragments = static_cast<int>(fragments.size());
+
+    auto t0 = SteadyClock::now();
+    const WorldPoints points = groupsInWorld(planes, T_W_F, config);  // 1
+    diag.num_groups = static_cast<int>(points.groups.size());
+    diag.num_hypotheses = diag.num_groups;
+    if (points.groups.empty()) {
+        return failedPrecondition("estimateLayout: no plane in any fragment");
+    }
+    std::vector<SupportedPlane> dominant =
+        dominantPlanes(points.groups, fragments, config, &diag);  // 2
+    diag.ms_clustering = msSince(t0);
+    if (dominant.empty()) {
+        return failedPrecondition("estimateLayout: no dominant plane with enough area");
+    }
+    const BaseChoice base = chooseBasePlane(dominant, points.all, T_W_F, config, &diag);  // 3
+    const SupportedPlane& bp = dominant[base.index];
+    const Eigen::Vector3d n_b = bp.n;
+
+    t0 = SteadyClock::now();  // 4
+    const std::vector<Eigen::Vector3d> cameras_W = cameraPositions(fragments, T_W_F);
+    diag.num_camera_positions = static_cast<int>(cameras_W.size());
+    Result<BaseGrid> grid_or =
+        occupancyGrid(n_b, points, cameras_W, fragments, T_W_F, config, &diag);
+    if (!grid_or.isOk()) return grid_or.status();
+    const BaseGrid& grid = *grid_or;
+    diag.ms_grid = msSince(t0);
+
+    WallSelection sel = selectWalls(dominant, base, grid, config, &diag);  // 5
+    const std::vector<int> wall_ids =
+        boundingWalls(dominant, sel.wall_ids, n_b, grid, cameras_W, config, &diag);
+
+    const SnappedWalls walls =
+        snapWeakManhattan(dominant, wall_ids, n_b, grid, config, &diag);  // 6
+    const double d_base = refitOffset(bp, n_b, config.refit_band_m);
+    double d_opp = 0.0;
+    if (sel.opposite >= 0) d_opp = refitOffset(dominant[sel.opposite], -n_b, config.refit_band_m);
+
+    const LayoutFrame frame =  // 7
+        layoutFrame(n_b, base.is_floor, d_base, sel.opposite >= 0, d_opp, points.all,
+                    walls.ref >= 0 ? walls.n[walls.ref] : grid.e1, &diag);
+    Layout& layout = est.layout;
+    layout.T_W_L = frame.T_W_L;
+    layout.ceiling_height_m = frame.have_ceiling ? frame.height : 0.0;
+    const GridInLayout view{grid, bp, frame.T_W_L, frame.T_W_L.inverse()};
+    const std::vector<Wall2> walls2 = wallLines(dominant, wall_ids, walls, frame.T_W_L);
+    const RoomPolygon room = roomPolygon(contourWallSequence(view, walls2, config), walls2, view);
+    diag.polygon_method = room.from_walls ? "walls" : "contour";
+    layout.room_polygon_L = room.vertices;
+    diag.path_inside_fraction = pathInsideFraction(cameras_W, room.vertices, view.T_L_W);
+    layout.planes = layoutPlanes(frame, walls2, walls, room, view);
     diag.ms_total = msSince(t_start);
     return est;
 }

@@ -176,17 +176,38 @@ FloorplanFigures floorplanFigures(const Layout& layout, const SeenFloor& seen) {
     return f;
 }
 
-std::string floorplanSvg(const Layout& layout, const FloorplanOverlays& overlays) {
-    const std::vector<Eigen::Vector2d>& poly = layout.room_polygon_L;
-    const FloorplanFigures fig = floorplanFigures(layout, overlays.seen);
-    // Bounds over the room, the walls, the fragments and the path (the seen floor is clipped to
-    // the room).
+namespace {
+
+constexpr const char* kSvgText = "font-family=\"sans-serif\" font-size=\"14\"";
+
+/// The drawing area in L (metres) and its mapping to SVG pixels (L's y points up, SVG's down).
+struct SvgCanvas {
+    Eigen::Vector2d lo, hi;
+    double scale = 100.0;  // px per metre
+
+    double X(const Eigen::Vector2d& p) const { return (p.x() - lo.x()) * scale; }
+    double Y(const Eigen::Vector2d& p) const { return (hi.y() - p.y()) * scale; }
+    double width() const { return (hi.x() - lo.x()) * scale; }
+    double height() const { return (hi.y() - lo.y()) * scale; }
+    /// "x,y x,y ..." of an SVG polygon or polyline.
+    std::string points(const std::vector<Eigen::Vector2d>& pts) const {
+        std::string s;
+        for (const auto& p : pts) s += fmt::format("{:.1f},{:.1f} ", X(p), Y(p));
+        return s;
+    }
+};
+
+/// Bounds over the room, the walls, the fragments and the path (the seen floor is clipped to the
+/// room), 1 m of margin for lengths, dimensions and the scale bar, at least 8 m wide (the
+/// header's width) with the drawing centred, 0.8 m more on top for the header (room size,
+/// warning) and 0.3 m below for the legend.
+SvgCanvas floorplanCanvas(const Layout& layout, const FloorplanOverlays& overlays) {
     Eigen::Vector2d lo(1e300, 1e300), hi(-1e300, -1e300);
     auto grow = [&](const Eigen::Vector2d& p) {
         lo = lo.cwiseMin(p);
         hi = hi.cwiseMax(p);
     };
-    for (const auto& p : poly) grow(p);
+    for (const auto& p : layout.room_polygon_L) grow(p);
     for (const LayoutPlane* w : layout.walls()) {
         grow(w->start_L);
         grow(w->end_L);
@@ -199,12 +220,9 @@ std::string floorplanSvg(const Layout& layout, const FloorplanOverlays& overlays
         lo = Eigen::Vector2d(0, 0);
         hi = Eigen::Vector2d(1, 1);
     }
-    const double margin = 1.0;  // metres around the drawing: lengths, dimensions, scale bar
+    const double margin = 1.0;
     lo -= Eigen::Vector2d(margin, margin);
     hi += Eigen::Vector2d(margin, margin);
-    const double scale = 100.0;  // px per metre
-    // At least 8 m wide (the header's width), the drawing centred; 0.8 m more on top for the
-    // header (room size, warning) and 0.3 m below for the legend.
     const double min_width_m = 8.0;
     if (hi.x() - lo.x() < min_width_m) {
         const double grow_x = 0.5 * (min_width_m - (hi.x() - lo.x()));
@@ -213,58 +231,47 @@ std::string floorplanSvg(const Layout& layout, const FloorplanOverlays& overlays
     }
     hi.y() += 0.8;
     lo.y() -= 0.3;
-    const double width = (hi.x() - lo.x()) * scale, height = (hi.y() - lo.y()) * scale;
-    // L's y points up; SVG's y points down.
-    auto X = [&](const Eigen::Vector2d& p) { return (p.x() - lo.x()) * scale; };
-    auto Y = [&](const Eigen::Vector2d& p) { return (hi.y() - p.y()) * scale; };
-    auto points = [&](const std::vector<Eigen::Vector2d>& pts) {
-        std::string s;
-        for (const auto& p : pts) s += fmt::format("{:.1f},{:.1f} ", X(p), Y(p));
-        return s;
-    };
-    const char* text = "font-family=\"sans-serif\" font-size=\"14\"";
+    return SvgCanvas{lo, hi};
+}
 
+/// The room's area with its clip path and the seen area shaded inside it.
+std::string roomSvg(const SvgCanvas& c, const std::vector<Eigen::Vector2d>& poly,
+                    const FloorplanOverlays& overlays, const FloorplanFigures& fig) {
     std::string svg = fmt::format(
-        "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
-        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{:.0f}\" height=\"{:.0f}\" "
-        "viewBox=\"0 0 {:.1f} {:.1f}\">\n"
-        "<title>plumb floor plan (layout frame L, metres)</title>\n"
-        "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n",
-        width, height, width, height);
-    if (poly.size() >= 3) {
-        svg += fmt::format(
-            "<defs><clipPath id=\"floorplan-room-clip\"><polygon points=\"{}\"/></clipPath>"
-            "</defs>\n<polygon id=\"room\" points=\"{}\" fill=\"#f6f3ec\" stroke=\"none\"/>\n",
-            points(poly), points(poly));
-        // The seen area, shaded inside the room.
-        if (!overlays.seen.outlines.empty()) {
-            std::string d;
-            for (const Outline2& o : overlays.seen.outlines) {
-                for (size_t k = 0; k < o.size(); ++k) {
-                    d += fmt::format("{}{:.1f},{:.1f} ", k == 0 ? "M" : "L", X(o[k]), Y(o[k]));
-                }
-                d += "Z ";
-            }
-            svg += fmt::format(
-                "<path id=\"seen\" d=\"{}\" fill=\"#e2d6b8\" fill-rule=\"evenodd\" "
-                "stroke=\"none\" clip-path=\"url(#floorplan-room-clip)\">"
-                "<title>seen: {:.1f} m2 of the room ({:.0f} %)</title></path>\n",
-                d, overlays.seen.area_in_room_m2, 100.0 * std::max(0.0, fig.seen_fraction));
+        "<defs><clipPath id=\"floorplan-room-clip\"><polygon points=\"{}\"/></clipPath>"
+        "</defs>\n<polygon id=\"room\" points=\"{}\" fill=\"#f6f3ec\" stroke=\"none\"/>\n",
+        c.points(poly), c.points(poly));
+    if (overlays.seen.outlines.empty()) return svg;
+    std::string d;
+    for (const Outline2& o : overlays.seen.outlines) {
+        for (size_t k = 0; k < o.size(); ++k) {
+            d += fmt::format("{}{:.1f},{:.1f} ", k == 0 ? "M" : "L", c.X(o[k]), c.Y(o[k]));
         }
+        d += "Z ";
     }
-    svg +=
+    svg += fmt::format(
+        "<path id=\"seen\" d=\"{}\" fill=\"#e2d6b8\" fill-rule=\"evenodd\" "
+        "stroke=\"none\" clip-path=\"url(#floorplan-room-clip)\">"
+        "<title>seen: {:.1f} m2 of the room ({:.0f} %)</title></path>\n",
+        d, overlays.seen.area_in_room_m2, 100.0 * std::max(0.0, fig.seen_fraction));
+    return svg;
+}
+
+/// The fragments' outlines (dotted) and the camera path (at most 600 points whatever the frame
+/// count).
+std::string fragmentsAndPathSvg(const SvgCanvas& c, const FloorplanOverlays& overlays) {
+    std::string svg =
         "<g id=\"fragments\" fill=\"none\" stroke=\"#9ab\" stroke-width=\"1\" "
         "stroke-dasharray=\"4 3\">\n";
     for (size_t i = 0; i < overlays.fragment_outlines.size(); ++i) {
         const Outline2& o = overlays.fragment_outlines[i];
         if (o.size() >= 3) {
             svg += fmt::format("<polygon points=\"{}\"><title>fragment {}</title></polygon>\n",
-                               points(o), i);
+                               c.points(o), i);
         }
     }
     svg += "</g>\n";
     if (overlays.camera_path_L.size() >= 2) {
-        // At most 600 points whatever the frame count.
         const size_t stride = (overlays.camera_path_L.size() + 599) / 600;
         std::vector<Eigen::Vector2d> path;
         for (size_t k = 0; k < overlays.camera_path_L.size(); k += stride) {
@@ -274,75 +281,90 @@ std::string floorplanSvg(const Layout& layout, const FloorplanOverlays& overlays
         svg += fmt::format(
             "<polyline id=\"path\" points=\"{}\" fill=\"none\" stroke=\"#2a9d8f\" "
             "stroke-width=\"2\"><title>camera path</title></polyline>\n",
-            points(path));
+            c.points(path));
     }
-    if (poly.size() >= 3) {
-        // The outline edge by edge: solid where a wall bounds it, dashed where it was inferred
-        // (the edge of the seen floor, a step joining two walls); each edge's length outside it.
-        svg += "<g id=\"outline\" stroke=\"#555\" stroke-width=\"1.5\">\n";
-        std::string lengths = fmt::format("<g id=\"lengths\" {} fill=\"#333\">\n", text);
-        for (size_t k = 0; k < poly.size(); ++k) {
-            const Eigen::Vector2d& a = poly[k];
-            const Eigen::Vector2d& b = poly[(k + 1) % poly.size()];
-            const bool seen = fig.edge_walls[k] >= 0;
-            svg += fmt::format(
-                "<line class=\"{}\" x1=\"{:.1f}\" y1=\"{:.1f}\" x2=\"{:.1f}\" y2=\"{:.1f}\"{}>"
-                "<title>{}, {:.2f} m</title></line>\n",
-                seen ? "seen" : "inferred", X(a), Y(a), X(b), Y(b),
-                seen ? "" : " stroke-dasharray=\"6 4\"",
-                seen ? fmt::format("on wall {}", fig.edge_walls[k]) : std::string("inferred"),
-                fig.edge_lengths_m[k]);
-            if (fig.edge_lengths_m[k] < 0.5) continue;  // no room for the label
-            const Eigen::Vector2d dir = (b - a) / fig.edge_lengths_m[k];
-            const Eigen::Vector2d out(dir.y(), -dir.x());  // right of a counter-clockwise edge
-            const Eigen::Vector2d at = 0.5 * (a + b) + 0.3 * out;
-            lengths += fmt::format(
-                "<text class=\"{}\" x=\"{:.1f}\" y=\"{:.1f}\" text-anchor=\"middle\" "
-                "dominant-baseline=\"middle\">{:.2f} m</text>\n",
-                seen ? "seen" : "inferred", X(at), Y(at), fig.edge_lengths_m[k]);
-        }
-        svg += "</g>\n" + lengths + "</g>\n";
-        svg += "<g id=\"corners\" fill=\"#555\">\n";
-        for (size_t k = 0; k < poly.size(); ++k) {
-            svg += fmt::format(
-                "<circle cx=\"{:.1f}\" cy=\"{:.1f}\" r=\"4\"><title>corner {}: {:.1f} deg"
-                "</title></circle>\n",
-                X(poly[k]), Y(poly[k]), k, fig.corner_angles_deg[k]);
-        }
-        svg += "</g>\n";
-        // Dimension lines: the width below the room, the depth left of it.
-        Eigen::Vector2d plo = poly.front(), phi = poly.front();
-        for (const Eigen::Vector2d& p : poly) {
-            plo = plo.cwiseMin(p);
-            phi = phi.cwiseMax(p);
-        }
-        const Eigen::Vector2d w0(plo.x(), plo.y() - 0.65), w1(phi.x(), plo.y() - 0.65);
-        const Eigen::Vector2d d0(plo.x() - 0.65, plo.y()), d1(plo.x() - 0.65, phi.y());
+    return svg;
+}
+
+/// The outline edge by edge: solid where a wall bounds it, dashed where it was inferred (the
+/// edge of the seen floor, a step joining two walls); each edge's length outside it; the
+/// corners with their angles.
+std::string outlineSvg(const SvgCanvas& c, const std::vector<Eigen::Vector2d>& poly,
+                       const FloorplanFigures& fig) {
+    std::string svg = "<g id=\"outline\" stroke=\"#555\" stroke-width=\"1.5\">\n";
+    std::string lengths = fmt::format("<g id=\"lengths\" {} fill=\"#333\">\n", kSvgText);
+    for (size_t k = 0; k < poly.size(); ++k) {
+        const Eigen::Vector2d& a = poly[k];
+        const Eigen::Vector2d& b = poly[(k + 1) % poly.size()];
+        const bool seen = fig.edge_walls[k] >= 0;
         svg += fmt::format(
-            "<g id=\"dimensions\" stroke=\"#777\" stroke-width=\"1\" {} fill=\"#333\">\n"
-            "<line x1=\"{:.1f}\" y1=\"{:.1f}\" x2=\"{:.1f}\" y2=\"{:.1f}\"/>"
-            "<line x1=\"{:.1f}\" y1=\"{:.1f}\" x2=\"{:.1f}\" y2=\"{:.1f}\"/>"
-            "<line x1=\"{:.1f}\" y1=\"{:.1f}\" x2=\"{:.1f}\" y2=\"{:.1f}\"/>\n"
-            "<text class=\"width\" x=\"{:.1f}\" y=\"{:.1f}\" text-anchor=\"middle\" "
-            "stroke=\"none\">{:.2f} m</text>\n",
-            text, X(w0), Y(w0), X(w1), Y(w1), X(w0), Y(w0) - 6, X(w0), Y(w0) + 6, X(w1), Y(w1) - 6,
-            X(w1), Y(w1) + 6, 0.5 * (X(w0) + X(w1)), Y(w0) + 20, fig.width_m);
-        svg += fmt::format(
-            "<line x1=\"{:.1f}\" y1=\"{:.1f}\" x2=\"{:.1f}\" y2=\"{:.1f}\"/>"
-            "<line x1=\"{:.1f}\" y1=\"{:.1f}\" x2=\"{:.1f}\" y2=\"{:.1f}\"/>"
-            "<line x1=\"{:.1f}\" y1=\"{:.1f}\" x2=\"{:.1f}\" y2=\"{:.1f}\"/>\n"
-            "<text class=\"depth\" x=\"{:.1f}\" y=\"{:.1f}\" text-anchor=\"middle\" "
-            "stroke=\"none\" transform=\"rotate(-90 {:.1f} {:.1f})\">{:.2f} m</text>\n</g>\n",
-            X(d0), Y(d0), X(d1), Y(d1), X(d0) - 6, Y(d0), X(d0) + 6, Y(d0), X(d1) - 6, Y(d1),
-            X(d1) + 6, Y(d1), X(d0) - 10, 0.5 * (Y(d0) + Y(d1)), X(d0) - 10, 0.5 * (Y(d0) + Y(d1)),
-            fig.depth_m);
+            "<line class=\"{}\" x1=\"{:.1f}\" y1=\"{:.1f}\" x2=\"{:.1f}\" y2=\"{:.1f}\"{}>"
+            "<title>{}, {:.2f} m</title></line>\n",
+            seen ? "seen" : "inferred", c.X(a), c.Y(a), c.X(b), c.Y(b),
+            seen ? "" : " stroke-dasharray=\"6 4\"",
+            seen ? fmt::format("on wall {}", fig.edge_walls[k]) : std::string("inferred"),
+            fig.edge_lengths_m[k]);
+        if (fig.edge_lengths_m[k] < 0.5) continue;  // no room for the label
+        const Eigen::Vector2d dir = (b - a) / fig.edge_lengths_m[k];
+        const Eigen::Vector2d out(dir.y(), -dir.x());  // right of a counter-clockwise edge
+        const Eigen::Vector2d at = 0.5 * (a + b) + 0.3 * out;
+        lengths += fmt::format(
+            "<text class=\"{}\" x=\"{:.1f}\" y=\"{:.1f}\" text-anchor=\"middle\" "
+            "dominant-baseline=\"middle\">{:.2f} m</text>\n",
+            seen ? "seen" : "inferred", c.X(at), c.Y(at), fig.edge_lengths_m[k]);
     }
-    svg += "<g id=\"walls\" stroke-width=\"6\" stroke-linecap=\"round\">\n";
+    svg += "</g>\n" + lengths + "</g>\n";
+    svg += "<g id=\"corners\" fill=\"#555\">\n";
+    for (size_t k = 0; k < poly.size(); ++k) {
+        svg += fmt::format(
+            "<circle cx=\"{:.1f}\" cy=\"{:.1f}\" r=\"4\"><title>corner {}: {:.1f} deg"
+            "</title></circle>\n",
+            c.X(poly[k]), c.Y(poly[k]), k, fig.corner_angles_deg[k]);
+    }
+    svg += "</g>\n";
+    return svg;
+}
+
+/// Dimension lines: the width below the room, the depth left of it.
+std::string dimensionsSvg(const SvgCanvas& c, const std::vector<Eigen::Vector2d>& poly,
+                          const FloorplanFigures& fig) {
+    Eigen::Vector2d plo = poly.front(), phi = poly.front();
+    for (const Eigen::Vector2d& p : poly) {
+        plo = plo.cwiseMin(p);
+        phi = phi.cwiseMax(p);
+    }
+    const Eigen::Vector2d w0(plo.x(), plo.y() - 0.65), w1(phi.x(), plo.y() - 0.65);
+    const Eigen::Vector2d d0(plo.x() - 0.65, plo.y()), d1(plo.x() - 0.65, phi.y());
+    std::string svg = fmt::format(
+        "<g id=\"dimensions\" stroke=\"#777\" stroke-width=\"1\" {} fill=\"#333\">\n"
+        "<line x1=\"{:.1f}\" y1=\"{:.1f}\" x2=\"{:.1f}\" y2=\"{:.1f}\"/>"
+        "<line x1=\"{:.1f}\" y1=\"{:.1f}\" x2=\"{:.1f}\" y2=\"{:.1f}\"/>"
+        "<line x1=\"{:.1f}\" y1=\"{:.1f}\" x2=\"{:.1f}\" y2=\"{:.1f}\"/>\n"
+        "<text class=\"width\" x=\"{:.1f}\" y=\"{:.1f}\" text-anchor=\"middle\" "
+        "stroke=\"none\">{:.2f} m</text>\n",
+        kSvgText, c.X(w0), c.Y(w0), c.X(w1), c.Y(w1), c.X(w0), c.Y(w0) - 6, c.X(w0), c.Y(w0) + 6,
+        c.X(w1), c.Y(w1) - 6, c.X(w1), c.Y(w1) + 6, 0.5 * (c.X(w0) + c.X(w1)), c.Y(w0) + 20,
+        fig.width_m);
+    svg += fmt::format(
+        "<line x1=\"{:.1f}\" y1=\"{:.1f}\" x2=\"{:.1f}\" y2=\"{:.1f}\"/>"
+        "<line x1=\"{:.1f}\" y1=\"{:.1f}\" x2=\"{:.1f}\" y2=\"{:.1f}\"/>"
+        "<line x1=\"{:.1f}\" y1=\"{:.1f}\" x2=\"{:.1f}\" y2=\"{:.1f}\"/>\n"
+        "<text class=\"depth\" x=\"{:.1f}\" y=\"{:.1f}\" text-anchor=\"middle\" "
+        "stroke=\"none\" transform=\"rotate(-90 {:.1f} {:.1f})\">{:.2f} m</text>\n</g>\n",
+        c.X(d0), c.Y(d0), c.X(d1), c.Y(d1), c.X(d0) - 6, c.Y(d0), c.X(d0) + 6, c.Y(d0), c.X(d1) - 6,
+        c.Y(d1), c.X(d1) + 6, c.Y(d1), c.X(d0) - 10, 0.5 * (c.Y(d0) + c.Y(d1)), c.X(d0) - 10,
+        0.5 * (c.Y(d0) + c.Y(d1)), fig.depth_m);
+    return svg;
+}
+
+/// The walls, blue where Manhattan-snapped, red at a free angle, each labelled with its id.
+std::string wallsSvg(const SvgCanvas& c, const Layout& layout) {
+    std::string svg = "<g id=\"walls\" stroke-width=\"6\" stroke-linecap=\"round\">\n";
     for (const LayoutPlane* w : layout.walls()) {
         svg += fmt::format(
             "<line x1=\"{:.1f}\" y1=\"{:.1f}\" x2=\"{:.1f}\" y2=\"{:.1f}\" stroke=\"{}\">"
             "<title>wall {}{}, {:.2f} m</title></line>\n",
-            X(w->start_L), Y(w->start_L), X(w->end_L), Y(w->end_L),
+            c.X(w->start_L), c.Y(w->start_L), c.X(w->end_L), c.Y(w->end_L),
             w->manhattan_snapped ? "#1f5fa8" : "#c0392b", w->id,
             w->manhattan_snapped ? " (Manhattan-snapped)" : " (free angle)",
             (w->end_L - w->start_L).norm());
@@ -351,55 +373,84 @@ std::string floorplanSvg(const Layout& layout, const FloorplanOverlays& overlays
         svg += fmt::format(
             "<text x=\"{:.1f}\" y=\"{:.1f}\" {} text-anchor=\"middle\" stroke=\"none\" "
             "fill=\"#333\">{}</text>\n",
-            X(lab), Y(lab), text, w->id);
+            c.X(lab), c.Y(lab), kSvgText, w->id);
     }
     svg += "</g>\n";
-    // Header: the room's size, area, seen share and ceiling.
-    if (poly.size() >= 3) {
-        // A mostly inferred outline is the seen part's, not the room's.
-        const bool closed = fig.wall_bounded_fraction >= kClosedRoomWallFraction;
-        std::string size =
-            fmt::format("{} {:.2f} m \u00d7 {:.2f} m, {:.1f} m\u00b2",
-                        closed ? "room" : "seen part", fig.width_m, fig.depth_m, fig.area_m2);
-        if (fig.seen_fraction >= 0.0) {
-            size += fmt::format(", {:.0f} % of it seen", 100.0 * fig.seen_fraction);
-        }
-        size += layout.ceiling_height_m > 0.0
-                    ? fmt::format(", ceiling {:.2f} m", layout.ceiling_height_m)
-                    : std::string(", ceiling not seen");
-        svg += fmt::format(
-            "<text id=\"size\" x=\"10\" y=\"24\" {} font-weight=\"bold\" fill=\"#222\">{}</text>\n",
-            text, size);
+    return svg;
+}
+
+/// The header: the room's size, area, seen share and ceiling; a warning for a partial scan.
+std::string headerSvg(const Layout& layout, const FloorplanFigures& fig) {
+    // A mostly inferred outline is the seen part's, not the room's.
+    const bool closed = fig.wall_bounded_fraction >= kClosedRoomWallFraction;
+    std::string size =
+        fmt::format("{} {:.2f} m \u00d7 {:.2f} m, {:.1f} m\u00b2", closed ? "room" : "seen part",
+                    fig.width_m, fig.depth_m, fig.area_m2);
+    if (fig.seen_fraction >= 0.0) {
+        size += fmt::format(", {:.0f} % of it seen", 100.0 * fig.seen_fraction);
     }
-    if (poly.size() >= 3 && fig.partial) {
-        std::string why;
-        if (fig.wall_bounded_fraction < kClosedRoomWallFraction) {
-            why = fmt::format(
-                "{:.0f} % of the outline lies on seen walls; dashed edges are "
-                "inferred",
-                100.0 * fig.wall_bounded_fraction);
-        }
-        if (fig.seen_fraction >= 0.0 && fig.seen_fraction < kMinSeenFloorFraction) {
-            why += fmt::format("{}{:.0f} % of the room's area was seen", why.empty() ? "" : "; ",
-                               100.0 * fig.seen_fraction);
-        }
-        svg += fmt::format(
-            "<text id=\"partial\" x=\"10\" y=\"48\" {} font-weight=\"bold\" fill=\"#b7791f\">"
-            "partial scan: {}</text>\n",
-            text, why);
+    size += layout.ceiling_height_m > 0.0
+                ? fmt::format(", ceiling {:.2f} m", layout.ceiling_height_m)
+                : std::string(", ceiling not seen");
+    std::string svg = fmt::format(
+        "<text id=\"size\" x=\"10\" y=\"24\" {} font-weight=\"bold\" fill=\"#222\">{}</text>\n",
+        kSvgText, size);
+    if (!fig.partial) return svg;
+    std::string why;
+    if (fig.wall_bounded_fraction < kClosedRoomWallFraction) {
+        why = fmt::format(
+            "{:.0f} % of the outline lies on seen walls; dashed edges are "
+            "inferred",
+            100.0 * fig.wall_bounded_fraction);
     }
-    // Scale bar: 1 m in the lower-left margin, the legend beside it.
-    const Eigen::Vector2d s0(lo.x() + 0.2, lo.y() + 0.3), s1(lo.x() + 1.2, lo.y() + 0.3);
+    if (fig.seen_fraction >= 0.0 && fig.seen_fraction < kMinSeenFloorFraction) {
+        why += fmt::format("{}{:.0f} % of the room's area was seen", why.empty() ? "" : "; ",
+                           100.0 * fig.seen_fraction);
+    }
     svg += fmt::format(
+        "<text id=\"partial\" x=\"10\" y=\"48\" {} font-weight=\"bold\" fill=\"#b7791f\">"
+        "partial scan: {}</text>\n",
+        kSvgText, why);
+    return svg;
+}
+
+/// Scale bar: 1 m in the lower-left margin, the legend beside it.
+std::string scaleAndLegendSvg(const SvgCanvas& c) {
+    const Eigen::Vector2d s0(c.lo.x() + 0.2, c.lo.y() + 0.3), s1(c.lo.x() + 1.2, c.lo.y() + 0.3);
+    std::string svg = fmt::format(
         "<g id=\"scale\"><line x1=\"{:.1f}\" y1=\"{:.1f}\" x2=\"{:.1f}\" y2=\"{:.1f}\" "
         "stroke=\"black\" stroke-width=\"3\"/><text x=\"{:.1f}\" y=\"{:.1f}\" {} "
         "text-anchor=\"middle\">1 m</text></g>\n",
-        X(s0), Y(s0), X(s1), Y(s1), 0.5 * (X(s0) + X(s1)), Y(s0) - 8, text);
+        c.X(s0), c.Y(s0), c.X(s1), c.Y(s1), 0.5 * (c.X(s0) + c.X(s1)), c.Y(s0) - 8, kSvgText);
     svg += fmt::format(
         "<text id=\"legend\" x=\"{:.1f}\" y=\"{:.1f}\" font-family=\"sans-serif\" "
         "font-size=\"12\" fill=\"#555\">solid outline: on a seen wall \u00b7 dashed: inferred "
         "\u00b7 shaded: seen area \u00b7 green: camera path \u00b7 dotted: fragments</text>\n",
-        X(s1) + 20, Y(s0) + 5);
+        c.X(s1) + 20, c.Y(s0) + 5);
+    return svg;
+}
+
+}  // namespace
+
+std::string floorplanSvg(const Layout& layout, const FloorplanOverlays& overlays) {
+    const std::vector<Eigen::Vector2d>& poly = layout.room_polygon_L;
+    const FloorplanFigures fig = floorplanFigures(layout, overlays.seen);
+    const SvgCanvas c = floorplanCanvas(layout, overlays);
+    const double width = c.width(), height = c.height();
+    std::string svg = fmt::format(
+        "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
+        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{:.0f}\" height=\"{:.0f}\" "
+        "viewBox=\"0 0 {:.1f} {:.1f}\">\n"
+        "<title>plumb floor plan (layout frame L, metres)</title>\n"
+        "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n",
+        width, height, width, height);
+    const bool room = poly.size() >= 3;
+    if (room) svg += roomSvg(c, poly, overlays, fig);
+    svg += fragmentsAndPathSvg(c, overlays);
+    if (room) svg += outlineSvg(c, poly, fig) + dimensionsSvg(c, poly, fig);
+    svg += wallsSvg(c, layout);
+    if (room) svg += headerSvg(layout, fig);
+    svg += scaleAndLegendSvg(c);
     svg += "</svg>\n";
     return svg;
 }

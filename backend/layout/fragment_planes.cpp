@@ -158,39 +158,9 @@ PottsProblem buildProblem(const Sample& sample, const std::vector<LabelPlane>& p
     return prob;
 }
 
-}  // namespace
-
-Result<FragmentPlanes> extractFragmentPlanes(const Fragment& fragment,
-                                             const FragmentPlaneConfig& config) {
-    const auto t_start = SteadyClock::now();
-    PLUMB_RETURN_IF_ERROR(config::validate(config));
-    if (fragment.points_F.empty()) {
-        return invalidArgument(fmt::format("fragment {}: no points", fragment.id));
-    }
-    if (!fragment.points_F.isConsistent()) {
-        return invalidArgument(fmt::format("fragment {}: {} points but {} normals / {} colours",
-                                           fragment.id, fragment.points_F.size(),
-                                           fragment.points_F.normals.size(),
-                                           fragment.points_F.colors.size()));
-    }
-    FragmentPlanes out;
-    out.fragment_id = fragment.id;
-    out.sample_spacing_m = config.sample_voxel_m;
-    FragmentPlaneDiagnostics& diag = out.diagnostics;
-    const double tau = config.tau_m;
-    const double cutoff = config.cutoff_factor * tau;
-    const double point_area = config.sample_voxel_m * config.sample_voxel_m;
-
-    // 1. Working sample (reference §4.1).
-    auto t0 = SteadyClock::now();
-    Sample sample = voxelSample(fragment.points_F, config.sample_voxel_m);
-    diag.num_input_points = sample.num_input;
-    if (sample.num_input == 0) {
-        return invalidArgument(fmt::format("fragment {}: no finite points", fragment.id));
-    }
+/// The sample as a PCL cloud (float), for the k-d tree and VCCS.
+pcl::PointCloud<pcl::PointXYZ>::Ptr pclCloud(const Sample& sample) {
     const int n = static_cast<int>(sample.points.size());
-    diag.num_sample_points = n;
-
     auto cloud = std::make_shared<pcl::PointCloud<pcl::PointXYZ>>();
     cloud->resize(n);
     for (int i = 0; i < n; ++i) {
@@ -199,46 +169,65 @@ Result<FragmentPlanes> extractFragmentPlanes(const Fragment& fragment,
     }
     cloud->width = static_cast<uint32_t>(n);
     cloud->height = 1;
+    return cloud;
+}
+
+/// Each sample point's graph neighbours: its `knn` nearest other points closer than
+/// neighbour_radius_m, nearest first.
+std::vector<std::vector<int>> nearestNeighbours(const pcl::PointCloud<pcl::PointXYZ>::Ptr& cloud,
+                                                const FragmentPlaneConfig& config) {
+    const int n = static_cast<int>(cloud->size());
     pcl::KdTreeFLANN<pcl::PointXYZ> tree;
     tree.setInputCloud(cloud);
     const int k_query = std::min(n, config.knn + 1);
     std::vector<std::vector<int>> knn(n);
-    {
-        std::vector<int> idx(k_query);
-        std::vector<float> d2(k_query);
-        const double r2 = config.neighbour_radius_m * config.neighbour_radius_m;
-        for (int i = 0; i < n; ++i) {
-            const int found = tree.nearestKSearch((*cloud)[i], k_query, idx, d2);
-            for (int j = 0; j < found; ++j) {
-                if (idx[j] != i && d2[j] <= r2) knn[i].push_back(idx[j]);
-            }
+    std::vector<int> idx(k_query);
+    std::vector<float> d2(k_query);
+    const double r2 = config.neighbour_radius_m * config.neighbour_radius_m;
+    for (int i = 0; i < n; ++i) {
+        const int found = tree.nearestKSearch((*cloud)[i], k_query, idx, d2);
+        for (int j = 0; j < found; ++j) {
+            if (idx[j] != i && d2[j] <= r2) knn[i].push_back(idx[j]);
         }
     }
-    // Points without a fused normal: PCA over the neighbours, oriented towards the fragment
-    // origin (the first camera centre).
-    for (int i = 0; i < n; ++i) {
-        if (sample.normals[i].squaredNorm() > 0.5) continue;
+    return knn;
+}
+
+/// Points without a fused normal get the PCA normal of themselves and their neighbours,
+/// oriented towards the fragment origin (the first camera centre).
+void fillMissingNormals(const std::vector<std::vector<int>>& knn, Sample* sample) {
+    for (size_t i = 0; i < sample->points.size(); ++i) {
+        if (sample->normals[i].squaredNorm() > 0.5) continue;
         PlaneMoments m;
-        m.add(sample.points[i]);
-        for (int j : knn[i]) m.add(sample.points[j]);
+        m.add(sample->points[i]);
+        for (int j : knn[i]) m.add(sample->points[j]);
         const PlaneFitResult f = m.fit();
         if (!f.valid) continue;
-        sample.normals[i] = f.normal.dot(-sample.points[i]) < 0 ? -f.normal : f.normal;
+        sample->normals[i] = f.normal.dot(-sample->points[i]) < 0 ? -f.normal : f.normal;
     }
-    diag.ms_sample = msSince(t0);
-    out.sample_F.reserve(n, true, false);
-    for (int i = 0; i < n; ++i) {
-        out.sample_F.points.push_back(sample.points[i].cast<float>());
-        out.sample_F.normals.push_back(sample.normals[i].cast<float>());
-    }
-    out.labels.assign(n, -1);
-    if (n < 3) {
-        diag.ms_total = msSince(t_start);
-        return out;
-    }
+}
 
-    // 2. Supervoxels (VCCS, reference §4.2).
-    t0 = SteadyClock::now();
+/// A supervoxel's centre, plane normal (oriented by its points' normals) and radius.
+struct SvInfo {
+    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+    Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();
+    double radius = 0.0;
+    bool planar = false;
+};
+
+/// The supervoxels of the sample: members (sample indices), sorted adjacency lists, planes.
+struct Supervoxels {
+    std::vector<std::vector<int>> members;
+    std::vector<std::vector<int>> adjacency;
+    std::vector<SvInfo> info;
+    size_t size() const { return members.size(); }
+};
+
+/// Step 2 (reference §4.2): VCCS supervoxels over the sample (colour unused), their members and
+/// adjacency.
+Supervoxels vccsSupervoxels(const Sample& sample, const pcl::PointCloud<pcl::PointXYZ>::Ptr& cloud,
+                            const FragmentPlaneConfig& config, FragmentPlaneDiagnostics* diag) {
+    const int n = static_cast<int>(sample.points.size());
     auto normals = std::make_shared<pcl::PointCloud<pcl::Normal>>();
     normals->resize(n);
     for (int i = 0; i < n; ++i) {
@@ -264,42 +253,40 @@ Result<FragmentPlanes> extractFragmentPlanes(const Fragment& fragment,
         sv_index[label] = k;
     }
     const int num_sv = static_cast<int>(sv_index.size());
-    std::vector<std::vector<int>> members(num_sv);
-    std::vector<int> sv_of_point(n, -1);
+    Supervoxels sv;
+    sv.members.resize(num_sv);
     if (labeled && static_cast<int>(labeled->size()) == n) {
         for (int i = 0; i < n; ++i) {
             auto it = sv_index.find((*labeled)[i].label);
             if (it == sv_index.end()) continue;
-            members[it->second].push_back(i);
-            sv_of_point[i] = it->second;
+            sv.members[it->second].push_back(i);
         }
     }
-    std::vector<std::vector<int>> adjacency(num_sv);
+    sv.adjacency.resize(num_sv);
     for (const auto& [a, b] : sv_adj) {
         auto ia = sv_index.find(a), ib = sv_index.find(b);
         if (ia == sv_index.end() || ib == sv_index.end() || ia->second == ib->second) continue;
-        adjacency[ia->second].push_back(ib->second);
-        adjacency[ib->second].push_back(ia->second);
+        sv.adjacency[ia->second].push_back(ib->second);
+        sv.adjacency[ib->second].push_back(ia->second);
     }
-    for (auto& nb : adjacency) {
+    for (auto& nb : sv.adjacency) {
         std::sort(nb.begin(), nb.end());
         nb.erase(std::unique(nb.begin(), nb.end()), nb.end());
-        diag.num_adjacency_pairs += static_cast<int>(nb.size());
+        diag->num_adjacency_pairs += static_cast<int>(nb.size());
     }
-    diag.num_adjacency_pairs /= 2;
-    diag.num_supervoxels = num_sv;
-    diag.ms_supervoxels = msSince(t0);
+    diag->num_adjacency_pairs /= 2;
+    diag->num_supervoxels = num_sv;
+    return sv;
+}
 
-    // Per-supervoxel centre, plane and radius.
-    t0 = SteadyClock::now();
-    struct SvInfo {
-        Eigen::Vector3d centre = Eigen::Vector3d::Zero();
-        Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();
-        double radius = 0.0;
-        bool planar = false;
-    };
-    std::vector<SvInfo> info(num_sv);
-    for (int k = 0; k < num_sv; ++k) {
+/// Each supervoxel's centre, radius and least-squares plane; planar when its PCA curvature is
+/// at most max_supervoxel_curvature and it has at least 3 points.
+void supervoxelPlanes(const Sample& sample, const FragmentPlaneConfig& config, Supervoxels* sv,
+                      FragmentPlaneDiagnostics* diag) {
+    const std::vector<std::vector<int>>& members = sv->members;
+    std::vector<SvInfo>& info = sv->info;
+    info.assign(sv->size(), SvInfo{});
+    for (size_t k = 0; k < sv->size(); ++k) {
         PlaneMoments m;
         Eigen::Vector3d nsum = Eigen::Vector3d::Zero();
         for (int i : members[k]) {
@@ -317,10 +304,19 @@ Result<FragmentPlanes> extractFragmentPlanes(const Fragment& fragment,
             info[k].planar = f.curvature <= config.max_supervoxel_curvature &&
                              static_cast<int>(members[k].size()) >= 3;
         }
-        if (info[k].planar) ++diag.num_planar_supervoxels;
+        if (info[k].planar) ++diag->num_planar_supervoxels;
     }
+}
 
-    // 3. Hypotheses from triangles of mutually adjacent planar supervoxels (reference §4.3).
+/// Step 3 (reference §4.3): a plane hypothesis from every triangle of mutually adjacent planar
+/// supervoxel centres (not near collinear, within max_hypothesis_normal_angle_deg of all three
+/// normals); with few triangles also a supervoxel with two of its neighbours; at most
+/// max_hypotheses (a uniform deterministic subsample).
+std::vector<LabelPlane> planeHypotheses(const Supervoxels& sv, const FragmentPlaneConfig& config,
+                                        FragmentPlaneDiagnostics* diag) {
+    const std::vector<SvInfo>& info = sv.info;
+    const std::vector<std::vector<int>>& adjacency = sv.adjacency;
+    const int num_sv = static_cast<int>(sv.size());
     const double cos_hyp = cosDeg(config.max_hypothesis_normal_angle_deg);
     std::vector<LabelPlane> hypotheses;
     auto tryTriangle = [&](int a, int b, int c) {
@@ -351,7 +347,7 @@ Result<FragmentPlanes> extractFragmentPlanes(const Fragment& fragment,
             }
         }
     }
-    if (static_cast<int>(hypotheses.size()) < diag.num_planar_supervoxels) {
+    if (static_cast<int>(hypotheses.size()) < diag->num_planar_supervoxels) {
         // Sparse adjacency (few triangles): also a supervoxel with two of its neighbours.
         for (int a = 0; a < num_sv; ++a) {
             if (!info[a].planar) continue;
@@ -373,21 +369,38 @@ Result<FragmentPlanes> extractFragmentPlanes(const Fragment& fragment,
         }
         hypotheses.swap(kept);
     }
-    const int num_hyp = static_cast<int>(hypotheses.size());
-    diag.num_hypotheses = num_hyp;
-    diag.ms_hypotheses = msSince(t0);
+    diag->num_hypotheses = static_cast<int>(hypotheses.size());
+    return hypotheses;
+}
 
-    // 4. T-linkage over supervoxels (Eq. 2-3, reference §4.4).
-    t0 = SteadyClock::now();
-    std::vector<PreferenceVector> prefs(num_sv);
-    for (int k = 0; k < num_sv; ++k) {
+/// Step 4's output: the kept clusters' planes and the label of each sample point (-1: none).
+struct InitialLabelling {
+    std::vector<LabelPlane> planes;
+    std::vector<int> labels;
+};
+
+/// Step 4 (Eq. 2-3, reference §4.4): T-linkage over the supervoxels, residual = mean |n.p + d|
+/// of a supervoxel's points (pruned exactly beyond the cutoff), merges restricted to adjacent
+/// clusters; clusters of at least min_cluster_supervoxels and min_cluster_area_m2 refitted by
+/// least squares, kept when their RMS is at most 2 tau.
+InitialLabelling tLinkageClusters(const Sample& sample, const Supervoxels& sv,
+                                  const std::vector<LabelPlane>& hypotheses,
+                                  const FragmentPlaneConfig& config,
+                                  FragmentPlaneDiagnostics* diag) {
+    const double tau = config.tau_m;
+    const double cutoff = config.cutoff_factor * tau;
+    const double point_area = config.sample_voxel_m * config.sample_voxel_m;
+    const std::vector<std::vector<int>>& members = sv.members;
+    const int num_hyp = static_cast<int>(hypotheses.size());
+    std::vector<PreferenceVector> prefs(sv.size());
+    for (size_t k = 0; k < sv.size(); ++k) {
         if (members[k].empty()) continue;
         prefs[k] = preferencesFromResiduals(
             num_hyp,
             [&](int l) {
                 const LabelPlane& h = hypotheses[l];
                 // Exact pruning: every member lies within `radius` of the centre.
-                if (std::abs(h.n.dot(info[k].centre) + h.d) - info[k].radius >= cutoff) {
+                if (std::abs(h.n.dot(sv.info[k].centre) + h.d) - sv.info[k].radius >= cutoff) {
                     return -1.0;
                 }
                 double s = 0.0;
@@ -396,10 +409,10 @@ Result<FragmentPlanes> extractFragmentPlanes(const Fragment& fragment,
             },
             tau, config.cutoff_factor);
     }
-    const TLinkageResult tl = tLinkage(prefs, adjacency);
-    diag.num_tlinkage_clusters = tl.num_clusters;
-    std::vector<LabelPlane> planes;
-    std::vector<int> initial(n, -1);
+    const TLinkageResult tl = tLinkage(prefs, sv.adjacency);
+    diag->num_tlinkage_clusters = tl.num_clusters;
+    InitialLabelling out;
+    out.labels.assign(sample.points.size(), -1);
     for (const std::vector<int>& cl : tl.members) {
         if (static_cast<int>(cl.size()) < config.min_cluster_supervoxels) continue;
         PlaneMoments m;
@@ -414,20 +427,20 @@ Result<FragmentPlanes> extractFragmentPlanes(const Fragment& fragment,
         const PlaneFitResult f = m.fit();
         if (!f.valid || f.rms_m > 2.0 * tau) continue;
         const Eigen::Vector3d nrm = f.normal.dot(nsum) < 0 ? -f.normal : f.normal;
-        const int label = static_cast<int>(planes.size());
-        planes.push_back({nrm, -nrm.dot(f.centroid)});
+        const int label = static_cast<int>(out.planes.size());
+        out.planes.push_back({nrm, -nrm.dot(f.centroid)});
         for (int k : cl) {
-            for (int i : members[k]) initial[i] = label;
+            for (int i : members[k]) out.labels[i] = label;
         }
     }
-    diag.num_clusters_kept = static_cast<int>(planes.size());
-    diag.ms_tlinkage = msSince(t0);
+    diag->num_clusters_kept = static_cast<int>(out.planes.size());
+    return out;
+}
 
-    // 5. Graph-cut multi-model fitting with refits (Eq. 4-5, reference §4.5).
-    t0 = SteadyClock::now();
+/// The Potts pairs of the graph cut (Eq. 5): every k-NN pair once, weight lambda.
+std::vector<PottsEdge> pottsEdges(const std::vector<std::vector<int>>& knn, double lambda) {
     std::vector<PottsEdge> edges;
-    const double lambda = config.smoothness_factor * tau;
-    for (int i = 0; i < n; ++i) {
+    for (int i = 0; i < static_cast<int>(knn.size()); ++i) {
         for (int j : knn[i]) {
             if (i < j) {
                 edges.push_back({i, j, lambda});
@@ -436,97 +449,123 @@ Result<FragmentPlanes> extractFragmentPlanes(const Fragment& fragment,
             }
         }
     }
+    return edges;
+}
+
+/// PEARL re-estimation (Isack & Boykov 2012) after an expansion round: every label refitted to
+/// its points, labels with too little support dropped, coplanar labels merged (angle below
+/// merge_angle_deg and each centroid within merge_offset_m of the other's plane); `labels` are
+/// renumbered to the new planes, which are returned.
+std::vector<LabelPlane> pearlRefit(const Sample& sample, int num_labels,
+                                   const FragmentPlaneConfig& config, std::vector<int>* labels,
+                                   FragmentPlaneDiagnostics* diag) {
+    const int n = static_cast<int>(sample.points.size());
+    const double point_area = config.sample_voxel_m * config.sample_voxel_m;
+    std::vector<PlaneMoments> mom(num_labels);
+    std::vector<Eigen::Vector3d> nsum(num_labels, Eigen::Vector3d::Zero());
+    for (int i = 0; i < n; ++i) {
+        if ((*labels)[i] < 0) continue;
+        mom[(*labels)[i]].add(sample.points[i]);
+        nsum[(*labels)[i]] += sample.normals[i];
+    }
+    std::vector<int> remap(num_labels, -1);
+    std::vector<LabelPlane> refit;
+    std::vector<PlaneMoments> refit_mom;
+    for (int l = 0; l < num_labels; ++l) {
+        const PlaneFitResult f = mom[l].fit();
+        if (!f.valid || mom[l].count() < config.min_label_points ||
+            static_cast<double>(mom[l].count()) * point_area < config.min_label_area_m2) {
+            ++diag->labels_dropped;
+            continue;
+        }
+        const Eigen::Vector3d nrm = f.normal.dot(nsum[l]) < 0 ? -f.normal : f.normal;
+        remap[l] = static_cast<int>(refit.size());
+        refit.push_back({nrm, -nrm.dot(f.centroid)});
+        refit_mom.push_back(mom[l]);
+    }
+    const double cos_merge = cosDeg(config.merge_angle_deg);
+    std::vector<int> merged_into(refit.size());
+    for (size_t a = 0; a < refit.size(); ++a) merged_into[a] = static_cast<int>(a);
+    for (size_t a = 0; a < refit.size(); ++a) {
+        if (merged_into[a] != static_cast<int>(a)) continue;
+        for (size_t b = a + 1; b < refit.size(); ++b) {
+            if (merged_into[b] != static_cast<int>(b)) continue;
+            if (refit[a].n.dot(refit[b].n) < cos_merge) continue;
+            const double off_ab = std::abs(refit[a].n.dot(refit_mom[b].mean()) + refit[a].d);
+            const double off_ba = std::abs(refit[b].n.dot(refit_mom[a].mean()) + refit[b].d);
+            if (std::max(off_ab, off_ba) > config.merge_offset_m) continue;
+            merged_into[b] = static_cast<int>(a);
+            refit_mom[a].add(refit_mom[b]);
+            const PlaneFitResult f = refit_mom[a].fit();
+            if (f.valid) {
+                const Eigen::Vector3d nrm = f.normal.dot(refit[a].n) < 0 ? -f.normal : f.normal;
+                refit[a] = {nrm, -nrm.dot(f.centroid)};
+            }
+            ++diag->labels_merged;
+        }
+    }
+    std::vector<int> compact(refit.size(), -1);
+    std::vector<LabelPlane> next;
+    for (size_t a = 0; a < refit.size(); ++a) {
+        if (merged_into[a] == static_cast<int>(a)) {
+            compact[a] = static_cast<int>(next.size());
+            next.push_back(refit[a]);
+        }
+    }
+    for (int i = 0; i < n; ++i) {
+        if ((*labels)[i] < 0) continue;
+        const int r = remap[(*labels)[i]];
+        (*labels)[i] = r < 0 ? -1 : compact[merged_into[r]];
+    }
+    return next;
+}
+
+/// Step 5 (Eq. 4-5, reference §4.5): graph-cut multi-model fitting of every sample point, from
+/// the T-linkage labelling: data term |n.p + d| (Eq. 4, buildProblem), null label gamma, Potts
+/// term over the k-NN pairs (Eq. 5), minimised by alpha-expansion, then PEARL refits, for
+/// refit_rounds rounds. Updates `planes` and `labels`.
+Status graphCutFit(const Sample& sample, const std::vector<std::vector<int>>& knn,
+                   const FragmentPlaneConfig& config, std::vector<LabelPlane>* planes,
+                   std::vector<int>* labels, FragmentPlaneDiagnostics* diag) {
+    const int n = static_cast<int>(sample.points.size());
+    const double tau = config.tau_m;
+    const std::vector<PottsEdge> edges = pottsEdges(knn, config.smoothness_factor * tau);
     const double gamma = config.null_cost_factor * tau;
     const double cos_gate = config.max_point_normal_angle_deg >= 180.0
                                 ? -2.0
                                 : cosDeg(config.max_point_normal_angle_deg);
     ExpansionConfig ecfg;
     ecfg.max_cycles = config.max_expansion_cycles;
-    std::vector<int> labels = initial;
     bool first_round = true;
-    for (int round = 0; round < config.refit_rounds && !planes.empty(); ++round) {
-        const int null_label = static_cast<int>(planes.size());
-        const PottsProblem prob = buildProblem(sample, planes, edges, gamma, cos_gate);
+    for (int round = 0; round < config.refit_rounds && !planes->empty(); ++round) {
+        const int null_label = static_cast<int>(planes->size());
+        const PottsProblem prob = buildProblem(sample, *planes, edges, gamma, cos_gate);
         std::vector<int> init(n);
-        for (int i = 0; i < n; ++i) init[i] = labels[i] < 0 ? null_label : labels[i];
+        for (int i = 0; i < n; ++i) init[i] = (*labels)[i] < 0 ? null_label : (*labels)[i];
         auto res = alphaExpansion(prob, std::move(init), ecfg);
         if (!res.isOk()) return res.status();
-        if (first_round) diag.initial_energy = res->initial_energy;
+        if (first_round) diag->initial_energy = res->initial_energy;
         first_round = false;
-        diag.final_energy = res->energy;
-        diag.expansion_cycles += res->cycles;
-        diag.max_flow_calls += res->max_flow_calls;
-        for (int i = 0; i < n; ++i) labels[i] = res->labels[i] == null_label ? -1 : res->labels[i];
-
-        // PEARL re-estimation: refit, drop weak labels, merge coplanar ones.
-        const int m_labels = static_cast<int>(planes.size());
-        std::vector<PlaneMoments> mom(m_labels);
-        std::vector<Eigen::Vector3d> nsum(m_labels, Eigen::Vector3d::Zero());
+        diag->final_energy = res->energy;
+        diag->expansion_cycles += res->cycles;
+        diag->max_flow_calls += res->max_flow_calls;
         for (int i = 0; i < n; ++i) {
-            if (labels[i] < 0) continue;
-            mom[labels[i]].add(sample.points[i]);
-            nsum[labels[i]] += sample.normals[i];
+            (*labels)[i] = res->labels[i] == null_label ? -1 : res->labels[i];
         }
-        std::vector<int> remap(m_labels, -1);
-        std::vector<LabelPlane> refit;
-        std::vector<PlaneMoments> refit_mom;
-        for (int l = 0; l < m_labels; ++l) {
-            const PlaneFitResult f = mom[l].fit();
-            if (!f.valid || mom[l].count() < config.min_label_points ||
-                static_cast<double>(mom[l].count()) * point_area < config.min_label_area_m2) {
-                ++diag.labels_dropped;
-                continue;
-            }
-            const Eigen::Vector3d nrm = f.normal.dot(nsum[l]) < 0 ? -f.normal : f.normal;
-            remap[l] = static_cast<int>(refit.size());
-            refit.push_back({nrm, -nrm.dot(f.centroid)});
-            refit_mom.push_back(mom[l]);
-        }
-        // Coplanar merge: angle below the gate and each centroid within the offset of the
-        // other's plane.
-        const double cos_merge = cosDeg(config.merge_angle_deg);
-        std::vector<int> merged_into(refit.size());
-        for (size_t a = 0; a < refit.size(); ++a) merged_into[a] = static_cast<int>(a);
-        for (size_t a = 0; a < refit.size(); ++a) {
-            if (merged_into[a] != static_cast<int>(a)) continue;
-            for (size_t b = a + 1; b < refit.size(); ++b) {
-                if (merged_into[b] != static_cast<int>(b)) continue;
-                if (refit[a].n.dot(refit[b].n) < cos_merge) continue;
-                const double off_ab = std::abs(refit[a].n.dot(refit_mom[b].mean()) + refit[a].d);
-                const double off_ba = std::abs(refit[b].n.dot(refit_mom[a].mean()) + refit[b].d);
-                if (std::max(off_ab, off_ba) > config.merge_offset_m) continue;
-                merged_into[b] = static_cast<int>(a);
-                refit_mom[a].add(refit_mom[b]);
-                const PlaneFitResult f = refit_mom[a].fit();
-                if (f.valid) {
-                    const Eigen::Vector3d nrm = f.normal.dot(refit[a].n) < 0 ? -f.normal : f.normal;
-                    refit[a] = {nrm, -nrm.dot(f.centroid)};
-                }
-                ++diag.labels_merged;
-            }
-        }
-        std::vector<int> compact(refit.size(), -1);
-        std::vector<LabelPlane> next;
-        for (size_t a = 0; a < refit.size(); ++a) {
-            if (merged_into[a] == static_cast<int>(a)) {
-                compact[a] = static_cast<int>(next.size());
-                next.push_back(refit[a]);
-            }
-        }
-        for (int i = 0; i < n; ++i) {
-            if (labels[i] < 0) continue;
-            const int r = remap[labels[i]];
-            labels[i] = r < 0 ? -1 : compact[merged_into[r]];
-        }
-        planes.swap(next);
+        *planes = pearlRefit(sample, static_cast<int>(planes->size()), config, labels, diag);
     }
-    diag.ms_graph_cut = msSince(t0);
+    return Status::ok();
+}
 
-    // Final planes from the final labels (the last refit already holds them).
+/// The output planes from the final labels (the last refit already holds their parameters):
+/// centroid, support, area and RMS of each.
+std::vector<FragmentPlane> finalPlanes(const Sample& sample, const std::vector<LabelPlane>& planes,
+                                       const std::vector<int>& labels, double point_area) {
     std::vector<PlaneMoments> mom(planes.size());
-    for (int i = 0; i < n; ++i) {
+    for (size_t i = 0; i < labels.size(); ++i) {
         if (labels[i] >= 0) mom[labels[i]].add(sample.points[i]);
     }
+    std::vector<FragmentPlane> out;
     for (size_t l = 0; l < planes.size(); ++l) {
         FragmentPlane fp;
         fp.normal_F = planes[l].n;
@@ -536,8 +575,82 @@ Result<FragmentPlanes> extractFragmentPlanes(const Fragment& fragment,
         fp.area_m2 = fp.num_points * point_area;
         const PlaneFitResult f = mom[l].fit();
         fp.rms_m = f.valid ? f.rms_m : 0.0;
-        out.planes.push_back(fp);
+        out.push_back(fp);
     }
+    return out;
+}
+
+/// Checks a fragment's points before plane extraction.
+Status checkFragment(const Fragment& fragment) {
+    if (fragment.points_F.empty()) {
+        return invalidArgument(fmt::format("fragment {}: no points", fragment.id));
+    }
+    if (!fragment.points_F.isConsistent()) {
+        return invalidArgument(fmt::format("fragment {}: {} points but {} normals / {} colours",
+                                           fragment.id, fragment.points_F.size(),
+                                           fragment.points_F.normals.size(),
+                                           fragment.points_F.colors.size()));
+    }
+    return Status::ok();
+}
+
+}  // namespace
+
+Result<FragmentPlanes> extractFragmentPlanes(const Fragment& fragment,
+                                             const FragmentPlaneConfig& config) {
+    const auto t_start = SteadyClock::now();
+    PLUMB_RETURN_IF_ERROR(config::validate(config));
+    PLUMB_RETURN_IF_ERROR(checkFragment(fragment));
+    FragmentPlanes out;
+    out.fragment_id = fragment.id;
+    out.sample_spacing_m = config.sample_voxel_m;
+    FragmentPlaneDiagnostics& diag = out.diagnostics;
+
+    // 1. Working sample (reference §4.1) and its neighbour graph.
+    auto t0 = SteadyClock::now();
+    Sample sample = voxelSample(fragment.points_F, config.sample_voxel_m);
+    diag.num_input_points = sample.num_input;
+    if (sample.num_input == 0) {
+        return invalidArgument(fmt::format("fragment {}: no finite points", fragment.id));
+    }
+    const int n = static_cast<int>(sample.points.size());
+    diag.num_sample_points = n;
+    const pcl::PointCloud<pcl::PointXYZ>::Ptr cloud = pclCloud(sample);
+    const std::vector<std::vector<int>> knn = nearestNeighbours(cloud, config);
+    fillMissingNormals(knn, &sample);
+    diag.ms_sample = msSince(t0);
+    out.sample_F.reserve(n, true, false);
+    for (int i = 0; i < n; ++i) {
+        out.sample_F.points.push_back(sample.points[i].cast<float>());
+        out.sample_F.normals.push_back(sample.normals[i].cast<float>());
+    }
+    out.labels.assign(n, -1);
+    if (n < 3) {
+        diag.ms_total = msSince(t_start);
+        return out;
+    }
+
+    t0 = SteadyClock::now();  // 2. Supervoxels.
+    Supervoxels sv = vccsSupervoxels(sample, cloud, config, &diag);
+    diag.ms_supervoxels = msSince(t0);
+
+    t0 = SteadyClock::now();  // 3. Hypotheses.
+    supervoxelPlanes(sample, config, &sv, &diag);
+    const std::vector<LabelPlane> hypotheses = planeHypotheses(sv, config, &diag);
+    diag.ms_hypotheses = msSince(t0);
+
+    t0 = SteadyClock::now();  // 4. T-linkage.
+    InitialLabelling initial = tLinkageClusters(sample, sv, hypotheses, config, &diag);
+    diag.ms_tlinkage = msSince(t0);
+
+    t0 = SteadyClock::now();  // 5. Graph cut with PEARL refits.
+    std::vector<LabelPlane> planes = std::move(initial.planes);
+    std::vector<int> labels = std::move(initial.labels);
+    PLUMB_RETURN_IF_ERROR(graphCutFit(sample, knn, config, &planes, &labels, &diag));
+    diag.ms_graph_cut = msSince(t0);
+
+    const double point_area = config.sample_voxel_m * config.sample_voxel_m;
+    out.planes = finalPlanes(sample, planes, labels, point_area);
     out.labels = labels;
     for (int i = 0; i < n; ++i) diag.num_null_points += labels[i] < 0 ? 1 : 0;
     diag.ms_total = msSince(t_start);

@@ -415,17 +415,38 @@ void addRunFigures(const PipelineInput& input, const PipelineResult& result,
     m["run"] = runJson(input, timer.totalSeconds());
 }
 
+/// The fragments must be numbered 0..n-1 in order.
+Status checkFragmentIds(const std::vector<Fragment>& fragments) {
+    if (fragments.empty()) return invalidArgument("no fragments to reconstruct from");
+    for (size_t i = 0; i < fragments.size(); ++i) {
+        if (fragments[i].id != i)
+            return invalidArgument(
+                fmt::format("fragment ids must be 0..{} in order; position {} holds fragment {}",
+                            fragments.size() - 1, i, fragments[i].id));
+    }
+    return Status::ok();
+}
+
+/// The report's pictures of the main variant: the model views and, with ground-truth points,
+/// the reconstruction-error map (or why there is none).
+void addMainVariantFigures(const VariantResult& v, const PipelineInput& input,
+                           const std::optional<Layout>& full_layout, ReportFigures* figures) {
+    figures->model_views = renderModelViews(v.mesh, v.layout ? v.layout : full_layout);
+    if (input.ground_truth.points.empty()) return;
+    Result<ReconErrorMap> map =
+        reconErrorMap(v.mesh, v.evaluation.T_gt_est, input.ground_truth.points, full_layout);
+    if (map.isOk()) {
+        figures->recon_error_svg = std::move(map->svg);
+    } else {
+        figures->recon_error_note = map.status().message();
+    }
+}
+
 }  // namespace
 
 Result<PipelineResult> runPipeline(const PipelineInput& input, const PipelineConfig& config,
                                    const fs::path& out_dir, bool show_progress) {
-    if (input.fragments.empty()) return invalidArgument("no fragments to reconstruct from");
-    for (size_t i = 0; i < input.fragments.size(); ++i) {
-        if (input.fragments[i].id != i)
-            return invalidArgument(
-                fmt::format("fragment ids must be 0..{} in order; position {} holds fragment {}",
-                            input.fragments.size() - 1, i, input.fragments[i].id));
-    }
+    PLUMB_RETURN_IF_ERROR(checkFragmentIds(input.fragments));
     std::error_code ec;
     fs::create_directories(out_dir, ec);
     if (ec) return ioError(fmt::format("{}: cannot create: {}", out_dir.string(), ec.message()));
@@ -545,18 +566,7 @@ Result<PipelineResult> runPipeline(const PipelineInput& input, const PipelineCon
         PLUMB_RETURN_IF_ERROR(outputAndEvaluate(plan.dir, input, outcome, full_layout, &v));
         variants_json[plan.name] = toJson(v.evaluation);
         figures.top_views[plan.name] = topViewSvg(v.mesh, full_layout, topViewTrajectory(v));
-        if (p == 0) {
-            figures.model_views = renderModelViews(v.mesh, v.layout ? v.layout : full_layout);
-            if (!input.ground_truth.points.empty()) {
-                Result<ReconErrorMap> map = reconErrorMap(v.mesh, v.evaluation.T_gt_est,
-                                                          input.ground_truth.points, full_layout);
-                if (map.isOk()) {
-                    figures.recon_error_svg = std::move(map->svg);
-                } else {
-                    figures.recon_error_note = map.status().message();
-                }
-            }
-        }
+        if (p == 0) addMainVariantFigures(v, input, full_layout, &figures);
         result.variants.push_back(std::move(v));
     }
 

@@ -306,30 +306,35 @@ uint8_t toColorChannel(double v, ScalarType t) {
     return static_cast<uint8_t>(std::clamp(std::round(v), 0.0, 255.0));
 }
 
-/// Reads vertices and faces; `keep_faces` = false still validates faces.
-Result<TriangleMesh> readPly(const std::filesystem::path& path, bool keep_faces) {
-    auto data_or = slurp(path);
-    if (!data_or.isOk()) return data_or.status();
-    const std::string& data = *data_or;
-    const std::string name = path.string();
-    auto header_or = parseHeader(data, name);
-    if (!header_or.isOk()) return header_or.status();
-    const Header& header = *header_or;
+/// Where the vertex element keeps its coordinates, normals and colours (property indices).
+struct VertexLayout {
+    const Element* element = nullptr;
+    int ix = -1, iy = -1, iz = -1;
+    int inx = -1, iny = -1, inz = -1;
+    int ir = -1, ig = -1, ib = -1;
+    bool has_normals = false;
+    bool has_colors = false;
+};
 
-    const Element* vertex = nullptr;
+/// Finds the vertex element and its properties; corrupt or unsupported without x, y, z.
+Result<VertexLayout> vertexLayout(const Header& header, const std::string& name) {
+    VertexLayout layout;
     for (const Element& e : header.elements) {
-        if (e.name == "vertex") vertex = &e;
+        if (e.name == "vertex") layout.element = &e;
     }
+    const Element* vertex = layout.element;
     if (vertex == nullptr) return corrupt(fmt::format("{}: no 'vertex' element", name));
     if (vertex->count > static_cast<size_t>(INT32_MAX)) {
         return unsupported(
             fmt::format("{}: {} vertices is more than supported", name, vertex->count));
     }
-    const int ix = vertex->find("x"), iy = vertex->find("y"), iz = vertex->find("z");
-    if (ix < 0 || iy < 0 || iz < 0) {
+    layout.ix = vertex->find("x");
+    layout.iy = vertex->find("y");
+    layout.iz = vertex->find("z");
+    if (layout.ix < 0 || layout.iy < 0 || layout.iz < 0) {
         return unsupported(fmt::format("{}: vertex element lacks x, y or z", name));
     }
-    for (int i : {ix, iy, iz}) {
+    for (int i : {layout.ix, layout.iy, layout.iz}) {
         if (vertex->properties[static_cast<size_t>(i)].is_list) {
             return corrupt(fmt::format("{}: vertex coordinate '{}' is a list", name,
                                        vertex->properties[static_cast<size_t>(i)].name));
@@ -339,10 +344,113 @@ Result<TriangleMesh> readPly(const std::filesystem::path& path, bool keep_faces)
         const int i = vertex->find(prop);
         return (i >= 0 && !vertex->properties[static_cast<size_t>(i)].is_list) ? i : -1;
     };
-    const int inx = scalarIndex("nx"), iny = scalarIndex("ny"), inz = scalarIndex("nz");
-    const int ir = scalarIndex("red"), ig = scalarIndex("green"), ib = scalarIndex("blue");
-    const bool has_normals = inx >= 0 && iny >= 0 && inz >= 0;
-    const bool has_colors = ir >= 0 && ig >= 0 && ib >= 0;
+    layout.inx = scalarIndex("nx");
+    layout.iny = scalarIndex("ny");
+    layout.inz = scalarIndex("nz");
+    layout.ir = scalarIndex("red");
+    layout.ig = scalarIndex("green");
+    layout.ib = scalarIndex("blue");
+    layout.has_normals = layout.inx >= 0 && layout.iny >= 0 && layout.inz >= 0;
+    layout.has_colors = layout.ir >= 0 && layout.ig >= 0 && layout.ib >= 0;
+    return layout;
+}
+
+/// The index of a face element's vertex index list ('vertex_indices' or 'vertex_index', an
+/// integer list); corrupt without one.
+Result<int> faceListIndex(const Element& e, const std::string& name) {
+    int face_list = e.find("vertex_indices");
+    if (face_list < 0) face_list = e.find("vertex_index");
+    if (face_list < 0 || !e.properties[static_cast<size_t>(face_list)].is_list) {
+        return corrupt(
+            fmt::format("{}: face element has no 'vertex_indices' or 'vertex_index' list", name));
+    }
+    if (!isInteger(e.properties[static_cast<size_t>(face_list)].type)) {
+        return corrupt(fmt::format("{}: face vertex indices are not an integer type", name));
+    }
+    return face_list;
+}
+
+/// Refuses element counts that cannot fit in the bytes left of a binary body, before anything
+/// is allocated for them.
+Status checkElementFits(const Element& e, const Header& header, const BodyCursor& cursor,
+                        const std::string& name) {
+    if (header.format == BodyFormat::kAscii || e.minBinarySize() == 0 ||
+        e.count <= cursor.bytesLeft() / e.minBinarySize()) {
+        return Status::ok();
+    }
+    const bool fixed_size = std::none_of(e.properties.begin(), e.properties.end(),
+                                         [](const Property& p) { return p.is_list; });
+    if (fixed_size) {
+        return corrupt(fmt::format("{}: truncated: expected {} {} elements, read {}", name, e.count,
+                                   e.name, cursor.bytesLeft() / e.minBinarySize()));
+    }
+    return corrupt(fmt::format(
+        "{}: truncated: expected {} {} elements of at least {} bytes, only {} bytes left", name,
+        e.count, e.name, e.minBinarySize(), cursor.bytesLeft()));
+}
+
+/// Adds vertex k from its property values (coordinates and normals must be finite).
+Status addVertex(const VertexLayout& layout, const std::vector<double>& values, size_t k,
+                 const std::string& name, TriangleMesh* mesh) {
+    const Eigen::Vector3d x(values[layout.ix], values[layout.iy], values[layout.iz]);
+    if (!x.allFinite()) {
+        return corrupt(fmt::format("{}: vertex {} has a non-finite coordinate", name, k));
+    }
+    mesh->vertices.push_back(x.cast<float>());
+    if (layout.has_normals) {
+        const Eigen::Vector3d n(values[layout.inx], values[layout.iny], values[layout.inz]);
+        if (!n.allFinite()) {
+            return corrupt(fmt::format("{}: vertex {} has a non-finite normal", name, k));
+        }
+        mesh->normals.push_back(n.cast<float>());
+    }
+    if (layout.has_colors) {
+        const std::vector<Property>& props = layout.element->properties;
+        mesh->colors.emplace_back(toColorChannel(values[layout.ir], props[layout.ir].type),
+                                  toColorChannel(values[layout.ig], props[layout.ig].type),
+                                  toColorChannel(values[layout.ib], props[layout.ib].type));
+    }
+    return Status::ok();
+}
+
+/// Checks face k (at least 3 vertices, each index below the vertex count of the header: the
+/// vertex element may come after the faces) and, with keep_faces, adds its fan triangulation
+/// (v0, v_j, v_j+1): a quad gives two triangles.
+Status addFace(const std::vector<double>& polygon, size_t k, size_t num_vertices, bool keep_faces,
+               const std::string& name, TriangleMesh* mesh) {
+    if (polygon.size() < 3) {
+        return corrupt(fmt::format("{}: face {} has {} vertices; at least 3 are needed", name, k,
+                                   polygon.size()));
+    }
+    for (double index : polygon) {
+        if (index < 0.0 || index >= static_cast<double>(num_vertices)) {
+            return corrupt(
+                fmt::format("{}: face {} refers to vertex {}, but there are only {} vertices", name,
+                            k, static_cast<long long>(index), num_vertices));
+        }
+    }
+    if (keep_faces) {
+        for (size_t j = 1; j + 1 < polygon.size(); ++j) {
+            mesh->triangles.emplace_back(static_cast<int>(polygon[0]), static_cast<int>(polygon[j]),
+                                         static_cast<int>(polygon[j + 1]));
+        }
+    }
+    return Status::ok();
+}
+
+/// Reads vertices and faces; `keep_faces` = false still validates faces.
+Result<TriangleMesh> readPly(const std::filesystem::path& path, bool keep_faces) {
+    auto data_or = slurp(path);
+    if (!data_or.isOk()) return data_or.status();
+    const std::string& data = *data_or;
+    const std::string name = path.string();
+    auto header_or = parseHeader(data, name);
+    if (!header_or.isOk()) return header_or.status();
+    const Header& header = *header_or;
+    auto layout_or = vertexLayout(header, name);
+    if (!layout_or.isOk()) return layout_or.status();
+    const VertexLayout& layout = *layout_or;
+    const Element* vertex = layout.element;
 
     BodyCursor cursor(data, header);
     TriangleMesh mesh;
@@ -362,36 +470,16 @@ Result<TriangleMesh> readPly(const std::filesystem::path& path, bool keep_faces)
         const bool is_face = e.name == "face";
         int face_list = -1;
         if (is_face) {
-            face_list = e.find("vertex_indices");
-            if (face_list < 0) face_list = e.find("vertex_index");
-            if (face_list < 0 || !e.properties[static_cast<size_t>(face_list)].is_list) {
-                return corrupt(fmt::format(
-                    "{}: face element has no 'vertex_indices' or 'vertex_index' list", name));
-            }
-            if (!isInteger(e.properties[static_cast<size_t>(face_list)].type)) {
-                return corrupt(
-                    fmt::format("{}: face vertex indices are not an integer type", name));
-            }
+            auto list_or = faceListIndex(e, name);
+            if (!list_or.isOk()) return list_or.status();
+            face_list = *list_or;
         }
-        // Refuse counts that cannot fit in the remaining bytes before allocating for them.
-        if (header.format != BodyFormat::kAscii && e.minBinarySize() > 0 &&
-            e.count > cursor.bytesLeft() / e.minBinarySize()) {
-            const bool fixed_size = std::none_of(e.properties.begin(), e.properties.end(),
-                                                 [](const Property& p) { return p.is_list; });
-            if (fixed_size) {
-                return corrupt(fmt::format("{}: truncated: expected {} {} elements, read {}", name,
-                                           e.count, e.name,
-                                           cursor.bytesLeft() / e.minBinarySize()));
-            }
-            return corrupt(fmt::format(
-                "{}: truncated: expected {} {} elements of at least {} bytes, only {} bytes left",
-                name, e.count, e.name, e.minBinarySize(), cursor.bytesLeft()));
-        }
+        PLUMB_RETURN_IF_ERROR(checkElementFits(e, header, cursor, name));
         const size_t reserve = std::min(e.count, data.size() / 2);
         if (is_vertex) {
             mesh.vertices.reserve(reserve);
-            if (has_normals) mesh.normals.reserve(reserve);
-            if (has_colors) mesh.colors.reserve(reserve);
+            if (layout.has_normals) mesh.normals.reserve(reserve);
+            if (layout.has_colors) mesh.colors.reserve(reserve);
         }
         values.resize(e.properties.size());
         std::vector<double> polygon;
@@ -422,46 +510,9 @@ Result<TriangleMesh> readPly(const std::filesystem::path& path, bool keep_faces)
                 }
             }
             if (is_vertex) {
-                const Eigen::Vector3d x(values[ix], values[iy], values[iz]);
-                if (!x.allFinite()) {
-                    return corrupt(
-                        fmt::format("{}: vertex {} has a non-finite coordinate", name, k));
-                }
-                mesh.vertices.push_back(x.cast<float>());
-                if (has_normals) {
-                    const Eigen::Vector3d n(values[inx], values[iny], values[inz]);
-                    if (!n.allFinite()) {
-                        return corrupt(
-                            fmt::format("{}: vertex {} has a non-finite normal", name, k));
-                    }
-                    mesh.normals.push_back(n.cast<float>());
-                }
-                if (has_colors) {
-                    mesh.colors.emplace_back(toColorChannel(values[ir], e.properties[ir].type),
-                                             toColorChannel(values[ig], e.properties[ig].type),
-                                             toColorChannel(values[ib], e.properties[ib].type));
-                }
+                PLUMB_RETURN_IF_ERROR(addVertex(layout, values, k, name, &mesh));
             } else if (is_face) {
-                if (polygon.size() < 3) {
-                    return corrupt(fmt::format("{}: face {} has {} vertices; at least 3 are needed",
-                                               name, k, polygon.size()));
-                }
-                // The vertex element may come after the faces: check against its header count.
-                for (double index : polygon) {
-                    if (index < 0.0 || index >= static_cast<double>(vertex->count)) {
-                        return corrupt(fmt::format(
-                            "{}: face {} refers to vertex {}, but there are only {} vertices", name,
-                            k, static_cast<long long>(index), vertex->count));
-                    }
-                }
-                if (keep_faces) {
-                    // Fan triangulation: (v0, v_j, v_j+1); a quad gives two triangles.
-                    for (size_t j = 1; j + 1 < polygon.size(); ++j) {
-                        mesh.triangles.emplace_back(static_cast<int>(polygon[0]),
-                                                    static_cast<int>(polygon[j]),
-                                                    static_cast<int>(polygon[j + 1]));
-                    }
-                }
+                PLUMB_RETURN_IF_ERROR(addFace(polygon, k, vertex->count, keep_faces, name, &mesh));
             }
         }
     }

@@ -127,7 +127,9 @@ Result<std::vector<Eigen::Vector2d>> pathControlPoints(const Scene& scene) {
     return control;
 }
 
-Result<io::Trajectory> generateTrajectory(const Scene& scene, const TrajectoryConfig& cfg) {
+namespace {
+
+Status checkTrajectoryConfig(const TrajectoryConfig& cfg) {
     if (cfg.num_frames == 0 || !(cfg.rate_hz > 0.0) || !(cfg.min_speed_mps > 0.0) ||
         cfg.max_speed_mps < cfg.min_speed_mps || !(cfg.max_yaw_rate_dps > 0.0) ||
         !(cfg.max_accel_mps2 > 0.0) ||
@@ -136,14 +138,14 @@ Result<io::Trajectory> generateTrajectory(const Scene& scene, const TrajectoryCo
             "trajectory config: need num_frames > 0, rate_hz > 0, 0 < min_speed <= max_speed, "
             "positive yaw-rate and acceleration limits, 0 < no_loop_fraction <= 1");
     }
-    auto control_or = pathControlPoints(scene);
-    if (!control_or.isOk()) return control_or.status();
-    const std::vector<Eigen::Vector2d>& P = control_or.value();
-    const int n = static_cast<int>(P.size());
+    return Status::ok();
+}
 
-    // The path starts at the straightest control point (the first one on a straight stretch,
-    // mid-edge on the built-in rooms): starting at a corner, the first views would look back
-    // into the wall just turned from.
+/// The path starts at the straightest control point (the first one on a straight stretch,
+/// mid-edge on the built-in rooms): starting at a corner, the first views would look back into
+/// the wall just turned from.
+int straightestControlPoint(const std::vector<Eigen::Vector2d>& P) {
+    const int n = static_cast<int>(P.size());
     int start = 0;
     double least_turn = kPi;
     for (int i = 0; i < n; ++i) {
@@ -154,7 +156,15 @@ Result<io::Trajectory> generateTrajectory(const Scene& scene, const TrajectoryCo
             start = i;
         }
     }
-    // Closed uniform cubic B-spline, densely sampled, then resampled by arc length.
+    return start;
+}
+
+/// The closed uniform cubic B-spline through the control points from `start`, densely sampled,
+/// then resampled every kStep of arc length over one lap (the loop) or no_loop_fraction of it.
+/// Every sample must lie inside the room, at least 30 cm from the walls.
+Result<PathSamples> samplePath(const std::vector<Eigen::Vector2d>& P, int start, const Scene& scene,
+                               const TrajectoryConfig& cfg) {
+    const int n = static_cast<int>(P.size());
     std::vector<Eigen::Vector2d> dense;
     constexpr int kPerSegment = 200;
     for (int j = 0; j < n; ++j) {
@@ -197,49 +207,75 @@ Result<io::Trajectory> generateTrajectory(const Scene& scene, const TrajectoryCo
                 scene.name, p.x(), p.y()));
         }
     }
-    // Heading of the tangent (central differences over +-10 cm), unwrapped.
-    const int m = static_cast<int>(path.xy.size());
-    path.heading.resize(m);
+    return path;
+}
+
+/// The heading of the path's tangent (central differences over +-10 cm), unwrapped.
+void pathHeadings(bool loop, PathSamples* path) {
+    const int m = static_cast<int>(path->xy.size());
+    path->heading.resize(m);
     auto at = [&](int i) {
-        if (cfg.loop) return path.xy[((i % (m - 1)) + (m - 1)) % (m - 1)];
-        return path.xy[std::clamp(i, 0, m - 1)];
+        if (loop) return path->xy[((i % (m - 1)) + (m - 1)) % (m - 1)];
+        return path->xy[std::clamp(i, 0, m - 1)];
     };
     for (int i = 0; i < m; ++i) {
         const Eigen::Vector2d d = at(i + 10) - at(i - 10);
-        path.heading[i] = std::atan2(d.y(), d.x());
+        path->heading[i] = std::atan2(d.y(), d.x());
         if (i > 0) {
-            while (path.heading[i] - path.heading[i - 1] > kPi) path.heading[i] -= 2 * kPi;
-            while (path.heading[i] - path.heading[i - 1] < -kPi) path.heading[i] += 2 * kPi;
+            while (path->heading[i] - path->heading[i - 1] > kPi) path->heading[i] -= 2 * kPi;
+            while (path->heading[i] - path->heading[i - 1] < -kPi) path->heading[i] += 2 * kPi;
         }
     }
-    // Speed limit from the yaw rate: |d heading / ds| * v <= max_yaw_rate.
-    std::vector<double> curvature(m, 0.0);
-    for (int i = 0; i < m; ++i) {
-        const int i0 = std::max(0, i - 5), i1 = std::min(m - 1, i + 5);
-        if (i1 > i0)
-            curvature[i] = std::abs(path.heading[i1] - path.heading[i0]) / ((i1 - i0) * kStep);
+}
+
+/// The time profile of walking the path at a nominal speed, slowed where the yaw rate
+/// |d heading / ds| * v would exceed max_yaw_rate_dps and limited in acceleration.
+class SpeedProfile {
+  public:
+    SpeedProfile(const PathSamples& path, const TrajectoryConfig& cfg)
+        : path_(path), cfg_(cfg), curvature_(path.xy.size(), 0.0) {
+        const int m = static_cast<int>(path.xy.size());
+        for (int i = 0; i < m; ++i) {
+            const int i0 = std::max(0, i - 5), i1 = std::min(m - 1, i + 5);
+            if (i1 > i0)
+                curvature_[i] = std::abs(path.heading[i1] - path.heading[i0]) / ((i1 - i0) * kStep);
+        }
     }
-    const double omega = cfg.max_yaw_rate_dps * kDeg;
-    auto profile = [&](double v_nom, std::vector<double>* time) {
+
+    /// Fills the time of each path sample at nominal speed v_nom; returns the total time.
+    double operator()(double v_nom, std::vector<double>* time) const {
+        const int m = static_cast<int>(path_.xy.size());
+        const double omega = cfg_.max_yaw_rate_dps * kDeg;
         std::vector<double> v(m);
-        for (int i = 0; i < m; ++i) v[i] = std::min(v_nom, omega / std::max(curvature[i], 1e-9));
+        for (int i = 0; i < m; ++i) v[i] = std::min(v_nom, omega / std::max(curvature_[i], 1e-9));
         for (int i = 1; i < m; ++i) {
-            v[i] = std::min(v[i], std::sqrt(v[i - 1] * v[i - 1] + 2 * cfg.max_accel_mps2 * kStep));
+            v[i] = std::min(v[i], std::sqrt(v[i - 1] * v[i - 1] + 2 * cfg_.max_accel_mps2 * kStep));
         }
         for (int i = m - 2; i >= 0; --i) {
-            v[i] = std::min(v[i], std::sqrt(v[i + 1] * v[i + 1] + 2 * cfg.max_accel_mps2 * kStep));
+            v[i] = std::min(v[i], std::sqrt(v[i + 1] * v[i + 1] + 2 * cfg_.max_accel_mps2 * kStep));
         }
         time->assign(m, 0.0);
         for (int i = 1; i < m; ++i) {
-            const double ds = (path.xy[i] - path.xy[i - 1]).norm();
+            const double ds = (path_.xy[i] - path_.xy[i - 1]).norm();
             (*time)[i] = (*time)[i - 1] + ds / (0.5 * (v[i - 1] + v[i]));
         }
         return time->back();
-    };
-    // The loop variant runs an integer number of laps when the speed range allows it, so that
-    // the last frame is back at the start; otherwise (too few frames) a partial lap at full speed.
-    // When no whole number of laps fits the speed range, the most laps at <= max speed are
-    // taken and the nominal speed may drop to half of min_speed_mps.
+    }
+
+  private:
+    const PathSamples& path_;
+    const TrajectoryConfig& cfg_;
+    std::vector<double> curvature_;
+};
+
+/// Times the path so that num_frames frames at rate_hz cover it: the nominal speed within
+/// [min_speed_mps, max_speed_mps] found by bisection. The loop variant runs an integer number of
+/// laps when the speed range allows it, so that the last frame is back at the start; otherwise
+/// (too few frames) a partial lap at full speed. When no whole number of laps fits the speed
+/// range, the most laps at <= max speed are taken and the nominal speed may drop to half of
+/// min_speed_mps. Fills path->time; returns the time of one pass.
+double timePath(const TrajectoryConfig& cfg, PathSamples* path) {
+    const SpeedProfile profile(*path, cfg);
     double target = (cfg.num_frames - 1) / cfg.rate_hz;
     double lo = cfg.min_speed_mps, hi = cfg.max_speed_mps;
     if (cfg.loop) {
@@ -270,9 +306,12 @@ Result<io::Trajectory> generateTrajectory(const Scene& scene, const TrajectoryCo
             }
         }
     }
-    const double total = profile(0.5 * (lo + hi), &path.time);
+    return profile(0.5 * (lo + hi), &path->time);
+}
 
-    // Shake and sway (seeded).
+/// The camera poses at the frame times along the timed path, with seeded shake and sway.
+io::Trajectory posesAlongPath(const PathSamples& path, double total, const TrajectoryConfig& cfg) {
+    const int m = static_cast<int>(path.xy.size());
     std::mt19937_64 rng(mixSeed(cfg.seed ^ 0x7472616A65637472ULL));
     Wobble shake_pos[3], shake_rot[3];
     for (auto& w : shake_pos) w = makeWobble(rng, cfg.shake_position_m, 0.3, 1.2);
@@ -312,6 +351,20 @@ Result<io::Trajectory> generateTrajectory(const Scene& scene, const TrajectoryCo
         out.push_back({t, T});
     }
     return out;
+}
+
+}  // namespace
+
+Result<io::Trajectory> generateTrajectory(const Scene& scene, const TrajectoryConfig& cfg) {
+    PLUMB_RETURN_IF_ERROR(checkTrajectoryConfig(cfg));
+    auto control_or = pathControlPoints(scene);
+    if (!control_or.isOk()) return control_or.status();
+    const std::vector<Eigen::Vector2d>& P = control_or.value();
+    Result<PathSamples> path = samplePath(P, straightestControlPoint(P), scene, cfg);
+    if (!path.isOk()) return path.status();
+    pathHeadings(cfg.loop, &*path);
+    const double total = timePath(cfg, &*path);
+    return posesAlongPath(*path, total, cfg);
 }
 
 }  // namespace plumb::sim
