@@ -9,6 +9,9 @@
 // the room (a camera walking past a wall appears to stand still). Undistorting inverts A.3:
 // d = d_meas * f(u, v, d), solved by fixed-point iteration from d = d_meas (f varies by a few per
 // cent over metres, so each step shrinks the error by the small factor d * df/dd).
+//
+// Thread-safety: a DepthCalibration is immutable after loading and its const members are
+// thread-safe; CalibratedSource is a FrameSource (one consumer thread).
 
 #include <filesystem>
 #include <memory>

@@ -8,6 +8,8 @@
 // moves down, so host times stay monotonic while the offset is being learnt. A device clock that
 // jumps backwards (camera re-plugged, stream restarted) or forwards by more than `max_jump_s`
 // starts a new estimate.
+//
+// Not thread-safe: one DeviceClock per stream, used by the thread that receives its frames.
 
 #include <cstdint>
 #include <optional>

@@ -5,6 +5,9 @@
 // devices (openni2:<uri>), V4L2 nodes that offer a depth format (v4l2:/dev/videoN), and known
 // depth cameras on the USB bus (which may need one of the former to be read). Back-ends that
 // cannot run here (no USB subsystem, OpenNI2 without drivers) add a note instead of failing.
+//
+// Thread-safety: listDepthDevices probes the system and keeps no state; call it from one thread
+// at a time (it initialises and shuts down OpenNI2). formatDeviceList is pure.
 
 #include <string>
 #include <vector>

@@ -22,6 +22,8 @@
 // Every list line is written after its image and flushed, so a scan that is cut off leaves a
 // readable recording of the frames captured so far. A failed write is the frame's error
 // (kIoError), never a silently incomplete recording.
+//
+// Not thread-safe, as every FrameSource: one consumer calls next() at a time.
 
 #include <cstdio>
 #include <filesystem>

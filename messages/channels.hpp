@@ -3,6 +3,8 @@
 
 // LCM channel names and the default URL. Channel names are plain words: LCM treats a subscription
 // channel as a regular expression, so they must not contain regex metacharacters.
+//
+// Thread-safety: constants only.
 
 namespace plumb::messages {
 

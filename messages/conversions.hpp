@@ -3,6 +3,8 @@
 
 // Conversions between the LCM types (package plumb) and plumb's own types. Every fromMessage()
 // validates what came off the wire and returns a Status naming the bad field.
+//
+// Thread-safety: pure functions of their arguments (no shared state): thread-safe.
 
 #include <cstdint>
 #include <span>

@@ -2,6 +2,8 @@
 #pragma once
 
 // Crash-safe file helpers for the spool and the fragment store.
+//
+// Thread-safety: the functions keep no state; concurrent calls on different paths are safe.
 
 #include <cstdint>
 #include <filesystem>

@@ -28,6 +28,8 @@
 //
 // Decoding validates everything (magic, version, flags, counts against the byte length, CRC,
 // finite values, valid rotations, enum ranges) and returns StatusCode::kCorrupt with the reason.
+//
+// Thread-safety: pure functions of their arguments (no shared state): thread-safe.
 
 #include <cstdint>
 #include <span>

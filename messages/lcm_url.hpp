@@ -14,6 +14,8 @@
 //
 // plumb is stricter than LCM wherever LCM's reading could surprise: a repeated option, an option
 // without key or value, or an empty URL are refused outright (InvalidArgument).
+//
+// Thread-safety: pure functions of their arguments (no shared state): thread-safe.
 
 #include <map>
 #include <string>

@@ -5,6 +5,9 @@
 // (FragmentSender, FragmentAssembler, AuthenticatedTransport) only publish; their owner routes
 // received messages to them. Implementations: LcmTransport (messages/lcm_transport.hpp), and
 // in-memory transports in tests.
+//
+// Thread-safety: a Transport is used from one thread (the one that publishes and dispatches);
+// implementations say where they differ.
 
 #include <cstdint>
 #include <functional>

@@ -6,6 +6,8 @@
 // message from the network is first walked against a schema of its type: fingerprint, every count
 // and length checked against the bytes that remain, no trailing bytes. Only then is the generated
 // decode() run. Malformed input yields StatusCode::kCorrupt, never a crash or a large allocation.
+//
+// Thread-safety: pure functions of their arguments (no shared state): thread-safe.
 
 #include <cstddef>
 #include <cstdint>

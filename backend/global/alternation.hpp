@@ -16,6 +16,9 @@
 // The layout step is a callback so that this module depends on common/ types only; the
 // pipeline passes backend/layout's estimator. The energies of every outer and inner iteration
 // are recorded, term by term, for the report.
+//
+// Thread-safety: alternate() keeps no state between calls; it calls the layout estimator on
+// the calling thread.
 
 #include <Eigen/Geometry>
 #include <functional>

@@ -37,6 +37,10 @@
 // Determinism: correspondence search and accumulation run in parallel over fragments and pairs,
 // each writing its own slot; all sums are taken serially in a fixed order, so the result is
 // bit-identical for any num_threads.
+//
+// Thread-safety: the functions keep no state between calls and may run concurrently;
+// each parallelises internally over num_threads. GlobalCloud is immutable after preparation
+// and its queries are thread-safe.
 
 #include <Eigen/Geometry>
 #include <cstdint>

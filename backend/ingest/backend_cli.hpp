@@ -4,6 +4,8 @@
 // The plumb-backend command line (also behind `plumb replay`): ingest live over LCM, from an LCM
 // log or from a fragment store (backend/ingest/ingest_run.hpp), then the reconstruction
 // pipeline when this build has one. Installs SIGINT/SIGTERM handlers that stop a live ingest.
+//
+// Thread-safety: call from the main thread, once: it installs process-wide signal handlers.
 
 #include <string>
 #include <vector>

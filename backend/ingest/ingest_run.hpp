@@ -9,6 +9,9 @@
 //  - log: read an LCM log (lcm-logger) and feed every event through the same code at full speed,
 //    time taken from the log, so the resulting store depends on the log alone.
 // Both write metrics.json (atomically) into the output directory.
+//
+// Thread-safety: each run uses the calling thread only (the live run dispatches LCM on it);
+// runs on different links and output directories may proceed concurrently.
 
 #include <atomic>
 #include <cstdint>

@@ -13,6 +13,8 @@
 // within a factor 2 of the global optimum (Boykov et al., Theorem 6.1).
 //
 // No randomness; the result depends only on the problem and the initial labelling.
+//
+// Thread-safety: pure functions of their arguments (no shared state): thread-safe.
 
 #include <cstdint>
 #include <vector>

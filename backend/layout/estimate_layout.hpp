@@ -44,7 +44,8 @@
 // The fraction of camera positions inside the final room polygon is reported
 // (LayoutDiagnostics::path_inside_fraction).
 //
-// Deterministic; the result depends only on the inputs and the configuration.
+// Deterministic; the result depends only on the inputs and the configuration. Thread-safe:
+// estimateLayout and toJson keep no state between calls.
 
 #include <nlohmann/json_fwd.hpp>
 
@@ -102,9 +103,8 @@ struct LayoutConfig {
     /// Walls span floor to ceiling: with a ceiling, a wall's points (99th percentile) must come
     /// within this distance of it, metres (furniture fronts and shelves never do) ... A handheld
     /// camera at 1.5 m with a 49 degree vertical field of view sees the top of a 2.6 m wall only
-    /// from 2.4 m away, so a wall scanned from closer ends 0.3 m or more below the ceiling in
-    /// the data (0.31-0.32 m on the simulated living_room); a 1.9-2.0 m shelf or wardrobe in a
-    /// 2.6-2.7 m room stays 0.6-0.7 m below it.
+    /// from 2.4 m away, so a wall scanned from closer ends 0.3 m or more below the ceiling; a
+    /// 1.9-2.0 m shelf or wardrobe in a 2.6-2.7 m room stays 0.6-0.7 m below it.
     double wall_top_margin_m = 0.5;
     /// ... and without one, they must span at least this height, metres.
     double min_wall_height_m = 1.2;
@@ -117,11 +117,9 @@ struct LayoutConfig {
     double min_room_height_m = 1.8;
     /// Weak Manhattan: walls within this angle of a multiple of 90 degrees from the reference
     /// wall are snapped to it exactly, degrees (reference §4.10 starts at 5). The layout-
-    /// constrained registration then pulls the fragments onto the snapped walls, so a snap of a
-    /// wall that is not square moves the model: on tum-fr3-structure-notexture-far two panels
-    /// 1.7 and 3.8 degrees off were snapped and the full method's ATE went from the baseline's
-    /// 0.90 cm to 1.94 cm; with 1.5 it is 0.83 cm. The simulated rooms' walls are measured within
-    /// 0.6 degrees of square and are snapped either way (their reconstructions are identical).
+    /// constrained registration then pulls the fragments onto the snapped walls, so snapping a
+    /// wall that is not square moves the model: keep this below the angle of real rooms' walls
+    /// that are meant to be off square.
     double snap_angle_deg = 1.5;
     /// Offsets are re-estimated over the plane's points within this distance, metres.
     double refit_band_m = 0.06;

@@ -18,6 +18,9 @@
 //  - a 1 m scale bar and a legend.
 // The ids in brackets are the SVG elements' (groups') ids. Algorithms here do no I/O except
 // writeFloorplanSvg.
+//
+// Thread-safety: pure functions of their arguments (no shared state): thread-safe;
+// writeFloorplanSvg writes only its own file.
 
 #include <Eigen/Geometry>
 #include <filesystem>

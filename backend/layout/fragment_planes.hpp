@@ -17,6 +17,9 @@
 //      little support, repeated.
 //
 // Deterministic (no randomness; PCL's VCCS is deterministic for a given input order).
+//
+// Thread-safety: extractFragmentPlanes keeps no state between calls; fragments may be processed
+// concurrently.
 
 #include <nlohmann/json_fwd.hpp>
 

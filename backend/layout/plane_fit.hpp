@@ -3,6 +3,9 @@
 
 // Least-squares plane fitting from accumulated first and second moments (reference §4.4: the
 // centroid and the eigenvector of the smallest eigenvalue of the 3x3 covariance).
+//
+// Thread-safety: value types; const access from several threads is safe, a write needs
+// exclusive access; the free functions are pure.
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>

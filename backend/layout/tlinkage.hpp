@@ -14,6 +14,8 @@
 // Optionally only clusters adjacent in a given graph may merge (the adjacency of a merged cluster
 // is the union), which keeps coplanar but disconnected surfaces apart and is much faster.
 // Deterministic: ties break by the smaller cluster ids.
+//
+// Thread-safety: pure functions of their arguments (no shared state): thread-safe.
 
 #include <functional>
 #include <utility>

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 #pragma once
 
-// The final model (issue 8, item 3): once the fragment poses are optimised, every frame's pose is
+// The final model: once the fragment poses are optimised, every frame's pose is
 // T_W_C = T_W_F * T_F_C. When the raw frames are available (datasets, simulator, logs with raw
 // depth) they are all re-integrated with those poses into one TSDF and meshed. Otherwise (a live
 // scan where only fragments crossed the wire) each fragment's oriented surface points are rendered
@@ -10,6 +10,9 @@
 // fragments merge into one surface rather than a stack of shifted copies. Colour goes along
 // either way (the raw frames' colour, or the fragments' point colours): the mesh is coloured
 // when the scan is.
+//
+// Thread-safety: the functions keep no state between calls and may run concurrently on different
+// inputs; each parallelises internally over num_threads.
 
 #include <Eigen/Geometry>
 #include <cstdint>
@@ -36,9 +39,8 @@ struct FinalModelConfig {
     /// Depth beyond this is not integrated, metres (noise grows with z^2).
     double max_depth_m = 4.0;
     /// Integrate every k-th frame of the source (1 = all); raw frames in between are skipped
-    /// without being decoded or rendered where the source allows (FrameSource::skip). 2 halves
-    /// the final model's time for about 2 % more reconstruction error (BENCHMARKS.md); the
-    /// default keeps every frame.
+    /// without being decoded or rendered where the source allows (FrameSource::skip). Larger
+    /// strides trade reconstruction error for time; the default keeps every frame.
     int frame_stride = 1;
     /// Voxels observed fewer times are not meshed.
     double min_weight = 1.0;

@@ -17,6 +17,9 @@
 // its poses (without feeding back) so every output directory has a floor plan. Unless told
 // otherwise the pipeline produces both variants from the same fragments: the full method in the
 // output directory, the baseline in <out>/baseline, both in metrics.json and report.html.
+//
+// Thread-safety: runPipeline keeps no state between calls; it runs on the calling thread and
+// parallelises its stages internally.
 
 #include <Eigen/Geometry>
 #include <filesystem>

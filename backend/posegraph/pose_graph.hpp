@@ -44,6 +44,9 @@
 // makes overlap edges weigh by the point-to-plane information over the same correspondences
 // instead, Σ J^T J with J = [(q x n)^T, n^T], scaled so that its translation block has the trace
 // of Choi's Λ (3 per correspondence).
+//
+// Thread-safety: the functions keep no state between calls and may run concurrently on
+// different graphs.
 
 #include <Eigen/Geometry>
 #include <cstdint>

@@ -21,6 +21,9 @@
 //
 // Determinism: per-point work is independent and sums are reduced over fixed chunks in a fixed
 // order, so every result is identical for any thread count.
+//
+// Thread-safety: the functions keep no state between calls and may run concurrently;
+// each parallelises internally over num_threads.
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>

@@ -13,6 +13,8 @@
 // plane vote for a slab of offsets (any slide along the plane fits), planes of three directions
 // meet in one peak, and furniture sharpens it. The strongest peaks within `radius_m` of the
 // odometry are returned; the caller refines each by ICP and keeps the best verified one.
+//
+// Thread-safety: pure functions of their arguments (no shared state): thread-safe.
 
 #include <Eigen/Geometry>
 #include <vector>

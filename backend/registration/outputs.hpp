@@ -9,6 +9,9 @@
 //  - registration .log / .info (Redwood benchmark format): one entry "i j n" per kept edge with
 //    T_i_j = T_source_target (maps fragment j into fragment i) and its information matrix.
 // Writers produce byte-identical files for identical inputs.
+//
+// Thread-safety: the functions keep no state between calls; concurrent calls on different
+// files are safe.
 
 #include <filesystem>
 #include <string>

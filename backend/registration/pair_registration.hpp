@@ -9,7 +9,8 @@
 //
 // All functions are deterministic: RANSAC draws from std::mt19937_64 seeded by the caller, and
 // parallel sums are reduced over fixed chunks in a fixed order, so results do not depend on the
-// thread count.
+// thread count. The free functions keep no state between calls and may run concurrently;
+// IndexedCloud is immutable after construction and its queries are thread-safe.
 
 #include <Eigen/Geometry>
 #include <cstdint>
@@ -33,26 +34,18 @@ struct IcpConfig {
     double distance_factor = 1.4;
     /// Stop a level when both fitness and RMSE (metres) change by less than this from one
     /// iteration to the next (Open3D's refine: 1e-6). 1e-4 (0.1 mm of RMSE) stops levels that
-    /// only shuffle correspondences: registration of the 900-frame l_shape scan 13.6 -> 9.8 s,
-    /// ATE and reconstruction error within 0.6 % on the nine scans, up to 1.3 % worse on the
-    /// corridor (BENCHMARKS.md).
+    /// only shuffle correspondences.
     double relative_change = 1e-4;
     /// Solution remapping (Zhang, Kaess, Singh, ICRA 2016), as in the tracker: a translation t
     /// is not solved for when mean (n.t)^2 over the correspondences (an eigenvalue of
     /// sum n n^T / count) is below this, and the alignment keeps its start along it. Two
     /// fragments that see little more than a wall and the floor otherwise slide along the line
-    /// where they meet, on noise: on the 600-frame living_room scan with seed 2 an odometry edge
-    /// slid 44 cm away from the tracker's 0.7 cm (ATE 7.46 cm; 0.98 cm with 0.005), and
-    /// weak_manhattan's ATE goes from 48.5 to 4.4 cm with 0.005. Off by default for now: with
-    /// 0.005 the 320x240 loop scan of the registration tests ends at 5.06 cm ATE instead of
-    /// 4.6 (its bound is 5 cm) and seed 3 of living_room gets worse (BENCHMARKS.md, "End to
-    /// end"). 0 = plain Gauss-Newton (Open3D).
+    /// where they meet, on noise. 0 = plain Gauss-Newton (Open3D), the default for depth-only
+    /// pairs.
     double min_normal_spread = 0.0;
     /// min_normal_spread of the coloured pairs (fragments tracked with colour): their odometry
     /// start is reliable along the directions RGB-D tracking observed, so translations that
-    /// neither the geometry nor the colour of the pair constrains keep it. The 600-frame
-    /// weak_manhattan scan, seed 1, tracked with colour: ATE 42.1 cm without remapping (an
-    /// odometry edge slid 99 cm from a start 0.4 cm off), 0.8 cm with 0.005 (BENCHMARKS.md).
+    /// neither the geometry nor the colour of the pair constrains keep it.
     double coloured_min_normal_spread = 0.005;
     /// Coloured ICP (Park, Zhou, Koltun ICCV 2017; coloured_icp.hpp) instead of point-to-plane
     /// at every level where both fragments carry colour; fragments without colour (depth-only

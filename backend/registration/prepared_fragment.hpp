@@ -10,6 +10,9 @@
 //
 // Everything here is deterministic: the output depends on the input and the configuration only,
 // never on the thread count.
+//
+// Thread-safety: the functions keep no state between calls and may run concurrently;
+// each parallelises internally over num_threads.
 
 #include <array>
 #include <cstdint>

@@ -12,6 +12,8 @@
 //    `wall_band_m` of the wall's plane and inside its segment get a least-squares plane; planarity
 //    is the RMS distance to that plane and the angles are taken between fitted planes. The same
 //    reference walls serve every variant, so the numbers compare like with like.
+//
+// Thread-safety: the functions keep no state between calls and may run concurrently.
 
 #include <Eigen/Geometry>
 #include <filesystem>

@@ -3,6 +3,8 @@
 
 // In-memory PNG encoding (libpng) and base64, for images embedded in report.html as
 // `data:image/png;base64,...` URIs so the single file works offline. No I/O.
+//
+// Thread-safety: pure functions of their arguments (no shared state): thread-safe.
 
 #include <string>
 #include <string_view>

@@ -12,6 +12,8 @@
 // distance to the ground-truth surface; without one, why not), the pose graph, the energy of every
 // alternation step and the time per stage. Every number comes from metrics.json, so the page and
 // the file never disagree; the pictures come from the meshes (ReportFigures).
+//
+// Thread-safety: pure functions of their arguments (no shared state): thread-safe.
 
 #include <Eigen/Geometry>
 #include <map>

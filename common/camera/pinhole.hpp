@@ -4,6 +4,9 @@
 // Pinhole camera: x right, y down, z forward (DESIGN.md). A pixel (u, v) with depth z back-projects
 // to p_C = z * ((u - cx)/fx, (v - cy)/fy, 1). A negative fy (ICL-NUIM's y-flip) is allowed: the
 // formulas are unchanged and the image is simply mirrored vertically.
+//
+// Thread-safety: value types; const access from several threads is safe, a write needs
+// exclusive access.
 
 #include <Eigen/Core>
 #include <string>

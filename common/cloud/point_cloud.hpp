@@ -3,6 +3,9 @@
 
 // Oriented point clouds and triangle meshes: the geometry exchanged between every stage.
 // Coordinates are float metres in the frame the owner names (points_F, points_W, ...).
+//
+// Thread-safety: value types; const access from several threads is safe, a write needs
+// exclusive access.
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>

@@ -14,6 +14,9 @@
 //
 // A program reads `--config FILE` and any number of `--set key=value` with extractConfigArgs(),
 // then calls load(). Errors name the file and line, or the flag.
+//
+// Thread-safety: the functions touch only their arguments and may run concurrently on
+// different structs.
 
 #include <filesystem>
 #include <string>

@@ -10,6 +10,9 @@
 // Registration runs from a static initialiser, so it must sit in a source file linked directly
 // into the executable that lists it (a translation unit of a static library that nothing else
 // references is dropped by the linker).
+//
+// Thread-safety: registration runs during static initialisation; afterwards the registry is
+// only read, from any thread.
 
 #include <filesystem>
 #include <functional>

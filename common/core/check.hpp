@@ -7,6 +7,8 @@
 // (common/core/status.hpp).
 //
 //   PLUMB_CHECK(depth.width() == camera.width) << "depth is " << depth.width() << " wide";
+//
+// Thread-safety: PLUMB_CHECK may be used on any thread; a failure aborts the whole process.
 
 #include <sstream>
 

@@ -3,6 +3,8 @@
 
 // The channel for expected failures: a Status (ok or an error code with a message) and Result<T>
 // (a value or a Status). Callers log the message with their own context; nothing here throws.
+//
+// Thread-safety: Status and Result are value types with no shared state.
 
 #include <optional>
 #include <string>

@@ -18,6 +18,8 @@
 // Per plane: angle error (deg, in [0, 90] after flipping), offset error d_est - d_gt in the
 // comparison frame (positive: the estimated plane lies further along -n, i.e. outside the
 // ground-truth wall for inward normals), and the centre distance (frame independent).
+//
+// Thread-safety: pure functions of their arguments (no shared state): thread-safe.
 
 #include <optional>
 #include <vector>

@@ -4,6 +4,9 @@
 // A fragment: the surface fused from a run of consecutive frames (default 50), in its own frame F
 // = the camera frame of its first frame (reference §2.7). The device produces fragments; the
 // backend registers them. Everything needed to re-integrate the raw frames later is kept.
+//
+// Thread-safety: value types; const access from several threads is safe, a write needs
+// exclusive access.
 
 #include <Eigen/Geometry>
 #include <cstdint>

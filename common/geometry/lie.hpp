@@ -4,6 +4,8 @@
 // SO(3)/SE(3) helpers. Conventions (DESIGN.md): twists are xi = (omega, upsilon), rotation first;
 // updates are left multiplications T <- Exp(xi) T. For a world point x = T p the derivative of
 // Exp(xi) x at xi = 0 is [ -[x]_x | I_3 ] (pointJacobian below).
+//
+// Thread-safety: pure functions of their arguments (no shared state): thread-safe.
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>

@@ -4,6 +4,8 @@
 // Solution remapping (Zhang, Kaess, Singh, ICRA 2016) for point-to-plane Gauss-Newton in twist
 // coordinates xi = (omega, v): translations the geometry does not constrain are left out of the
 // solve. Used by the tracker's frame-to-model ICP and by the backend's fragment ICP.
+//
+// Thread-safety: pure functions of their arguments (no shared state): thread-safe.
 
 #include <Eigen/Core>
 #include <Eigen/Eigenvalues>

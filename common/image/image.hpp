@@ -3,6 +3,9 @@
 
 // Row-major images with value semantics. Depth is float metres with 0 = invalid
 // (DepthImage); sensors and files carry uint16 with a depth scale (units per metre).
+//
+// Thread-safety: value types; const access from several threads is safe, a write needs
+// exclusive access.
 
 #include <cstdint>
 #include <vector>

@@ -21,6 +21,9 @@
 // blue] and, for meshes, `property list uchar int vertex_indices`. ASCII numbers are written with
 // the shortest representation that reads back to the same float, so both formats round-trip
 // exactly. Positions and normals must be finite and attributes consistent (kInvalidArgument).
+//
+// Thread-safety: the functions keep no state between calls; concurrent calls on different
+// files are safe.
 
 #include <filesystem>
 

@@ -6,6 +6,8 @@
 // archive is read back only on a machine of the same byte order and type sizes (the one that
 // wrote it); it is not an interchange format. The reader never reads past its input: a short or
 // damaged archive makes it fail (ok() false) and every read after that returns false.
+//
+// Not thread-safe: a StateWriter or StateReader is used by one thread at a time.
 
 #include <Eigen/Geometry>
 #include <algorithm>

@@ -9,6 +9,9 @@
 //    `i j n_fragments` and T aligns fragment j to fragment i (p_i = T p_j).
 //  - `.info`: 7 lines per entry: `i j n` then the 6 rows of a 6x6 information matrix (rotation
 //    first, as Open3D).
+//
+// Thread-safety: the functions keep no state between calls; concurrent calls on different
+// files are safe.
 
 #include <Eigen/Geometry>
 #include <filesystem>

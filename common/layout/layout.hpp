@@ -4,6 +4,9 @@
 // A room layout: floor, ceiling and walls in a gravity-aligned layout frame L (z up, floor at
 // z = 0), plus the transform to the world frame W of the reconstruction. Planes are in Hessian
 // form n.x + d = 0 with |n| = 1 (never the paper's [a,b,c,1]).
+//
+// Thread-safety: value types; const access from several threads is safe, a write needs
+// exclusive access; the free functions are pure.
 
 #include <Eigen/Geometry>
 #include <filesystem>

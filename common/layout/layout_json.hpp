@@ -18,6 +18,9 @@
 // Numbers are written with round-trip precision, so write + read gives back the same doubles bit
 // for bit. Reading checks types, finiteness, unit normals (1e-6) and a rigid T_W_L; errors name the
 // source and the field ("layout.json: planes[2].normal_L: ...").
+//
+// Thread-safety: the functions keep no state between calls; concurrent calls on different
+// files are safe.
 
 #include <nlohmann/json_fwd.hpp>
 

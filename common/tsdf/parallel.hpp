@@ -3,6 +3,8 @@
 
 // tsdf::parallelFor is plumb::parallelFor (common/core/parallel.hpp), kept under this name for
 // the includes that have not moved to it yet.
+//
+// Thread-safety: as plumb::parallelFor.
 
 #include "common/core/parallel.hpp"
 

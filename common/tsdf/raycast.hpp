@@ -5,6 +5,9 @@
 // that frame-to-model ICP aligns against. Unbiased on planes: the zero crossing is found between
 // two trilinear samples and refined by one secant step; trilinear interpolation reproduces a
 // linear field exactly, so a planar TSDF gives the plane to float precision.
+//
+// Thread-safety: raycasting only reads the volume; raycasts of one volume may run concurrently
+// while nothing integrates into it.
 
 #include <Eigen/Geometry>
 #include <cmath>

@@ -5,6 +5,9 @@
 // crossings of voxel edges ("marching-cubes vertices without triangles") and marching-cubes
 // triangle meshes over those same vertices, shared across block borders (watertight where the
 // surface is observed).
+//
+// Thread-safety: extraction only reads the volume; it may run concurrently with other readers
+// while nothing integrates into it.
 
 #include "common/cloud/point_cloud.hpp"
 #include "common/tsdf/tsdf_volume.hpp"

@@ -4,6 +4,9 @@
 // Configuration schemas (common/config) of the TSDF volume, the raycaster and surface extraction,
 // so programs that embed them (`plumb fuse`, `plumb reconstruct`, plumb-device) document and load
 // every key.
+//
+// Thread-safety: plain configuration structs; describe() and validate() touch only their
+// argument.
 
 #include "common/config/schema.hpp"
 #include "common/tsdf/raycast.hpp"

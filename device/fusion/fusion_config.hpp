@@ -4,6 +4,9 @@
 // Configuration schemas (common/config) of the on-device pipeline: preprocessing, ICP tracking
 // and fusion into fragments. FusionConfig is registered as the program configuration "fusion"
 // (`plumb config doc fusion`), the configuration of `plumb fuse`.
+//
+// Thread-safety: plain configuration structs; describe() and validate() touch only their
+// argument.
 
 #include "common/config/schema.hpp"
 #include "device/preprocess/preprocess.hpp"

@@ -3,6 +3,8 @@
 
 // Per-frame preprocessing for tracking (reference §2.1): range gating, a masked bilateral filter,
 // a depth pyramid and per-level vertex and normal maps in the camera frame.
+//
+// Thread-safety: pure functions of their arguments (no shared state): thread-safe.
 
 #include <vector>
 

@@ -5,6 +5,9 @@
 // fusion parameters a deployment tunes, and the fragment stream (chunking, retransmission,
 // spool, heartbeat). The device publishes the effective configuration on PLUMB_CONFIG so LCM logs
 // carry it.
+//
+// Thread-safety: plain configuration structs; describe() and validate() touch only their
+// argument.
 
 #include <cstdint>
 #include <string>

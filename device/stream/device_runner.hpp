@@ -23,6 +23,10 @@
 // and the memory or disk budget is used up), the next fragments wait for room and fusion is held
 // back (capture drops frames, or waits for a recorded source); stop requests are honoured all
 // the same, and at exit the fragments that never got into the spool are reported as lost.
+//
+// Thread-safety: runDevice starts and joins its own capture and fusion threads and uses the
+// calling thread as the network thread; run one at a time per source. residentMemoryBytes is
+// thread-safe.
 
 #include <atomic>
 #include <cstdint>

@@ -5,6 +5,8 @@
 // (common/tsdf/raycast.hpp) from the previous pose, one raycast per pyramid level; the frame is its
 // preprocessed pyramid (device/preprocess). Frames: M = the model's frame (the fragment frame), C =
 // the current camera, P = the camera the model was raycast from.
+//
+// Thread-safety: pure functions of their arguments (no shared state): thread-safe.
 
 #include <Eigen/Geometry>
 #include <array>

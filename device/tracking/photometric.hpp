@@ -17,6 +17,8 @@
 //
 // Pixels are selected DVO-style where the reference gradient is strong; residuals get Huber
 // weights. Algorithms only; no I/O.
+//
+// Thread-safety: pure functions of their arguments (no shared state): thread-safe.
 
 #include <Eigen/Geometry>
 #include <string>

@@ -5,6 +5,9 @@
 // values are depth units; divide by the dataset's depth scale for metres; 0 = invalid.
 // Also the datasets' 8-bit colour images (PNG; JPEG where OpenCV decodes it), always returned in
 // RGB order whatever the decoder's own channel order is.
+//
+// Thread-safety: the functions keep no state between calls; concurrent calls on different
+// files are safe.
 
 #include <filesystem>
 #include <span>

@@ -14,6 +14,9 @@
 //   4 numbers  fx fy cx cy                 (image size taken from the caller's default)
 //   6 numbers  width height fx fy cx cy
 //   9 numbers  the 3x3 matrix K, row-major (image size taken from the caller's default)
+//
+// Thread-safety: the functions keep no state between calls; concurrent calls on different
+// files are safe.
 
 #include <filesystem>
 #include <optional>

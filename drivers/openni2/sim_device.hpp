@@ -31,6 +31,8 @@
 // colour_skip   every M-th frame (k = M-1, 2M-1, ...) comes without its colour frame (default
 //               0: none), as when a camera's colour stream drops a frame
 // fault         also "colour_short": colour frame fault_at carries half its bytes
+//
+// Thread-safety: pure functions of their arguments: thread-safe.
 
 #include <cstdint>
 #include <string>

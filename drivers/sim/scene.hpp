@@ -11,6 +11,8 @@
 // colour with a procedural pattern (the colour image, drivers/sim/texture.hpp): plaster and
 // framed pictures on the walls, wood or tiles on the floor, faint noise on the ceiling, solid,
 // noise, stripes or checker on furniture. `texture = plain` keeps one uniform colour per surface.
+//
+// Thread-safety: pure functions of their arguments (no shared state): thread-safe.
 
 #include <Eigen/Core>
 #include <cstdint>

@@ -13,6 +13,8 @@
 // num_frames allows a speed within [min, max] (with too few frames it is a partial lap at max
 // speed); the no-loop variant covers no_loop_fraction of the loop without revisits (with more
 // frames than that takes at min speed it stands at the end).
+//
+// Pure functions of their arguments (the seed included): thread-safe.
 
 #include <Eigen/Geometry>
 #include <cstdint>
@@ -46,7 +48,7 @@ struct TrajectoryConfig {
     /// i.e. outward on a counter-clockwise loop). 195: back along the path and 15 degrees
     /// outward, at the corner just passed and the far side of the room. Sideways views (-65)
     /// see one wall and the floor and let ICP slide along the wall; 210-225 face the wall
-    /// frontally at 1.5 m while the path turns a corner (issue 4 notes).
+    /// frontally at 1.5 m while the path turns a corner.
     double look_offset_deg = 195.0;
     /// Mean pitch (negative = down) and the amplitude of its slow sway, degrees.
     double pitch_deg = -8.0;

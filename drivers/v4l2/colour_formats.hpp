@@ -9,6 +9,8 @@
 //                              U/V 16-240, as UVC cameras send it), both pixels of a pair share
 //                              U and V
 //   MJPG (V4L2_PIX_FMT_MJPEG)  one JPEG per frame; only in builds that decode JPEG (OpenCV)
+//
+// Thread-safety: pure functions of their arguments (no shared state): thread-safe.
 
 #include <cstdint>
 #include <span>

@@ -14,6 +14,9 @@
 // open() fails with ENOENT, until `replug_after_opens` failed opens have passed; then the node
 // reappears and the remaining buffers follow. It counts open descriptors and mappings so tests
 // can check that the source released everything.
+//
+// Not thread-safe: a ReplayIo or RecordingIo serves one V4L2 source (one thread at a time), as
+// the V4L2 source uses its V4l2Io. saveRecording and loadRecording keep no state.
 
 #include <cstdint>
 #include <filesystem>

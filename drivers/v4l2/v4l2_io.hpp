@@ -5,6 +5,9 @@
 // runs unchanged against a real /dev/videoN (systemIo) or a replayed recording (ReplayIo). Every
 // call returns >= 0 or -errno, as libcamera's V4L2Device does; mmap returns nullptr on failure.
 // UniqueFd and MappedBuffer release what they hold through the same interface (RAII).
+//
+// Thread-safety: systemIo's calls are the system calls and are thread-safe; other V4l2Io
+// implementations say otherwise. UniqueFd and MappedBuffer are owned by one thread at a time.
 
 #include <sys/types.h>
 
