@@ -21,8 +21,8 @@ packages=(
     libopencv-dev libpng-dev libopenni2-dev libusb-1.0-0-dev libv4l-dev
     # messages: LCM (lcm.pc requires glib); libcrypto (HMAC-SHA256) and zlib (CRC-32)
     liblcm-dev liblcm-bin libglib2.0-dev libssl-dev zlib1g-dev
-    # backend: PCL (its VTK needs MPI's C bindings), Ceres, Boost graph
-    libpcl-dev libopenmpi-dev libceres-dev libboost-graph-dev
+    # backend: PCL (its VTK needs MPI's C bindings)
+    libpcl-dev libopenmpi-dev
     # tests, benchmarks and the peer (Open3D is an oracle and a peer, never on the runtime path)
     libgtest-dev libgmock-dev libbenchmark-dev libopen3d-dev python3-open3d python3-numpy
     qemu-user  # runs a test program as an older x86-64 CPU (tests/common/cpu_check_test)
