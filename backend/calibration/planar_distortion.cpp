@@ -254,8 +254,10 @@ class Fitter {
 
 namespace {
 
-std::array<double, kTerms> monomials(double u, double v) {
-    std::array<double, kTerms> m{};
+constexpr int kCurvedTerms = PlanarDistortion::kCurvedTerms;
+
+std::array<double, kCurvedTerms> monomials(double u, double v) {
+    std::array<double, kCurvedTerms> m{};
     size_t k = 0;
     for (int degree = 2; degree <= PlanarDistortion::kDegree; ++degree) {
         for (int i = degree; i >= 0; --i) m[k++] = std::pow(u, i) * std::pow(v, degree - i);
@@ -264,30 +266,70 @@ std::array<double, kTerms> monomials(double u, double v) {
 }
 
 /// Per monomial, its least-squares affine part a + b u + c v over the table's cell centres.
-std::array<Eigen::Vector3d, kTerms> affineParts() {
+std::array<Eigen::Vector3d, kCurvedTerms> affineParts() {
     constexpr int n = sim::DistortionTable::kCellsPerSide;
     Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
-    Eigen::Matrix<double, 3, kTerms> atb = Eigen::Matrix<double, 3, kTerms>::Zero();
+    Eigen::Matrix<double, 3, kCurvedTerms> atb = Eigen::Matrix<double, 3, kCurvedTerms>::Zero();
     for (int y = 0; y < n; ++y) {
         for (int x = 0; x < n; ++x) {
             const double u = (x + 0.5) / (n / 2.0) - 1.0, v = (y + 0.5) / (n / 2.0) - 1.0;
             const Eigen::Vector3d a(1.0, u, v);
             ata += a * a.transpose();
-            const std::array<double, kTerms> m = monomials(u, v);
-            for (int k = 0; k < kTerms; ++k) atb.col(k) += a * m[static_cast<size_t>(k)];
+            const std::array<double, kCurvedTerms> m = monomials(u, v);
+            for (int k = 0; k < kCurvedTerms; ++k) atb.col(k) += a * m[static_cast<size_t>(k)];
         }
     }
-    std::array<Eigen::Vector3d, kTerms> out;
-    for (int k = 0; k < kTerms; ++k) out[static_cast<size_t>(k)] = ata.ldlt().solve(atb.col(k));
+    std::array<Eigen::Vector3d, kCurvedTerms> out;
+    for (int k = 0; k < kCurvedTerms; ++k) {
+        out[static_cast<size_t>(k)] = ata.ldlt().solve(atb.col(k));
+    }
     return out;
+}
+
+/// Eq. 3's gauge: removes from the affine coefficients of the estimated bins their
+/// least-squares fit by a + b z (the constant term) and c z, d z (the u and v terms) over the
+/// bins' centres z.
+void removeDisparityAffine(const std::vector<int>& estimated, PlanarDistortion* model) {
+    if (estimated.empty()) return;
+    Eigen::MatrixXd a(static_cast<Eigen::Index>(estimated.size()), 2);
+    Eigen::VectorXd z(static_cast<Eigen::Index>(estimated.size()));
+    for (size_t e = 0; e < estimated.size(); ++e) {
+        z[static_cast<Eigen::Index>(e)] = sim::DistortionTable::binCentreM(estimated[e]);
+        a.row(static_cast<Eigen::Index>(e)) << 1.0, z[static_cast<Eigen::Index>(e)];
+    }
+    auto coefficients = [&](int k) {
+        Eigen::VectorXd y(static_cast<Eigen::Index>(estimated.size()));
+        for (size_t e = 0; e < estimated.size(); ++e) {
+            y[static_cast<Eigen::Index>(e)] =
+                model->c[static_cast<size_t>(estimated[e])][static_cast<size_t>(k)];
+        }
+        return y;
+    };
+    auto subtract = [&](int k, const Eigen::VectorXd& fit) {
+        for (size_t e = 0; e < estimated.size(); ++e) {
+            model->c[static_cast<size_t>(estimated[e])][static_cast<size_t>(k)] -=
+                fit[static_cast<Eigen::Index>(e)];
+        }
+    };
+    const Eigen::VectorXd constant = coefficients(kCurvedTerms);
+    const Eigen::Matrix2d ata = a.transpose() * a + 1e-12 * Eigen::Matrix2d::Identity();
+    subtract(kCurvedTerms, a * ata.ldlt().solve(a.transpose() * constant));
+    for (int k = kCurvedTerms + 1; k < kTerms; ++k) {
+        const Eigen::VectorXd y = coefficients(k);
+        subtract(k, z * (z.dot(y) / z.squaredNorm()));
+    }
 }
 
 }  // namespace
 
 std::array<double, PlanarDistortion::kTerms> PlanarDistortion::terms(double u, double v) {
-    static const std::array<Eigen::Vector3d, kTerms> affine = affineParts();
-    std::array<double, kTerms> t = monomials(u, v);
-    for (size_t k = 0; k < t.size(); ++k) t[k] -= affine[k].dot(Eigen::Vector3d(1.0, u, v));
+    static const std::array<Eigen::Vector3d, kCurvedTerms> affine = affineParts();
+    const std::array<double, kCurvedTerms> m = monomials(u, v);
+    std::array<double, kTerms> t{};
+    for (size_t k = 0; k < m.size(); ++k) t[k] = m[k] - affine[k].dot(Eigen::Vector3d(1.0, u, v));
+    t[kCurvedTerms] = 1.0;
+    t[kCurvedTerms + 1] = u;
+    t[kCurvedTerms + 2] = v;
     return t;
 }
 
@@ -372,6 +414,9 @@ void describe(config::Schema& s, PlanarDistortionConfig& c) {
             "image beyond a projective part, 1 and 3 m); else the bend is not determined (0: no "
             "check)")
         .min(0.0);
+    s.field("estimate_affine", c.estimate_affine,
+            "also estimate each bin's affine terms, less the part that keeps planes planes (a + z "
+            "(b + c u + d v)); off: they stay neutral");
     s.field("frame_step", c.frame_step, "every frame_step-th frame is used").min(1);
     s.field("num_threads", c.num_threads, "worker threads (0 = TBB default)").min(0);
 }
@@ -542,8 +587,14 @@ Result<PlanarEstimate> PlanarDistortionEstimator::fit(size_t begin, size_t end,
                 out.estimated_bins |= 1U << b;
             }
         }
-        const double lambda =
-            config_.bin_smoothness * h.diagonal().maxCoeff() / std::max(1.0, total.weight);
+        const int terms = config_.estimate_affine ? kTerms : kCurvedTerms;
+        double max_diagonal = 0.0;
+        for (int b = 0; b < kBins; ++b) {
+            for (int k = 0; k < terms; ++k) {
+                max_diagonal = std::max(max_diagonal, h(b * kTerms + k, b * kTerms + k));
+            }
+        }
+        const double lambda = config_.bin_smoothness * max_diagonal / std::max(1.0, total.weight);
         for (size_t e = 1; e + 1 < estimated.size(); ++e) {
             for (int k = 0; k < kTerms; ++k) {
                 const int i0 = estimated[e - 1] * kTerms + k, i1 = estimated[e] * kTerms + k,
@@ -560,7 +611,7 @@ Result<PlanarEstimate> PlanarDistortionEstimator::fit(size_t begin, size_t end,
         }
         std::vector<int> param_index;
         for (int b : estimated) {
-            for (int k = 0; k < kTerms; ++k) param_index.push_back(b * kTerms + k);
+            for (int k = 0; k < terms; ++k) param_index.push_back(b * kTerms + k);
         }
         const int m = static_cast<int>(param_index.size());
         Eigen::MatrixXd hr(m, m);
@@ -580,6 +631,7 @@ Result<PlanarEstimate> PlanarDistortionEstimator::fit(size_t begin, size_t end,
             out.model.c[param_index[a] / kTerms][param_index[a] % kTerms] += step[a];
             rec.max_change = std::max(rec.max_change, std::abs(step[a]));
         }
+        if (config_.estimate_affine) removeDisparityAffine(estimated, &out.model);
         for (int b = 0; b < kBins; ++b) {
             if (std::find(estimated.begin(), estimated.end(), b) != estimated.end()) continue;
             int nearest = estimated.front();

@@ -36,6 +36,17 @@
 // used. Coefficients of a bin with little data are held to the linear extrapolation of their
 // neighbours in depth (bin_smoothness).
 //
+// Optionally (estimate_affine) each bin's affine terms are estimated too. Of those, the factors
+//
+//   f(u, v, z) = a + z (b + c u + d v),  i.e.  1 / z_raw = a / z + b + c u + d v,             (Eq.
+//   3)
+//
+// an affine map of the disparity, keep every plane a plane (1/z of a plane is affine in (u, v)),
+// so planarity cannot see them; after every step the estimated bins' affine coefficients are
+// made orthogonal to Eq. 3 (its least-squares fit over the bin centres is removed), which fixes
+// that gauge at the neutral factor. What is left is a tilt or scale that does not grow in
+// proportion to the depth, and that bends planes spanning depths.
+//
 // Thread-safety: const members may run concurrently; results never depend on num_threads.
 
 #include <array>
@@ -101,6 +112,10 @@ struct PlanarDistortionConfig {
     /// projective part, worst of the 1 m and 3 m bins), the planes do not determine the bend and
     /// estimate() fails. 0: no check.
     double max_split_disagreement = 0.005;
+    /// Also estimate each bin's affine terms (1, u, v), less the part that keeps planes planes
+    /// (Eq. 3): with two estimated bins that leaves one tilt along u and one along v, with three
+    /// a scale curved in depth and two more tilts. Off: the affine terms stay 0.
+    bool estimate_affine = false;
     /// Only frames k with k % frame_step == 0 of those added are kept.
     int frame_step = 1;
     /// Worker threads (0 = TBB default). Results do not depend on it.
@@ -114,9 +129,12 @@ Status validate(const PlanarDistortionConfig& c);
 /// Eq. 1.
 struct PlanarDistortion {
     static constexpr int kDegree = 4;
-    static constexpr int kTerms = (kDegree + 1) * (kDegree + 2) / 2 - 3;
+    /// The monomials of degree 2 to kDegree, each less its affine part ...
+    static constexpr int kCurvedTerms = (kDegree + 1) * (kDegree + 2) / 2 - 3;
+    /// ... then 1, u and v (estimated only with PlanarDistortionConfig::estimate_affine).
+    static constexpr int kTerms = kCurvedTerms + 3;
     static constexpr int kBins = sim::DistortionTable::kBins;
-    /// c[b][k]: bin b (centres 1, 3, 5, 7, 9 m), monomial k of terms().
+    /// c[b][k]: bin b (centres 1, 3, 5, 7, 9 m), term k of terms().
     std::array<std::array<double, kTerms>, kBins> c{};
 
     /// The basis phi_k at normalised image coordinates (u, v).
