@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <chrono>
 
+#include "common/core/timing.hpp"
+
 namespace plumb {
 
 double DeviceClock::toHost(uint64_t device_us, double host_arrival_s) {
@@ -22,9 +24,6 @@ double DeviceClock::toHost(uint64_t device_us, double host_arrival_s) {
     return device_s + *offset_s_;
 }
 
-double hostNowSeconds() {
-    using namespace std::chrono;
-    return duration<double>(system_clock::now().time_since_epoch()).count();
-}
+double hostNowSeconds() { return wallClockSeconds(); }
 
 }  // namespace plumb

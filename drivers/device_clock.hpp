@@ -36,7 +36,7 @@ class DeviceClock {
     int resets_ = 0;
 };
 
-/// Host wall-clock time in seconds since the Unix epoch.
+/// Host wall-clock time in seconds since the Unix epoch (plumb::wallClockSeconds).
 double hostNowSeconds();
 
 }  // namespace plumb

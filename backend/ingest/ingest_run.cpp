@@ -9,16 +9,12 @@
 #include <vector>
 
 #include "common/core/logging.hpp"
+#include "common/core/timing.hpp"
 #include "messages/files.hpp"
 #include "messages/lcm_log.hpp"
 
 namespace plumb::backend {
 namespace {
-
-double wallSeconds() {
-    return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch())
-        .count();
-}
 
 Status writeMetrics(const std::filesystem::path& out_dir, const nlohmann::json& metrics) {
     if (out_dir.empty()) return Status::ok();
@@ -109,7 +105,7 @@ Result<IngestRunResult> runLiveIngest(messages::LcmLink& link, const IngestRunOp
         Ingestor::open(options.fragments_dir, options.out_dir, options.ingest, link.transport());
     if (!opened.isOk()) return opened.status();
     Ingestor& ingestor = **opened;
-    double now = wallSeconds();
+    double now = wallClockSeconds();
     for (const std::string& channel : Ingestor::channels()) {
         PLUMB_RETURN_IF_ERROR(link.transport().subscribe(
             channel, [&](const std::string& ch, std::span<const uint8_t> bytes) {
@@ -126,7 +122,7 @@ Result<IngestRunResult> runLiveIngest(messages::LcmLink& link, const IngestRunOp
     uint64_t last_received = 0;
     while (true) {
         PLUMB_RETURN_IF_ERROR(link.pump(20));
-        now = wallSeconds();
+        now = wallClockSeconds();
         ingestor.poll(now);
         if (ingestor.counters().fragments_received != last_received) {
             last_received = ingestor.counters().fragments_received;

@@ -10,6 +10,8 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "common/io/text_file.hpp"
+
 namespace plumb::layout {
 namespace {
 
@@ -457,12 +459,7 @@ std::string floorplanSvg(const Layout& layout, const FloorplanOverlays& overlays
 
 Status writeFloorplanSvg(const std::filesystem::path& path, const Layout& layout,
                          const FloorplanOverlays& overlays) {
-    std::ofstream out(path, std::ios::binary | std::ios::trunc);
-    if (!out) return ioError(fmt::format("{}: cannot open for writing", path.string()));
-    out << floorplanSvg(layout, overlays);
-    out.flush();
-    if (!out) return ioError(fmt::format("{}: write failed", path.string()));
-    return Status::ok();
+    return io::writeText(path, floorplanSvg(layout, overlays));
 }
 
 std::vector<Outline2> fragmentOutlines(const std::vector<Fragment>& fragments,

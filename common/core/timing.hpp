@@ -15,4 +15,11 @@ inline double msSince(SteadyClock::time_point t0) {
     return std::chrono::duration<double, std::milli>(SteadyClock::now() - t0).count();
 }
 
+/// Seconds since the Unix epoch on the system (wall) clock: host timestamps of frames and
+/// messages.
+inline double wallClockSeconds() {
+    return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch())
+        .count();
+}
+
 }  // namespace plumb

@@ -15,6 +15,8 @@
 #include <string>
 #include <vector>
 
+#include "common/io/text_file.hpp"
+
 namespace plumb::io {
 namespace {
 
@@ -612,12 +614,7 @@ Status writePly(const std::filesystem::path& path, const std::vector<Eigen::Vect
             }
         }
     }
-    std::ofstream file(path, std::ios::binary | std::ios::trunc);
-    if (!file) return ioError(fmt::format("{}: cannot open for writing", path.string()));
-    file.write(out.data(), static_cast<std::streamsize>(out.size()));
-    file.flush();
-    if (!file) return ioError(fmt::format("{}: write failed", path.string()));
-    return Status::ok();
+    return io::writeText(path, out);
 }
 
 }  // namespace

@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "common/geometry/lie.hpp"
+#include "common/io/text_file.hpp"
 
 namespace plumb::io {
 namespace {
@@ -246,12 +247,7 @@ Result<Layout> layoutFromJson(const nlohmann::json& json_doc, const std::string&
 }
 
 Status writeLayoutJson(const std::filesystem::path& path, const Layout& layout) {
-    std::ofstream out(path, std::ios::binary | std::ios::trunc);
-    if (!out) return ioError(fmt::format("{}: cannot open for writing", path.string()));
-    out << layoutToJson(layout).dump(2) << '\n';
-    out.flush();
-    if (!out) return ioError(fmt::format("{}: write failed", path.string()));
-    return Status::ok();
+    return io::writeText(path, layoutToJson(layout).dump(2) + '\n');
 }
 
 Result<Layout> readLayoutJson(const std::filesystem::path& path) {

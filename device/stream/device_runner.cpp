@@ -12,6 +12,7 @@
 #include <thread>
 
 #include "common/core/logging.hpp"
+#include "common/core/timing.hpp"
 #include "device/stream/bounded_queue.hpp"
 #include "device/stream/fragment_publisher.hpp"
 #include "messages/channels.hpp"
@@ -24,11 +25,6 @@ namespace plumb::device {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-double wallSeconds() {
-    return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch())
-        .count();
-}
 
 struct EncodedFragment {
     uint32_t id = 0;
@@ -333,7 +329,7 @@ class Announcer {
         info_.camera = source.camera();
         info_.depth_scale = 1000.0;
         info_.source = source.description();
-        last_fps_time_ = wallSeconds();
+        last_fps_time_ = wallClockSeconds();
     }
 
     void config(double now) {
@@ -452,7 +448,7 @@ Result<DeviceRunReport> runDevice(FrameSource& source, const DeviceRunOptions& o
                                 messages::kChannelFragmentBackoff}) {
         PLUMB_RETURN_IF_ERROR(transport.subscribe(
             channel, [&](const std::string& ch, std::span<const uint8_t> bytes) {
-                publisher->onMessage(ch, bytes, wallSeconds());
+                publisher->onMessage(ch, bytes, wallClockSeconds());
             }));
     }
 
@@ -479,7 +475,7 @@ Result<DeviceRunReport> runDevice(FrameSource& source, const DeviceRunOptions& o
     while (true) {
         failure = link.pump(10);
         if (!failure.isOk()) break;
-        const double now = wallSeconds();
+        const double now = wallClockSeconds();
         if (stop_requests.load() > 0 && !report.stopped_by_signal) {
             report.stopped_by_signal = true;
             log::info("device: stop requested; closing the open fragment and flushing");
@@ -525,7 +521,7 @@ Result<DeviceRunReport> runDevice(FrameSource& source, const DeviceRunOptions& o
     capture.join();
     fusion.join();
     while (auto f = fragments.tryPop()) feeder.add(std::move(*f));
-    feeder.finish(wallSeconds());
+    feeder.finish(wallClockSeconds());
     if (!failure.isOk()) return failure;
     shared.raw_published += announce.rawFrames(raw_frames);  // the last ones captured
     fillReport(shared, *publisher, feeder, report);

@@ -13,6 +13,8 @@
 #include <system_error>
 #include <vector>
 
+#include "common/io/text_file.hpp"
+
 namespace plumb::dataset {
 namespace {
 
@@ -201,12 +203,7 @@ Status writeIntrinsicsJson(const std::filesystem::path& path, const PinholeCamer
     j["cx"] = camera.cx;
     j["cy"] = camera.cy;
     j["depth_scale"] = depth_scale;
-    std::ofstream out(path, std::ios::binary | std::ios::trunc);
-    if (!out) return ioError(fmt::format("cannot create {}", path.string()));
-    out << j.dump(2) << '\n';
-    out.flush();
-    if (!out) return ioError(fmt::format("cannot write {}", path.string()));
-    return Status::ok();
+    return io::writeText(path, j.dump(2) + '\n');
 }
 
 }  // namespace plumb::dataset

@@ -11,6 +11,8 @@
 #include <fstream>
 #include <sstream>
 
+#include "common/io/text_file.hpp"
+
 #ifndef PLUMB_SHARED_DATA_DIR
 #define PLUMB_SHARED_DATA_DIR "../shared/data"
 #endif
@@ -200,12 +202,7 @@ std::string DistortionTable::format() const {
 }
 
 Status DistortionTable::save(const std::filesystem::path& path) const {
-    std::ofstream out(path, std::ios::binary | std::ios::trunc);
-    if (!out) return ioError(fmt::format("{}: cannot open for writing", path.string()));
-    out << format();
-    out.close();
-    if (!out) return ioError(fmt::format("{}: writing the distortion table failed", path.string()));
-    return Status::ok();
+    return io::writeText(path, format());
 }
 
 int DistortionTable::cellX(int x640) { return std::clamp(x640 / 8, 0, kCells - 1); }

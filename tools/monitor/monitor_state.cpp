@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "common/core/timing.hpp"
 #include "common/layout/layout_json.hpp"
 
 namespace plumb::monitor {
@@ -36,11 +37,6 @@ void describe(config::Schema& s, MonitorStateConfig& c) {
 }
 
 namespace {
-
-double unixNow() {
-    return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch())
-        .count();
-}
 
 json matrixJson(const Eigen::Matrix4d& m) {
     json rows = json::array();
@@ -182,7 +178,7 @@ void MonitorState::addFragment(const Fragment& fragment, int64_t session_id,
     e.voxel_size_m = fragment.voxel_size_m;
     e.T_W_F_odometry = fragment.T_W_F;
     e.origin = origin;
-    e.received_unix_s = unixNow();
+    e.received_unix_s = wallClockSeconds();
     // An even subsample (every k-th point) keeps the spatial spread of the surface.
     const size_t n = fragment.points_F.size();
     const size_t keep =
@@ -422,7 +418,7 @@ json MonitorState::buildJsonLocked() const {
                        {"memory_bytes", d.memory_bytes},
                        {"utime", device_utime_},
                        {"seq", device_seq_},
-                       {"received_unix_s", unixNow() - age_s},
+                       {"received_unix_s", wallClockSeconds() - age_s},
                        {"stale_after_s", config_.device_stale_after_s}};
     } else {
         j["device"] = nullptr;
