@@ -63,6 +63,9 @@ struct SelfCalibrateConfig {
     /// Each round's estimate starts from the latest table (the planar one, then the previous
     /// round's) instead of the neutral one.
     bool warm_start = false;
+    /// The first (and every intermediate) reconstruction's final mesh integrates every k-th raw
+    /// frame only: the estimate uses its poses, and its mesh gives the "before" figure alone.
+    int first_model_frame_stride = 4;
     /// The estimator and its alternation (as `plumb calibrate`).
     calibration::SelfCalibrationConfig estimate;
 };
@@ -81,6 +84,10 @@ void describe(config::Schema& s, SelfCalibrateConfig& c) {
             "every round but the last costs one more reconstruction")
         .min(1)
         .max(4);
+    s.field("first_model_frame_stride", c.first_model_frame_stride,
+            "the first and intermediate reconstructions' final mesh integrates every k-th raw "
+            "frame (their poses are what the estimate uses)")
+        .min(1);
     s.field("warm_start", c.warm_start,
             "each round's estimate starts from the latest table (the planar one, then the "
             "previous round's); off: from the neutral table");
@@ -505,6 +512,8 @@ Result<backend::PipelineResult> selfCalibratedRun(FrameSource& raw_source, const
     }
     backend::PipelineConfig intermediate = cfg.pipeline;
     intermediate.compare_baseline = false;
+    intermediate.final_model.frame_stride =
+        std::max(intermediate.final_model.frame_stride, sc.first_model_frame_stride);
     std::filesystem::path recon_dir = folder / "first";
     log::info("self-calibration {}: reconstructing from the {} depth into {}", next(),
               planar ? "planar-corrected" : "raw", recon_dir.string());
