@@ -258,13 +258,6 @@ std::string selfCalibrationSection(const nlohmann::json& metrics) {
         row(sc.value("first_table", std::string("none")) == "none" ? "raw depth"
                                                                    : "bend from the planes",
             before.value("ate_rmse_m", 0.0), before.value("recon_mean_m", 0.0));
-        int round = 0;
-        for (const nlohmann::json& r :
-             sc.value("intermediate_reconstructions", nlohmann::json::array())) {
-            const nlohmann::json f = r.value("figures", nlohmann::json::object());
-            const std::string name = fmt::format("after round {}", ++round);
-            row(name.c_str(), f.value("ate_rmse_m", 0.0), f.value("recon_mean_m", 0.0));
-        }
         const nlohmann::json& m = *main;
         row("self-calibrated", m.contains("ate") ? m["ate"].value("rmse_m", 0.0) : 0.0,
             m.contains("recon") ? m["recon"].value("mean_m", 0.0) : 0.0);

@@ -56,15 +56,8 @@ struct SelfCalibrateConfig {
     /// (median error at 3 m 0.66 % against 0.60 % with the reconstruction's poses) at 5x the
     /// time of the estimate (BENCHMARKS.md).
     bool refine_poses = false;
-    /// Refinement rounds: each estimates the table at the poses of the latest reconstruction
-    /// and learns the bend left after it from the planes; every round but the last is followed
-    /// by a reconstruction with its table. Each round after the first costs one reconstruction.
-    int rounds = 1;
-    /// Each round's estimate starts from the latest table (the planar one, then the previous
-    /// round's) instead of the neutral one.
-    bool warm_start = false;
-    /// The first (and every intermediate) reconstruction's final mesh integrates every k-th raw
-    /// frame only: the estimate uses its poses, and its mesh gives the "before" figure alone.
+    /// The first reconstruction's final mesh integrates every k-th raw frame only: the estimate
+    /// uses its poses, and its mesh gives the "before" figure alone.
     int first_model_frame_stride = 4;
     /// The estimator and its alternation (as `plumb calibrate`).
     calibration::SelfCalibrationConfig estimate;
@@ -79,18 +72,10 @@ void describe(config::Schema& s, SelfCalibrateConfig& c) {
         .min(1);
     s.field("refine_poses", c.refine_poses,
             "re-align every compared frame to each iteration's model by frame-to-model ICP");
-    s.field("rounds", c.rounds,
-            "refinement rounds: each estimates the table at the latest reconstruction's poses; "
-            "every round but the last costs one more reconstruction")
-        .min(1)
-        .max(4);
     s.field("first_model_frame_stride", c.first_model_frame_stride,
-            "the first and intermediate reconstructions' final mesh integrates every k-th raw "
-            "frame (their poses are what the estimate uses)")
+            "the first reconstruction's final mesh integrates every k-th raw frame (its poses "
+            "are what the estimate uses)")
         .min(1);
-    s.field("warm_start", c.warm_start,
-            "each round's estimate starts from the latest table (the planar one, then the "
-            "previous round's); off: from the neutral table");
     s.section("estimate", c.estimate, "the table estimate and its alternation (reference §7c)");
 }
 
@@ -372,12 +357,12 @@ Result<PlanarStage> planarStage(const std::string& uri, const Options& o,
     return planar;
 }
 
-/// One refinement round of `--self-calibrate`: the table estimated at the poses of the
+/// The refinement of `--self-calibrate`: the table estimated at the poses of the
 /// reconstruction in `recon_dir` (reference §7c), written to `refined_path`, then the bend left
 /// in the frames it undistorts learned from the planes (self_calibration.planar) and composed
-/// with it; the round's table (the product, or the refined table when the planes do not
+/// with it; the resulting table (the product, or the refined table when the planes do not
 /// determine the bend) is written to `table_path`.
-struct RefinementRound {
+struct Refinement {
     calibration::SelfCalibrationResult learned;
     nlohmann::json iterations = nlohmann::json::array();
     size_t frames = 0;
@@ -385,15 +370,13 @@ struct RefinementRound {
     std::optional<PlanarStage> planar;  ///< the bend left after the refined table
 };
 
-Result<RefinementRound> refinementRound(const std::string& uri, const Options& o,
-                                        const SelfCalibrateConfig& sc, const PinholeCamera& camera,
-                                        const std::filesystem::path& recon_dir,
-                                        const std::filesystem::path& refined_path,
-                                        const std::filesystem::path& table_path,
-                                        const sim::DistortionTable* initial,
-                                        const std::string& step_refine,
-                                        const std::string& step_planar) {
-    RefinementRound round;
+Result<Refinement> refineAtPoses(const std::string& uri, const Options& o,
+                                 const SelfCalibrateConfig& sc, const PinholeCamera& camera,
+                                 const std::filesystem::path& recon_dir,
+                                 const std::filesystem::path& refined_path,
+                                 const std::filesystem::path& table_path,
+                                 const std::string& step_refine, const std::string& step_planar) {
+    Refinement round;
     Result<PoseLookup> poses = PoseLookup::read(recon_dir / "trajectory.txt");
     if (!poses.isOk()) return poses.status();
     // The raw frames at the reconstruction's poses.
@@ -425,7 +408,7 @@ Result<RefinementRound> refinementRound(const std::string& uri, const Options& o
         sc.refine_poses ? icpFrameAligner(CalibrationAlignerConfig{}, &round.unaligned)
                         : calibration::FrameAligner{};
     Result<calibration::SelfCalibrationResult> learned = calibration::selfCalibrate(
-        depth, camera, posed->T_W_C, sc.estimate, initial, observe, aligner);
+        depth, camera, posed->T_W_C, sc.estimate, nullptr, observe, aligner);
     if (!learned.isOk()) return prefixed(learned.status(), "self-calibration");
     round.learned = std::move(*learned);
     std::error_code ec;
@@ -458,10 +441,9 @@ Result<RefinementRound> refinementRound(const std::string& uri, const Options& o
 }
 
 /// `--self-calibrate`: a first reconstruction (`raw_source`, opened without depth calibration,
-/// or with the bend learned from the frames' planes when self_calibration.planar), then
-/// self_calibration.rounds refinement rounds (refinementRound), each but the last followed by a
-/// reconstruction with its table whose poses the next round uses, and the reconstruction with
-/// the last round's table into o.out.
+/// or with the bend learned from the frames' planes when self_calibration.planar), the table
+/// refined at its poses with the bend left after it (refinementRound), and the reconstruction
+/// with that table into o.out.
 Result<backend::PipelineResult> selfCalibratedRun(FrameSource& raw_source, const std::string& uri,
                                                   const Options& o, const ReconstructConfig& cfg,
                                                   const backend::PipelineInput& base) {
@@ -471,9 +453,8 @@ Result<backend::PipelineResult> selfCalibratedRun(FrameSource& raw_source, const
     };
     const SelfCalibrateConfig& sc = cfg.self_calibration;
     const std::filesystem::path folder = o.out / "self_calibration";
-    const int steps = 2 + 3 * sc.rounds;
     int step = 0;
-    auto next = [&] { return fmt::format("{}/{}", ++step, steps); };
+    auto next = [&step] { return fmt::format("{}/5", ++step); };
     SourceOptions raw_options = o.source_options;
     raw_options.depth_calibration = "none";
     std::optional<PlanarStage> planar;
@@ -510,84 +491,46 @@ Result<backend::PipelineResult> selfCalibratedRun(FrameSource& raw_source, const
             return p.status();
         }
     }
-    backend::PipelineConfig intermediate = cfg.pipeline;
-    intermediate.compare_baseline = false;
-    intermediate.final_model.frame_stride =
-        std::max(intermediate.final_model.frame_stride, sc.first_model_frame_stride);
-    std::filesystem::path recon_dir = folder / "first";
+    backend::PipelineConfig first = cfg.pipeline;
+    first.compare_baseline = false;
+    first.final_model.frame_stride =
+        std::max(first.final_model.frame_stride, sc.first_model_frame_stride);
     log::info("self-calibration {}: reconstructing from the {} depth into {}", next(),
-              planar ? "planar-corrected" : "raw", recon_dir.string());
+              planar ? "planar-corrected" : "raw", (folder / "first").string());
     Result<backend::PipelineResult> before =
-        reconstructOnce(*first_source, uri, first_options, cfg, intermediate, base, recon_dir, o);
+        reconstructOnce(*first_source, uri, first_options, cfg, first, base, folder / "first", o);
     if (!before.isOk()) return prefixed(before.status(), "self-calibration, first reconstruction");
     const double first_seconds = seconds();
 
     const std::filesystem::path table_path = o.out / "depth_calibration.txt";
-    nlohmann::json intermediates = nlohmann::json::array();
-    std::optional<RefinementRound> round;
-    sim::DistortionTable latest = sim::DistortionTable::neutral();
-    for (int r = 1; r <= sc.rounds; ++r) {
-        const bool last = r == sc.rounds;
-        const std::filesystem::path refined_path =
-            folder /
-            (last ? std::string("refined_table.txt") : fmt::format("refined_table_round{}.txt", r));
-        const std::filesystem::path round_table =
-            last ? table_path : folder / fmt::format("table_round{}.txt", r);
-        const std::string refine_step = next();
-        const sim::DistortionTable* initial = nullptr;
-        if (sc.warm_start && r == 1 && planar) initial = &planar->table;
-        if (sc.warm_start && r > 1) initial = &latest;
-        Result<RefinementRound> done =
-            refinementRound(uri, o, sc, base.camera, recon_dir, refined_path, round_table, initial,
-                            refine_step, next());
-        if (!done.isOk()) return done.status();
-        round = std::move(*done);
-        if (last) break;
-        if (sc.warm_start) {
-            Result<sim::DistortionTable> table = sim::DistortionTable::load(round_table);
-            if (!table.isOk()) return table.status();
-            latest = std::move(*table);
-        }
-        // A reconstruction with this round's table: its poses carry less of the bend, so the
-        // next round's estimate at them is closer to the truth.
-        SourceOptions options = o.source_options;
-        options.depth_calibration = round_table.string();
-        Result<std::unique_ptr<FrameSource>> opened = openFrameSource(uri, options);
-        if (!opened.isOk()) return opened.status();
-        recon_dir = folder / fmt::format("reconstruction{}", r + 1);
-        log::info("self-calibration {}: reconstructing with round {}'s table into {}", next(), r,
-                  recon_dir.string());
-        Result<backend::PipelineResult> again =
-            reconstructOnce(**opened, uri, options, cfg, intermediate, base, recon_dir, o);
-        if (!again.isOk()) return prefixed(again.status(), "self-calibration, reconstruction");
-        intermediates.push_back({{"reconstruction", recon_dir.lexically_relative(o.out).string()},
-                                 {"table", round_table.lexically_relative(o.out).string()},
-                                 {"figures", mainFigures(*again)}});
-    }
-    const calibration::DistortionEstimate& last = round->learned.iterations.back().estimate;
+    const std::string refine_step = next();
+    Result<Refinement> refined =
+        refineAtPoses(uri, o, sc, base.camera, folder / "first", folder / "refined_table.txt",
+                      table_path, refine_step, next());
+    if (!refined.isOk()) return refined.status();
+    const calibration::DistortionEstimate& last = refined->learned.iterations.back().estimate;
 
     log::info("self-calibration {}: reconstructing with the learned table", next());
     backend::PipelineInput input = base;
     input.self_calibration = {
         {"status", "learned"},
         {"table", table_path.filename().string()},
-        {"rounds", sc.rounds},
-        {"frames", round->frames},
+        {"frames", refined->frames},
         {"frame_step", sc.frame_step},
         {"refine_poses", sc.refine_poses},
-        {"frames_not_aligned", round->unaligned},
-        {"iterations", round->iterations},
-        {"converged", round->learned.converged},
+        {"frames_not_aligned", refined->unaligned},
+        {"iterations", refined->iterations},
+        {"converged", refined->learned.converged},
         {"covered_cells", last.covered_cells},
         {"gauge_bin_m", sim::DistortionTable::binCentreM(last.gauge_bin)},
         {"gauge_scale", last.gauge_scale},
         {"first_table", planar ? "self_calibration/planar_table.txt" : "none"},
         {"planar", planar ? planarFigures(*planar) : nlohmann::json(nullptr)},
         {"refined_table", "self_calibration/refined_table.txt"},
-        {"final_planar", round->planar ? planarFigures(*round->planar) : nlohmann::json(nullptr)},
+        {"final_planar",
+         refined->planar ? planarFigures(*refined->planar) : nlohmann::json(nullptr)},
         {"first_reconstruction", "self_calibration/first"},
         {"before", mainFigures(*before)},
-        {"intermediate_reconstructions", intermediates},
         {"first_reconstruction_seconds", first_seconds},
         {"estimate_seconds", seconds() - first_seconds}};
     SourceOptions calibrated = o.source_options;
