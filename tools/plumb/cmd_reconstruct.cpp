@@ -376,7 +376,7 @@ Result<Refinement> refineAtPoses(const std::string& uri, const Options& o,
                                  const std::filesystem::path& refined_path,
                                  const std::filesystem::path& table_path,
                                  const std::string& step_refine, const std::string& step_planar) {
-    Refinement round;
+    Refinement out;
     Result<PoseLookup> poses = PoseLookup::read(recon_dir / "trajectory.txt");
     if (!poses.isOk()) return poses.status();
     // The raw frames at the reconstruction's poses.
@@ -388,7 +388,7 @@ Result<Refinement> refineAtPoses(const std::string& uri, const Options& o,
     Result<PosedDepth> posed = readPosedDepth(**source, *poses, sc.frame_step);
     if (!posed.isOk()) return posed.status();
     const std::vector<DepthImage>& depth = posed->depth;  // frames not tracked have no pose
-    round.frames = depth.size();
+    out.frames = depth.size();
     log::info(
         "self-calibration {}: estimating the depth distortion table from {} frames at the "
         "poses of {}",
@@ -400,23 +400,23 @@ Result<Refinement> refineAtPoses(const std::string& uri, const Options& o,
             "bin (1/3/5/7/9 m) {} {} {} {} {} of 6400",
             it.iteration + 1, e.median_change, e.max_change, e.covered_cells[0], e.covered_cells[1],
             e.covered_cells[2], e.covered_cells[3], e.covered_cells[4]);
-        round.iterations.push_back({{"change_median", e.median_change},
-                                    {"change_max", e.max_change},
-                                    {"covered_cells", e.covered_cells}});
+        out.iterations.push_back({{"change_median", e.median_change},
+                                  {"change_max", e.max_change},
+                                  {"covered_cells", e.covered_cells}});
     };
     const calibration::FrameAligner aligner =
-        sc.refine_poses ? icpFrameAligner(CalibrationAlignerConfig{}, &round.unaligned)
+        sc.refine_poses ? icpFrameAligner(CalibrationAlignerConfig{}, &out.unaligned)
                         : calibration::FrameAligner{};
     Result<calibration::SelfCalibrationResult> learned = calibration::selfCalibrate(
         depth, camera, posed->T_W_C, sc.estimate, nullptr, observe, aligner);
     if (!learned.isOk()) return prefixed(learned.status(), "self-calibration");
-    round.learned = std::move(*learned);
+    out.learned = std::move(*learned);
     std::error_code ec;
     std::filesystem::create_directories(refined_path.parent_path(), ec);
-    if (Status s = round.learned.table.save(refined_path); !s.isOk()) return s;
+    if (Status s = out.learned.table.save(refined_path); !s.isOk()) return s;
     log::info("self-calibration: {} after {} iterations; table written to {}",
-              round.learned.converged ? "converged" : "stopped at the iteration limit",
-              round.learned.iterations.size(), refined_path.string());
+              out.learned.converged ? "converged" : "stopped at the iteration limit",
+              out.learned.iterations.size(), refined_path.string());
     // The refinement learns the table's cell-to-cell structure, but at poses that still carry
     // the reconstruction's error, which bends it back; the bend left in the frames it
     // undistorts is what the planes show.
@@ -427,22 +427,22 @@ Result<Refinement> refineAtPoses(const std::string& uri, const Options& o,
             step_planar);
         Result<PlanarStage> p = planarStage(uri, o, sc, refined_path.string(), table_path);
         if (p.isOk()) {
-            round.planar = std::move(*p);
+            out.planar = std::move(*p);
         } else if (p.status().code() == StatusCode::kFailedPrecondition) {
             log::warn("{}; the refined table is used as it is", p.status().message());
         } else {
             return p.status();
         }
     }
-    if (!round.planar) {
-        if (Status s = round.learned.table.save(table_path); !s.isOk()) return s;
+    if (!out.planar) {
+        if (Status s = out.learned.table.save(table_path); !s.isOk()) return s;
     }
-    return round;
+    return out;
 }
 
 /// `--self-calibrate`: a first reconstruction (`raw_source`, opened without depth calibration,
 /// or with the bend learned from the frames' planes when self_calibration.planar), the table
-/// refined at its poses with the bend left after it (refinementRound), and the reconstruction
+/// refined at its poses with the bend left after it (refineAtPoses), and the reconstruction
 /// with that table into o.out.
 Result<backend::PipelineResult> selfCalibratedRun(FrameSource& raw_source, const std::string& uri,
                                                   const Options& o, const ReconstructConfig& cfg,
@@ -475,9 +475,9 @@ Result<backend::PipelineResult> selfCalibratedRun(FrameSource& raw_source, const
             planar_source = std::move(*opened);
             first_source = planar_source.get();
         } else if (p.status().code() == StatusCode::kFailedPrecondition) {
-            // Without the bend, a table refined at poses tracked from the raw depth learns
-            // the poses' error as much as the camera's (on short real scans it made the ATE
-            // 1.2-4.7x worse): no table is learned, and the raw depth is reconstructed once.
+            // Without the bend, a table refined at poses tracked from the raw depth learns the
+            // poses' error as much as the camera's (BENCHMARKS.md, real data): no table is
+            // learned, and the raw depth is reconstructed once.
             log::warn("{}; no table is learned, the reconstruction uses the raw depth",
                       p.status().message());
             backend::PipelineInput input = base;
