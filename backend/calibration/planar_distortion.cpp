@@ -11,7 +11,7 @@
 #include <numbers>
 
 #include "backend/calibration/self_calibration.hpp"
-#include "common/tsdf/parallel.hpp"
+#include "common/core/parallel.hpp"
 
 namespace plumb::calibration {
 namespace {
@@ -553,7 +553,7 @@ Result<PlanarEstimate> PlanarDistortionEstimator::fit(size_t begin, size_t end,
     const Fitter fitter(config_, columns_, rows_);
     for (int it = 0; it < config_.iterations; ++it) {
         std::vector<FrameSystem> systems(end - begin);
-        tsdf::parallelFor(config_.num_threads, static_cast<int>(end - begin), [&](int k) {
+        plumb::parallelFor(config_.num_threads, static_cast<int>(end - begin), [&](int k) {
             const std::vector<Block>& blocks = frames_[begin + static_cast<size_t>(k)];
             const CorrectedFrame f = fitter.correct(blocks, out.model);
             fitter.accumulate(blocks, f, fitter.segment(f), it > 0,

@@ -9,7 +9,7 @@
 #include <cmath>
 #include <utility>
 
-#include "common/tsdf/parallel.hpp"
+#include "common/core/parallel.hpp"
 #include "common/tsdf/tsdf_config.hpp"
 #include "drivers/depth_calibration.hpp"
 
@@ -320,7 +320,7 @@ Status DistortionEstimator::addFrame(const DepthImage& raw, const DepthImage& mo
 Result<DistortionEstimate> DistortionEstimator::estimate(const Table* previous) const {
     const size_t num_cells = samples_.size();
     std::vector<CellFit> fits(num_cells);
-    tsdf::parallelFor(config_.num_threads, static_cast<int>(num_cells), [&](int i) {
+    plumb::parallelFor(config_.num_threads, static_cast<int>(num_cells), [&](int i) {
         fits[static_cast<size_t>(i)] = fitCell(samples_[static_cast<size_t>(i)], config_);
     });
 

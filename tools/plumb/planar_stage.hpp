@@ -9,7 +9,7 @@
 
 #include "backend/calibration/planar_distortion.hpp"
 #include "common/core/status.hpp"
-#include "drivers/frame_source.hpp"
+#include "common/frame/frame_source.hpp"
 #include "drivers/sim/noise.hpp"
 
 namespace plumb::tools {
