@@ -10,8 +10,8 @@
 #include <thread>
 
 #include "common/core/logging.hpp"
+#include "drivers/calibrated_source.hpp"
 #include "drivers/dataset/dataset.hpp"
-#include "drivers/depth_calibration.hpp"
 #include "drivers/openni2/openni2_source.hpp"
 #include "drivers/sim/scene.hpp"
 #include "drivers/sim/sim_source.hpp"

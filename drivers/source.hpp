@@ -41,7 +41,7 @@ struct SourceOptions {
     /// OpenNI2 colour streams, V4L2 colour nodes); false = depth only, as from a source without
     /// colour (`--no-colour`).
     bool colour = true;
-    /// Depth calibration (drivers/depth_calibration.hpp): empty or "sensor" = the sensor's own
+    /// Depth calibration (drivers/calibrated_source.hpp): empty or "sensor" = the sensor's own
     /// (the simulated sensor with the measured distortion table is calibrated with that table,
     /// like a CLAMS-calibrated camera; other sources have none), "none" = raw depth, anything
     /// else = a CLAMS / Redwood dist-model.txt file.

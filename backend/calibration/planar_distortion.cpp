@@ -196,7 +196,7 @@ class Fitter {
                 // dr/dc[b][k] = n . P w_b(z) phi_k(u, v)
                 const double np = n.dot(Eigen::Vector3d(b.x, b.y, b.z));
                 const std::array<double, kTerms> phi = PlanarDistortion::terms(b.u, b.v);
-                const sim::DistortionTable::BinWeights bw = sim::DistortionTable::binWeights(q.z());
+                const DistortionTable::BinWeights bw = DistortionTable::binWeights(q.z());
                 Eigen::Matrix<double, kParams, 1> jt = Eigen::Matrix<double, kParams, 1>::Zero();
                 for (int k = 0; k < kTerms; ++k) {
                     jt[bw.lo * kTerms + k] += (1.0 - bw.a) * np * phi[k];
@@ -267,7 +267,7 @@ std::array<double, kCurvedTerms> monomials(double u, double v) {
 
 /// Per monomial, its least-squares affine part a + b u + c v over the table's cell centres.
 std::array<Eigen::Vector3d, kCurvedTerms> affineParts() {
-    constexpr int n = sim::DistortionTable::kCellsPerSide;
+    constexpr int n = DistortionTable::kCellsPerSide;
     Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
     Eigen::Matrix<double, 3, kCurvedTerms> atb = Eigen::Matrix<double, 3, kCurvedTerms>::Zero();
     for (int y = 0; y < n; ++y) {
@@ -294,7 +294,7 @@ void removeDisparityAffine(const std::vector<int>& estimated, PlanarDistortion* 
     Eigen::MatrixXd a(static_cast<Eigen::Index>(estimated.size()), 2);
     Eigen::VectorXd z(static_cast<Eigen::Index>(estimated.size()));
     for (size_t e = 0; e < estimated.size(); ++e) {
-        z[static_cast<Eigen::Index>(e)] = sim::DistortionTable::binCentreM(estimated[e]);
+        z[static_cast<Eigen::Index>(e)] = DistortionTable::binCentreM(estimated[e]);
         a.row(static_cast<Eigen::Index>(e)) << 1.0, z[static_cast<Eigen::Index>(e)];
     }
     auto coefficients = [&](int k) {
@@ -335,7 +335,7 @@ std::array<double, PlanarDistortion::kTerms> PlanarDistortion::terms(double u, d
 
 double PlanarDistortion::factor(double u, double v, double z) const {
     const std::array<double, kTerms> phi = terms(u, v);
-    const sim::DistortionTable::BinWeights bw = sim::DistortionTable::binWeights(z);
+    const DistortionTable::BinWeights bw = DistortionTable::binWeights(z);
     double lo = 0.0, hi = 0.0;
     for (int k = 0; k < kTerms; ++k) {
         lo += c[static_cast<size_t>(bw.lo)][static_cast<size_t>(k)] * phi[static_cast<size_t>(k)];
@@ -344,19 +344,19 @@ double PlanarDistortion::factor(double u, double v, double z) const {
     return 1.0 + (1.0 - bw.a) * lo + bw.a * hi;
 }
 
-sim::DistortionTable PlanarDistortion::toTable() const {
-    constexpr int n = sim::DistortionTable::kCellsPerSide;
+DistortionTable PlanarDistortion::toTable() const {
+    constexpr int n = DistortionTable::kCellsPerSide;
     std::vector<std::array<float, 5>> cells(static_cast<size_t>(n) * n);
     for (int y = 0; y < n; ++y) {
         for (int x = 0; x < n; ++x) {
             const double u = (x + 0.5) / (n / 2.0) - 1.0, v = (y + 0.5) / (n / 2.0) - 1.0;
             for (int b = 0; b < kBins; ++b) {
                 cells[static_cast<size_t>(y) * n + x][static_cast<size_t>(b)] =
-                    static_cast<float>(factor(u, v, sim::DistortionTable::binCentreM(b)));
+                    static_cast<float>(factor(u, v, DistortionTable::binCentreM(b)));
             }
         }
     }
-    return sim::DistortionTable::fromCells(std::move(cells));
+    return DistortionTable::fromCells(std::move(cells));
 }
 
 void describe(config::Schema& s, PlanarDistortionConfig& c) {
@@ -528,9 +528,8 @@ Result<PlanarEstimate> PlanarDistortionEstimator::estimate(const Observer& obser
             frames_.size()));
     }
     DistortionEstimate everywhere;
-    everywhere.covered.assign(static_cast<size_t>(sim::DistortionTable::kCellsPerSide) *
-                                  sim::DistortionTable::kCellsPerSide,
-                              0b11);
+    everywhere.covered.assign(
+        static_cast<size_t>(DistortionTable::kCellsPerSide) * DistortionTable::kCellsPerSide, 0b11);
     Result<TableComparison> c =
         compareTables(first->model.toTable(), everywhere, second->model.toTable());
     if (!c.isOk()) return c.status();

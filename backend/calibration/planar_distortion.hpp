@@ -54,11 +54,11 @@
 #include <functional>
 #include <vector>
 
+#include "common/calibration/distortion_table.hpp"
 #include "common/camera/pinhole.hpp"
 #include "common/config/schema.hpp"
 #include "common/core/status.hpp"
 #include "common/image/image.hpp"
-#include "drivers/sim/noise.hpp"
 
 namespace plumb::calibration {
 
@@ -133,7 +133,7 @@ struct PlanarDistortion {
     static constexpr int kCurvedTerms = (kDegree + 1) * (kDegree + 2) / 2 - 3;
     /// ... then 1, u and v (estimated only with PlanarDistortionConfig::estimate_affine).
     static constexpr int kTerms = kCurvedTerms + 3;
-    static constexpr int kBins = sim::DistortionTable::kBins;
+    static constexpr int kBins = DistortionTable::kBins;
     /// c[b][k]: bin b (centres 1, 3, 5, 7, 9 m), term k of terms().
     std::array<std::array<double, kTerms>, kBins> c{};
 
@@ -142,7 +142,7 @@ struct PlanarDistortion {
     /// f(u, v, z); u = (x640 - 320) / 320, v = (y480 - 240) / 240 on the 640x480 table.
     double factor(double u, double v, double z) const;
     /// The table of Eq. 1 at each cell's centre.
-    sim::DistortionTable toTable() const;
+    DistortionTable toTable() const;
 };
 
 struct PlanarIteration {

@@ -9,14 +9,14 @@
 #include <cmath>
 #include <utility>
 
+#include "common/calibration/depth_calibration.hpp"
 #include "common/core/parallel.hpp"
 #include "common/tsdf/tsdf_config.hpp"
-#include "drivers/depth_calibration.hpp"
 
 namespace plumb::calibration {
 namespace {
 
-using Table = sim::DistortionTable;
+using Table = DistortionTable;
 constexpr int kBins = Table::kBins;
 constexpr int kSide = Table::kCellsPerSide;
 
@@ -402,10 +402,10 @@ double medianBeyondAffine(const std::vector<Eigen::Vector3d>& at, const std::vec
 
 }  // namespace
 
-Result<TableComparison> compareTables(const sim::DistortionTable& learned,
+Result<TableComparison> compareTables(const DistortionTable& learned,
                                       const DistortionEstimate& coverage,
-                                      const sim::DistortionTable& reference) {
-    const int side = sim::DistortionTable::kCellsPerSide;
+                                      const DistortionTable& reference) {
+    const int side = DistortionTable::kCellsPerSide;
     auto compared = [&](int x, int y, int bin) {
         return coverage.isCovered(x, y, bin) && reference.cell(x, y)[bin] != 0.0F;
     };
@@ -424,7 +424,7 @@ Result<TableComparison> compareTables(const sim::DistortionTable& learned,
     }
     TableComparison out;
     out.scale = medianOf(&ratios);
-    for (int bin = 0; bin < sim::DistortionTable::kBins; ++bin) {
+    for (int bin = 0; bin < DistortionTable::kBins; ++bin) {
         std::vector<double> errors, uncalibrated;
         std::vector<Eigen::Vector3d> at;  // (1, u, v) of the compared cells
         std::vector<double> inverse_error, inverse_uncalibrated;

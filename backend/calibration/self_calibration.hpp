@@ -2,9 +2,9 @@
 #pragma once
 
 // Self-calibration of the depth distortion table from a scan (reference §7c; CLAMS, Teichman,
-// Miller and Thrun, RSS 2013). The table is the one of the sensor model (§1.4.A.3, drivers/sim/
-// noise.hpp): per image cell (80 x 80 cells of 8 x 6 px at 640x480) and depth bin (centres 1, 3,
-// 5, 7, 9 m) a factor f, linear in depth between bins, with
+// Miller and Thrun, RSS 2013). The table is the one of the sensor model (§1.4.A.3, common/
+// calibration/distortion_table.hpp): per image cell (80 x 80 cells of 8 x 6 px at 640x480) and
+// depth bin (centres 1, 3, 5, 7, 9 m) a factor f, linear in depth between bins, with
 //
 //   z_true = f(u, v, z_true) * z_raw.
 //
@@ -54,13 +54,13 @@
 #include <vector>
 
 #include "backend/calibration/planar_distortion.hpp"
+#include "common/calibration/distortion_table.hpp"
 #include "common/camera/pinhole.hpp"
 #include "common/config/schema.hpp"
 #include "common/core/status.hpp"
 #include "common/image/image.hpp"
 #include "common/tsdf/raycast.hpp"
 #include "common/tsdf/tsdf_volume.hpp"
-#include "drivers/sim/noise.hpp"
 
 namespace plumb::calibration {
 
@@ -138,9 +138,9 @@ Status validate(const SelfCalibrationConfig& c);
 
 /// What an estimate found, beside the table.
 struct DistortionEstimate {
-    sim::DistortionTable table = sim::DistortionTable::neutral();
+    DistortionTable table = DistortionTable::neutral();
     /// Per depth bin: cells covered by their own samples.
-    std::array<int, sim::DistortionTable::kBins> covered_cells{};
+    std::array<int, DistortionTable::kBins> covered_cells{};
     /// Per cell (y * 80 + x): bit i set when bin i is covered.
     std::vector<uint8_t> covered;
     /// Samples taken (after the depth, angle and ratio gates) and, of those, the fit's outliers.
@@ -155,8 +155,7 @@ struct DistortionEstimate {
     size_t compared_factors = 0;
 
     bool isCovered(int cell_x, int cell_y, int bin) const {
-        return (covered[static_cast<size_t>(cell_y) * sim::DistortionTable::kCellsPerSide +
-                        cell_x] >>
+        return (covered[static_cast<size_t>(cell_y) * DistortionTable::kCellsPerSide + cell_x] >>
                 bin) &
                1U;
     }
@@ -177,7 +176,7 @@ class DistortionEstimator {
 
     /// The table fitted to every sample so far, and its change from `previous` (nullptr: from
     /// the neutral table). kFailedPrecondition when no cell has a covered bin.
-    Result<DistortionEstimate> estimate(const sim::DistortionTable* previous = nullptr) const;
+    Result<DistortionEstimate> estimate(const DistortionTable* previous = nullptr) const;
 
     size_t numSamples() const { return num_samples_; }
 
@@ -203,7 +202,7 @@ struct CalibrationIteration {
 };
 
 struct SelfCalibrationResult {
-    sim::DistortionTable table = sim::DistortionTable::neutral();  ///< the last estimate
+    DistortionTable table = DistortionTable::neutral();  ///< the last estimate
     std::vector<CalibrationIteration> iterations;
     bool converged = false;  ///< the last change was below change_tolerance
     /// The poses the last iteration compared the frames at (refined when an aligner was given).
@@ -234,7 +233,7 @@ using IterationObserver = std::function<void(const CalibrationIteration&)>;
 Result<SelfCalibrationResult> selfCalibrate(const std::vector<DepthImage>& raw,
                                             const PinholeCamera& camera, const PoseProvider& poses,
                                             const SelfCalibrationConfig& config,
-                                            const sim::DistortionTable* initial = nullptr,
+                                            const DistortionTable* initial = nullptr,
                                             const IterationObserver& observer = {});
 
 /// The same from poses T_W_C, one per frame: fixed (e.g. ground truth) when `aligner` is empty;
@@ -246,7 +245,7 @@ Result<SelfCalibrationResult> selfCalibrate(const std::vector<DepthImage>& raw,
                                             const PinholeCamera& camera,
                                             const std::vector<Eigen::Isometry3d>& T_W_C,
                                             const SelfCalibrationConfig& config,
-                                            const sim::DistortionTable* initial = nullptr,
+                                            const DistortionTable* initial = nullptr,
                                             const IterationObserver& observer = {},
                                             const FrameAligner& aligner = {});
 
@@ -265,14 +264,14 @@ struct TableComparison {
         double median_error_beyond_projective = 0.0;
         double median_uncalibrated_beyond_projective = 0.0;
     };
-    std::array<Bin, sim::DistortionTable::kBins> bins{};
+    std::array<Bin, DistortionTable::kBins> bins{};
 };
 
 /// Compares `learned` with `reference` over the bins `coverage` marks covered.
 /// kFailedPrecondition when no covered 1 m or 3 m bin has a valid reference factor.
-Result<TableComparison> compareTables(const sim::DistortionTable& learned,
+Result<TableComparison> compareTables(const DistortionTable& learned,
                                       const DistortionEstimate& coverage,
-                                      const sim::DistortionTable& reference);
+                                      const DistortionTable& reference);
 
 /// |cos| of the viewing angle of each hit of a raycast from camera pose T_V_C: the normal's
 /// component along the pixel's unit ray (0 where there is no hit).

@@ -18,7 +18,7 @@
 #include "common/eval/trajectory_metrics.hpp"
 #include "common/geometry/lie.hpp"
 #include "device/fusion/fragment_builder.hpp"
-#include "drivers/depth_calibration.hpp"
+#include "drivers/calibrated_source.hpp"
 #include "drivers/sim/scene.hpp"
 #include "drivers/sim/sim_source.hpp"
 #include "drivers/source.hpp"
@@ -112,7 +112,7 @@ constexpr double kDefaultLook = sim::TrajectoryConfig{}.look_offset_deg;
 /// Views sideways at the nearest wall: one wall and the floor, degenerate along the wall.
 constexpr double kWallLook = -65.0;
 
-/// Raw sensor depth, or undistorted with the sensor's own table (drivers/depth_calibration).
+/// Raw sensor depth, or undistorted with the sensor's own table (drivers/calibrated_source).
 enum class Calibration { kRaw, kSensor };
 
 void checkSimulatedFragment(const std::string& scene, const std::string& noise, double max_median_m,

@@ -1,12 +1,13 @@
 // SPDX-License-Identifier: Apache-2.0
-// Depth calibration (drivers/depth_calibration): undistorting with the CLAMS / Redwood table
-// inverts the sensor model's step A.3 (reference §1.4), and sources get it as documented.
+// Depth calibration (common/calibration/depth_calibration, drivers/calibrated_source):
+// undistorting with the CLAMS / Redwood table inverts the sensor model's step A.3 (reference
+// §1.4), and sources get it as documented.
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
 
-#include "drivers/depth_calibration.hpp"
+#include "drivers/calibrated_source.hpp"
 #include "drivers/sim/noise.hpp"
 #include "drivers/sim/sim_source.hpp"
 #include "drivers/source.hpp"
@@ -31,7 +32,7 @@ sim::NoiseConfig tableOnly() {
 
 TEST(DepthCalibration, UndistortingTheSimulatedSensorGivesBackTheTrueDepth) {
     PLUMB_REQUIRE_SHARED_DATA(path, "redwood-noise/dist-model.txt");
-    auto table = sim::DistortionTable::load(path);
+    auto table = DistortionTable::load(path);
     ASSERT_TRUE(table.isOk()) << table.status().toString();
     auto calibration = DepthCalibration::load(path);
     ASSERT_TRUE(calibration.isOk()) << calibration.status().toString();
@@ -69,7 +70,7 @@ TEST(DepthCalibration, UndistortingTheSimulatedSensorGivesBackTheTrueDepth) {
 
 TEST(DepthCalibration, ScalesAnyImageSizeToTheTableGrid) {
     PLUMB_REQUIRE_SHARED_DATA(path, "redwood-noise/dist-model.txt");
-    auto table = sim::DistortionTable::load(path);
+    auto table = DistortionTable::load(path);
     auto calibration = DepthCalibration::load(path);
     ASSERT_TRUE(table.isOk() && calibration.isOk());
     // Measured depth d / f at 160x120 for a true depth of 2.5 m, f at the 2x2 block origin.

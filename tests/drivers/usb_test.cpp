@@ -7,7 +7,7 @@
 #include <memory>
 #include <vector>
 
-#include "drivers/depth_calibration.hpp"
+#include "drivers/calibrated_source.hpp"
 #include "drivers/device_clock.hpp"
 #include "drivers/usb/usb_devices.hpp"
 #include "tests/testing/arrival_counter.hpp"

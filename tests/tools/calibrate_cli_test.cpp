@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "drivers/sim/noise.hpp"
+#include "common/calibration/distortion_table.hpp"
 #include "tests/testing/run_program.hpp"
 #include "tests/testing/shared_data.hpp"
 
@@ -36,7 +36,7 @@ TEST(PlumbCalibrateCli, WritesATableThatReadsBack) {
     EXPECT_NE(run.out.find("iteration 1: change median"), std::string::npos) << run.out;
     EXPECT_NE(run.out.find("iteration 2: change median"), std::string::npos) << run.out;
     EXPECT_NE(run.out.find("cells covered per bin"), std::string::npos) << run.out;
-    auto learnt = sim::DistortionTable::load(table);
+    auto learnt = DistortionTable::load(table);
     ASSERT_TRUE(learnt.isOk()) << learnt.status().toString();
     // The Redwood table bends the simulated sensor by up to per cents at 3 m: the learnt table is
     // not neutral there, and stays within the table's few per cent of 1.
@@ -63,7 +63,7 @@ TEST(PlumbCalibrateCli, PlanarOnlyLearnsTheBendWithoutPoses) {
     EXPECT_NE(run.out.find("the bend from the planes of 600 frames"), std::string::npos) << run.out;
     EXPECT_NE(run.out.find("beyond a projective part"), std::string::npos) << run.out;
     EXPECT_EQ(run.out.find("iteration 1: change median"), std::string::npos) << run.out;
-    auto learnt = sim::DistortionTable::load(table);
+    auto learnt = DistortionTable::load(table);
     ASSERT_TRUE(learnt.isOk()) << learnt.status().toString();
     // The bend at 3 m: per cents between the image's centre and its corners.
     EXPECT_GT(std::abs(learnt->cell(0, 0)[1] - learnt->cell(40, 40)[1]), 0.005);

@@ -13,7 +13,7 @@
 #include <string>
 #include <vector>
 
-#include "drivers/sim/noise.hpp"
+#include "common/calibration/distortion_table.hpp"
 #include "tests/testing/run_program.hpp"
 #include "tests/testing/shared_data.hpp"
 
@@ -31,8 +31,8 @@ ProcessRun plumb(const std::string& command, const fs::path& log_dir,
 
 /// Median over the cells the learned table moved off 1 in `bin` of |learned / scale - true| and
 /// of |1 - true|, with the scale the median ratio learned / true there (the gauge is arbitrary).
-std::pair<double, double> binError(const sim::DistortionTable& learned,
-                                   const sim::DistortionTable& truth, int bin) {
+std::pair<double, double> binError(const DistortionTable& learned, const DistortionTable& truth,
+                                   int bin) {
     std::vector<double> ratios;
     for (int y = 0; y < 80; ++y) {
         for (int x = 0; x < 80; ++x) {
@@ -71,9 +71,9 @@ TEST(PlumbReconstructCli, SelfCalibrateLearnsTheTableFromTheRawDepthAndReportsBe
     EXPECT_NE(run.out.find("self-calibration: table"), std::string::npos) << run.out;
 
     // The table: closer to the sensor's true table at 3 m than no calibration at all.
-    auto learned = sim::DistortionTable::load(out / "depth_calibration.txt");
+    auto learned = DistortionTable::load(out / "depth_calibration.txt");
     ASSERT_TRUE(learned.isOk()) << learned.status().toString();
-    auto truth = sim::DistortionTable::load(path);
+    auto truth = DistortionTable::load(path);
     ASSERT_TRUE(truth.isOk());
     const auto [error, uncalibrated] = binError(*learned, *truth, 1);
     std::printf("3 m bin: median |learned - true| %.3f %%, uncalibrated %.3f %%\n", 100 * error,
@@ -101,7 +101,7 @@ TEST(PlumbReconstructCli, SelfCalibrateLearnsTheTableFromTheRawDepthAndReportsBe
     EXPECT_TRUE(fs::exists(out / "self_calibration" / "first" / "trajectory.txt"));
     // The first reconstruction used the bend learned from the frames' planes.
     EXPECT_EQ(sc.at("first_table"), "self_calibration/planar_table.txt");
-    EXPECT_TRUE(sim::DistortionTable::load(out / "self_calibration" / "planar_table.txt").isOk());
+    EXPECT_TRUE(DistortionTable::load(out / "self_calibration" / "planar_table.txt").isOk());
     EXPECT_GE(sc.at("planar").at("iterations").size(), 1U);
     EXPECT_EQ(sc.at("planar").at("frames").get<int>(), 600);
     EXPECT_LE(sc.at("planar").at("split_disagreement").get<double>(), 0.005);
@@ -197,7 +197,7 @@ TEST(PlumbCalibrateCli, LearnsFromAReconstructionsTrajectoryAndComparesWithARefe
                   std::string::npos);
         EXPECT_NE(run.out.find("median |learned - reference| 1 m"), std::string::npos);
         EXPECT_NE(run.out.find("3 m: "), std::string::npos) << run.out;
-        EXPECT_TRUE(sim::DistortionTable::load(dir / "table.txt").isOk());
+        EXPECT_TRUE(DistortionTable::load(dir / "table.txt").isOk());
     }
 
     args = scan;

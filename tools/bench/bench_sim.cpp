@@ -136,8 +136,8 @@ int main(int argc, char** argv) {
         if (!stream.isOk()) return 1;
 
         // Stage timings with our own renderer and noise model (the same objects SimSource uses).
-        std::optional<sim::DistortionTable> table;
-        if (have_table) table = *sim::DistortionTable::load(*model_path);
+        std::optional<DistortionTable> table;
+        if (have_table) table = *DistortionTable::load(*model_path);
         const sim::Renderer renderer(src.scene(), config.camera);
         sim::RenderConfig depth_only_config;
         depth_only_config.colour = false;
@@ -226,8 +226,7 @@ int main(int argc, char** argv) {
         pure.missing_data = false;
         pure.min_depth_m = 0.0;
         pure.max_depth_m = 0.0;
-        const sim::DepthNoiseModel ours(pure, *sim::DistortionTable::load(*model_path), 319.5,
-                                        239.5);
+        const sim::DepthNoiseModel ours(pure, *DistortionTable::load(*model_path), 319.5, 239.5);
         std::vector<DepthImage> mm_float;
         std::vector<open3d::t::geometry::Image> mm_u16;
         for (const DepthImage& d : clean_for_peer) {

@@ -104,26 +104,24 @@ std::function<void(const calibration::PlanarIteration&)> planarPrinter(bool quie
 /// The planar table covers every cell of the bins its frames reached.
 calibration::DistortionEstimate planarCoverage(const calibration::PlanarEstimate& e) {
     calibration::DistortionEstimate coverage;
-    coverage.covered.assign(
-        sim::DistortionTable::kCellsPerSide * sim::DistortionTable::kCellsPerSide,
-        static_cast<uint8_t>(e.estimated_bins));
+    coverage.covered.assign(DistortionTable::kCellsPerSide * DistortionTable::kCellsPerSide,
+                            static_cast<uint8_t>(e.estimated_bins));
     return coverage;
 }
 
-int printComparison(const sim::DistortionTable& learned,
-                    const calibration::DistortionEstimate& coverage,
-                    const sim::DistortionTable& reference, const std::filesystem::path& path) {
+int printComparison(const DistortionTable& learned, const calibration::DistortionEstimate& coverage,
+                    const DistortionTable& reference, const std::filesystem::path& path) {
     Result<calibration::TableComparison> c =
         calibration::compareTables(learned, coverage, reference);
     if (!c.isOk()) return failure(kCommand, c.status());
     std::printf("against %s (learned factors divided by %.5f):\n", path.string().c_str(), c->scale);
-    for (int bin = 0; bin < sim::DistortionTable::kBins; ++bin) {
+    for (int bin = 0; bin < DistortionTable::kBins; ++bin) {
         const calibration::TableComparison::Bin& b = c->bins[static_cast<size_t>(bin)];
         if (b.cells == 0) continue;
         std::printf(
             "  %.0f m: %zu cells, median |learned - reference| %.3f %% (uncalibrated %.3f %%); "
             "beyond a projective part %.3f %% (uncalibrated %.3f %%)\n",
-            sim::DistortionTable::binCentreM(bin), b.cells, 100.0 * b.median_error,
+            DistortionTable::binCentreM(bin), b.cells, 100.0 * b.median_error,
             100.0 * b.median_uncalibrated, 100.0 * b.median_error_beyond_projective,
             100.0 * b.median_uncalibrated_beyond_projective);
     }
@@ -252,15 +250,15 @@ int runCalibrate(const std::vector<std::string>& arguments) {
         if (!p.isOk()) return failure(kCommand, p.status());
         pose_file = std::move(*p);
     }
-    std::optional<sim::DistortionTable> reference;
+    std::optional<DistortionTable> reference;
     if (reference_path) {
-        Result<sim::DistortionTable> t = sim::DistortionTable::load(*reference_path);
+        Result<DistortionTable> t = DistortionTable::load(*reference_path);
         if (!t.isOk()) return failure(kCommand, t.status());
         reference = std::move(*t);
     }
-    std::optional<sim::DistortionTable> initial;
+    std::optional<DistortionTable> initial;
     if (initial_path) {
-        Result<sim::DistortionTable> t = sim::DistortionTable::load(*initial_path);
+        Result<DistortionTable> t = DistortionTable::load(*initial_path);
         if (!t.isOk()) return failure(kCommand, t.status());
         initial = std::move(*t);
     }

@@ -28,9 +28,8 @@ Result<PlanarStage> learnPlanarTable(
     return out;
 }
 
-sim::DistortionTable composeTables(const sim::DistortionTable& first,
-                                   const sim::DistortionTable& then) {
-    constexpr int n = sim::DistortionTable::kCellsPerSide;
+DistortionTable composeTables(const DistortionTable& first, const DistortionTable& then) {
+    constexpr int n = DistortionTable::kCellsPerSide;
     std::vector<std::array<float, 5>> cells(static_cast<size_t>(n) * n);
     for (int y = 0; y < n; ++y) {
         for (int x = 0; x < n; ++x) {
@@ -38,7 +37,7 @@ sim::DistortionTable composeTables(const sim::DistortionTable& first,
             for (size_t b = 0; b < c.size(); ++b) c[b] = first.cell(x, y)[b] * then.cell(x, y)[b];
         }
     }
-    return sim::DistortionTable::fromCells(std::move(cells));
+    return DistortionTable::fromCells(std::move(cells));
 }
 
 }  // namespace plumb::tools

@@ -8,15 +8,15 @@
 #include <functional>
 
 #include "backend/calibration/planar_distortion.hpp"
+#include "common/calibration/distortion_table.hpp"
 #include "common/core/status.hpp"
 #include "common/frame/frame_source.hpp"
-#include "drivers/sim/noise.hpp"
 
 namespace plumb::tools {
 
 struct PlanarStage {
     calibration::PlanarEstimate estimate;
-    sim::DistortionTable table = sim::DistortionTable::neutral();
+    DistortionTable table = DistortionTable::neutral();
     size_t frames_read = 0;
 };
 
@@ -30,7 +30,6 @@ Result<PlanarStage> learnPlanarTable(
 /// The table that undistorts as `first` followed by `then`: per cell and bin the product of
 /// their factors (z_true = f_then * (f_first * z_raw), the bin of both taken at the same depth);
 /// a cell invalid in either is invalid.
-sim::DistortionTable composeTables(const sim::DistortionTable& first,
-                                   const sim::DistortionTable& then);
+DistortionTable composeTables(const DistortionTable& first, const DistortionTable& then);
 
 }  // namespace plumb::tools

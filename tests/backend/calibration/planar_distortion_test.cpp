@@ -25,7 +25,7 @@
 namespace plumb::calibration {
 namespace {
 
-using Table = sim::DistortionTable;
+using Table = DistortionTable;
 
 /// Every `step`-th of `frames` frames of a simulated living_room scan at 640x480: raw depth.
 std::vector<DepthImage> simulate(const std::string& noise_mode, const std::string& table_path,

@@ -24,7 +24,7 @@
 namespace plumb::calibration {
 namespace {
 
-using Table = sim::DistortionTable;
+using Table = DistortionTable;
 
 /// A simulated scan at the "ci" camera (160x120): raw depth and ground-truth poses.
 struct Scan {

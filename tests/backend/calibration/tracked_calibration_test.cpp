@@ -18,7 +18,7 @@
 namespace plumb::calibration {
 namespace {
 
-using Table = sim::DistortionTable;
+using Table = DistortionTable;
 
 /// Median over the cells covered in `bin` of |learnt / scale - true| with one scale (the median
 /// ratio over both near bins), and of |1 - true| (no calibration).

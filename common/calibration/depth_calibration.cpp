@@ -1,7 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "drivers/depth_calibration.hpp"
+#include "common/calibration/depth_calibration.hpp"
 
-#include <fmt/format.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
@@ -12,12 +11,12 @@
 namespace plumb {
 
 Result<DepthCalibration> DepthCalibration::load(const std::filesystem::path& path) {
-    auto table = sim::DistortionTable::load(path);
+    auto table = DistortionTable::load(path);
     if (!table.isOk()) return table.status();
     return DepthCalibration(std::move(table).value(), path.string());
 }
 
-DepthCalibration::DepthCalibration(sim::DistortionTable table, std::string source)
+DepthCalibration::DepthCalibration(DistortionTable table, std::string source)
     : table_(std::move(table)), source_(std::move(source)) {}
 
 DepthImage DepthCalibration::undistort(DepthImage depth) const {
@@ -26,11 +25,11 @@ DepthImage DepthCalibration::undistort(DepthImage depth) const {
     // The table's cells are defined on a 640x480 image and, as in the sensor model (reference
     // §1.4.A.2-3), looked up at the origin of the pixel's 2x2 disparity block.
     std::vector<int> cell_x(static_cast<size_t>(w));
-    for (int u = 0; u < w; ++u) cell_x[u] = sim::DistortionTable::cellX((u - u % 2) * 640 / w);
+    for (int u = 0; u < w; ++u) cell_x[u] = DistortionTable::cellX((u - u % 2) * 640 / w);
     // Rows are independent: any split gives the same image.
     tbb::parallel_for(tbb::blocked_range<int>(0, h, 16), [&](const tbb::blocked_range<int>& rows) {
         for (int v = rows.begin(); v < rows.end(); ++v) {
-            const int cell_y = sim::DistortionTable::cellY((v - v % 2) * 480 / h);
+            const int cell_y = DistortionTable::cellY((v - v % 2) * 480 / h);
             for (int u = 0; u < w; ++u) {
                 const float measured = depth(u, v);
                 if (!(measured > 0.0F)) {
@@ -50,21 +49,6 @@ DepthImage DepthCalibration::undistort(DepthImage depth) const {
         }
     });
     return depth;
-}
-
-CalibratedSource::CalibratedSource(std::unique_ptr<FrameSource> inner, DepthCalibration calibration)
-    : FrameSourceDecorator(std::move(inner)), calibration_(std::move(calibration)) {}
-
-Result<Frame> CalibratedSource::next() {
-    Result<Frame> frame = inner().next();
-    if (!frame.isOk()) return frame;
-    frame->depth = calibration_.undistort(std::move(frame->depth));
-    return frame;
-}
-
-std::string CalibratedSource::description() const {
-    return fmt::format("{}, depth calibrated with {}", inner().description(),
-                       calibration_.source());
 }
 
 }  // namespace plumb

@@ -11,16 +11,14 @@
 // cent over metres, so each step shrinks the error by the small factor d * df/dd).
 //
 // Thread-safety: a DepthCalibration is immutable after loading and its const members are
-// thread-safe; CalibratedSource is a FrameSource (one consumer thread).
+// thread-safe.
 
 #include <filesystem>
-#include <memory>
 #include <string>
 
+#include "common/calibration/distortion_table.hpp"
 #include "common/core/status.hpp"
-#include "common/frame/frame_source.hpp"
 #include "common/image/image.hpp"
-#include "drivers/sim/noise.hpp"
 
 namespace plumb {
 
@@ -29,7 +27,7 @@ class DepthCalibration {
     /// Reads a CLAMS / Redwood dist-model.txt (80x80 cells of 8x6 pixels at 640x480, five depth
     /// bins centred at 1, 3, 5, 7 and 9 m).
     static Result<DepthCalibration> load(const std::filesystem::path& path);
-    DepthCalibration(sim::DistortionTable table, std::string source);
+    DepthCalibration(DistortionTable table, std::string source);
 
     /// The undistorted image: d = d_meas * f(u, v, d) per valid pixel, f looked up at the origin
     /// of the pixel's 2x2 disparity block scaled to the table's 640x480 grid; pixels in cells the
@@ -46,21 +44,8 @@ class DepthCalibration {
     static constexpr double kTolerance = 1e-6;
 
   private:
-    sim::DistortionTable table_;
+    DistortionTable table_;
     std::string source_;
-};
-
-/// A FrameSource whose frames' depth is undistorted with a DepthCalibration; everything else
-/// (intrinsics, grey image, ground truth, errors, end of stream) passes through unchanged.
-class CalibratedSource final : public FrameSourceDecorator {
-  public:
-    CalibratedSource(std::unique_ptr<FrameSource> inner, DepthCalibration calibration);
-
-    Result<Frame> next() override;
-    std::string description() const override;
-
-  private:
-    DepthCalibration calibration_;
 };
 
 }  // namespace plumb
