@@ -202,6 +202,35 @@ TEST(PlumbCli, ReconstructFrameStepFusesEveryXthFrameLikeFuse) {
     EXPECT_TRUE(contains(bad.err, "--frame-step needs a number >= 1")) << bad.err;
 }
 
+TEST(PlumbCli, ReconstructFinalModelFromTheKeptFramesIsTheOneFromFramesReadAgain) {
+    const fs::path dir = testing::freshTempDir("plumb_cli_reconstruct_kept_frames");
+    if (!hasBackend(dir)) GTEST_SKIP() << "built without the backend";
+    auto run = [&dir](const std::string& name, const std::string& keep_mb) {
+        return plumb(
+            dir, "reconstruct",
+            {"sim:living_room", "--intrinsics", "ci", "--frames", "30", "--noise", "parametric",
+             "--no-gt", "--set", "keep_frames_mb=" + keep_mb, "--out", (dir / name).string()});
+    };
+    const ProcessRun kept = run("kept", "4096");
+    ASSERT_EQ(kept.exit_code, 0) << kept.err;
+    EXPECT_FALSE(contains(kept.err, "reads the frames again")) << kept.err;
+    const ProcessRun again = run("again", "0");
+    ASSERT_EQ(again.exit_code, 0) << again.err;
+    // 30 frames of 160x120 hold far more than one megabyte: they are read again, and it says why.
+    const ProcessRun over = run("over", "1");
+    ASSERT_EQ(over.exit_code, 0) << over.err;
+    EXPECT_TRUE(contains(over.err,
+                         "the final model reads the frames again: they need more than "
+                         "the 1 MB set aside for them"))
+        << over.err;
+    for (const char* file : {"trajectory.txt", "mesh.ply", "baseline/mesh.ply"}) {
+        const std::string reference = slurp(dir / "kept" / file);
+        EXPECT_GT(reference.size(), 100u) << file;
+        EXPECT_EQ(slurp(dir / "again" / file), reference) << file;
+        EXPECT_EQ(slurp(dir / "over" / file), reference) << file;
+    }
+}
+
 TEST(PlumbCli, ReconstructScoresThePosesADatasetReadsWithItsFrames) {
     const fs::path dir = testing::freshTempDir("plumb_cli_reconstruct_7scenes");
     if (!hasBackend(dir)) GTEST_SKIP() << "built without the backend";
