@@ -12,6 +12,7 @@
 #include "common/camera/pinhole.hpp"
 #include "common/config/config.hpp"
 #include "common/core/logging.hpp"
+#include "common/core/usage.hpp"
 #include "messages/lcm_link.hpp"
 
 #if __has_include("backend/pipeline/pipeline.hpp")
@@ -56,11 +57,6 @@ extern "C" void onSignal(int) { g_stop_requests.fetch_add(1); }
 
 const char* g_program = "plumb-backend";
 
-int usageError(const std::string& message) {
-    std::fprintf(stderr, "%s: %s (see %s --help)\n", g_program, message.c_str(), g_program);
-    return 2;
-}
-
 bool parseDouble(const std::string& text, double* out) {
     char* end = nullptr;
     const double v = std::strtod(text.c_str(), &end);
@@ -98,56 +94,58 @@ std::optional<int> parseArguments(const std::vector<std::string>& args, BackendA
         } else if (a == "--live") {
             out->live = true;
         } else if (a == "--log") {
-            if (!value(&out->log_path)) return usageError("--log needs a file");
+            if (!value(&out->log_path)) return usageError(g_program, "--log needs a file");
         } else if (a == "--fragments") {
-            if (!value(&out->fragments_dir)) return usageError("--fragments needs a directory");
+            if (!value(&out->fragments_dir))
+                return usageError(g_program, "--fragments needs a directory");
         } else if (a == "--out") {
-            if (!value(&out->out_dir)) return usageError("--out needs a directory");
+            if (!value(&out->out_dir)) return usageError(g_program, "--out needs a directory");
         } else if (a == "--until-end") {
             options.until_end = true;
         } else if (a == "--session") {
             if (!value(&v) || !parseDouble(v, &d) || d < 1 || d != static_cast<int64_t>(d))
-                return usageError("--session needs a positive integer (a device's session id)");
+                return usageError(g_program,
+                                  "--session needs a positive integer (a device's session id)");
             options.sessions.insert(static_cast<int64_t>(d));
         } else if (a == "--expect") {
             if (!value(&v) || !parseDouble(v, &d) || d < 1 || d != static_cast<int64_t>(d))
-                return usageError("--expect needs a positive integer");
+                return usageError(g_program, "--expect needs a positive integer");
             options.expect = static_cast<int64_t>(d);
         } else if (a == "--timeout") {
             if (!value(&v) || !parseDouble(v, &options.timeout_s))
-                return usageError("--timeout needs seconds >= 0");
+                return usageError(g_program, "--timeout needs seconds >= 0");
         } else if (a == "--linger") {
             if (!value(&v) || !parseDouble(v, &options.linger_s))
-                return usageError("--linger needs seconds >= 0");
+                return usageError(g_program, "--linger needs seconds >= 0");
         } else if (a == "--gt") {
-            if (!value(&out->gt_dir)) return usageError("--gt needs a directory");
+            if (!value(&out->gt_dir)) return usageError(g_program, "--gt needs a directory");
         } else if (a == "--no-finalise" || a == "--no-finalize") {
             out->finalise = false;
         } else if (a == "--lcm-url") {
-            if (!value(&link_options.url)) return usageError("--lcm-url needs a value");
+            if (!value(&link_options.url)) return usageError(g_program, "--lcm-url needs a value");
         } else if (a == "--allow-remote") {
             link_options.allow_remote = true;
         } else if (a == "--key-file") {
-            if (!value(&v)) return usageError("--key-file needs a value");
+            if (!value(&v)) return usageError(g_program, "--key-file needs a value");
             link_options.key_file = v;
         } else if (a == "--key-id") {
             if (!value(&v) || !parseDouble(v, &d) || d > INT32_MAX)
-                return usageError("--key-id needs a non-negative 32-bit integer");
+                return usageError(g_program, "--key-id needs a non-negative 32-bit integer");
             link_options.key_id = static_cast<int32_t>(d);
         } else if (a == "--log-level") {
             log::Level parsed = log::Level::kInfo;
             if (!value(&v) || !log::parseLevel(v, &parsed))
-                return usageError("--log-level needs trace|debug|info|warn|error|off");
+                return usageError(g_program, "--log-level needs trace|debug|info|warn|error|off");
             out->level = parsed;
         } else {
-            return usageError("unknown argument '" + a + "'");
+            return usageError(g_program, "unknown argument '" + a + "'");
         }
     }
     if (out->live && !out->log_path.empty())
-        return usageError("--live and --log exclude each other");
+        return usageError(g_program, "--live and --log exclude each other");
     if (!out->live && out->log_path.empty() && out->fragments_dir.empty())
-        return usageError("one of --live, --log LOG or --fragments DIR is required");
-    if (out->out_dir.empty()) return usageError("--out is required");
+        return usageError(g_program, "one of --live, --log LOG or --fragments DIR is required");
+    if (out->out_dir.empty()) return usageError(g_program, "--out is required");
     options.out_dir = out->out_dir;
     options.fragments_dir = out->fragments_dir.empty()
                                 ? std::filesystem::path(out->out_dir) / "fragments"
@@ -264,7 +262,7 @@ int finalise(const BackendArgs& a, const backend::PipelineConfig& pipeline_confi
 int runBackendCommand(std::vector<std::string> args, const char* program) {
     g_program = program;
     auto config_args = config::extractConfigArgs(args);
-    if (!config_args.isOk()) return usageError(config_args.status().message());
+    if (!config_args.isOk()) return usageError(g_program, config_args.status().message());
     BackendArgs a;
     if (const std::optional<int> exit_code = parseArguments(args, &a)) return *exit_code;
     const backend::IngestRunOptions& options = a.options;
@@ -276,7 +274,7 @@ int runBackendCommand(std::vector<std::string> args, const char* program) {
     // Checked before any work: a configuration that does not load is a bad command line.
     backend::PipelineConfig pipeline_config;
     if (Status s = config::load(*config_args, pipeline_config); !s.isOk()) {
-        return usageError(s.message());
+        return usageError(g_program, s.message());
     }
 #endif
     struct sigaction sa {};

@@ -11,6 +11,7 @@
 
 #include "common/config/config.hpp"
 #include "common/core/logging.hpp"
+#include "common/core/usage.hpp"
 #include "device/stream/device_runner.hpp"
 #include "drivers/device_list.hpp"
 #include "drivers/recording_source.hpp"
@@ -22,6 +23,7 @@
 
 namespace {
 
+constexpr const char* kProgram = "plumb-device";
 constexpr const char* kUsage =
     "usage: plumb-device --source URI [options]\n"
     "\n"
@@ -64,11 +66,6 @@ constexpr const char* kUsage =
 std::atomic<int> g_stop_requests{0};
 
 extern "C" void onSignal(int) { g_stop_requests.fetch_add(1); }
-
-int usageError(const std::string& message) {
-    std::fprintf(stderr, "plumb-device: %s\n\n%s", message.c_str(), kUsage);
-    return 2;
-}
 
 /// Seconds >= 0, or "forever" (-1).
 bool parseSeconds(const std::string& text, double* out) {
@@ -125,21 +122,24 @@ std::optional<int> parseArguments(const std::vector<std::string>& args, DeviceAr
             std::fputs(formatDeviceList(listDepthDevices()).c_str(), stdout);
             return 0;
         } else if (a == "--source") {
-            if (!value(&out->source_uri)) return usageError("--source needs a value");
+            if (!value(&out->source_uri))
+                return usageError(kProgram, "--source needs a value", kUsage);
         } else if (a == "--frames") {
             if (!value(&v) || !parseInt64(v, &out->frames) || out->frames < 0)
-                return usageError("--frames needs a count >= 0");
+                return usageError(kProgram, "--frames needs a count >= 0", kUsage);
         } else if (a == "--intrinsics") {
-            if (!value(&out->intrinsics)) return usageError("--intrinsics needs a value");
+            if (!value(&out->intrinsics))
+                return usageError(kProgram, "--intrinsics needs a value", kUsage);
         } else if (a == "--noise") {
-            if (!value(&out->sim_noise)) return usageError("--noise needs a mode");
+            if (!value(&out->sim_noise))
+                return usageError(kProgram, "--noise needs a mode", kUsage);
             if (Status s = sim::checkNoiseMode(out->sim_noise); !s.isOk())
-                return usageError(s.message());
+                return usageError(kProgram, s.message(), kUsage);
         } else if (a == "--depth-calibration") {
             if (!value(&out->depth_calibration))
-                return usageError("--depth-calibration needs a value");
+                return usageError(kProgram, "--depth-calibration needs a value", kUsage);
             if (Status s = checkDepthCalibration(out->depth_calibration); !s.isOk())
-                return usageError(s.message());
+                return usageError(kProgram, s.message(), kUsage);
         } else if (a == "--realtime") {
             out->realtime = true;
         } else if (a == "--no-colour") {
@@ -147,40 +147,46 @@ std::optional<int> parseArguments(const std::vector<std::string>& args, DeviceAr
         } else if (a == "--wait-for-camera") {
             double seconds = 0.0;
             if (!value(&v) || !parseSeconds(v, &seconds))
-                return usageError("--wait-for-camera needs seconds >= 0 or 'forever'");
+                return usageError(kProgram, "--wait-for-camera needs seconds >= 0 or 'forever'",
+                                  kUsage);
             out->wait_for_camera_s = seconds;
         } else if (a == "--lcm-url") {
-            if (!value(&out->link_options.url)) return usageError("--lcm-url needs a value");
+            if (!value(&out->link_options.url))
+                return usageError(kProgram, "--lcm-url needs a value", kUsage);
         } else if (a == "--allow-remote") {
             out->link_options.allow_remote = true;
         } else if (a == "--key-file") {
-            if (!value(&v)) return usageError("--key-file needs a value");
+            if (!value(&v)) return usageError(kProgram, "--key-file needs a value", kUsage);
             out->link_options.key_file = v;
         } else if (a == "--key-id") {
             if (!value(&v) || !parseInt64(v, &key_id) || key_id < 0 || key_id > INT32_MAX)
-                return usageError("--key-id needs a non-negative 32-bit integer");
+                return usageError(kProgram, "--key-id needs a non-negative 32-bit integer", kUsage);
             out->link_options.key_id = static_cast<int32_t>(key_id);
         } else if (a == "--spool-dir") {
-            if (!value(&out->spool_dir)) return usageError("--spool-dir needs a value");
+            if (!value(&out->spool_dir))
+                return usageError(kProgram, "--spool-dir needs a value", kUsage);
         } else if (a == "--dump-dir") {
-            if (!value(&out->dump_dir)) return usageError("--dump-dir needs a value");
+            if (!value(&out->dump_dir))
+                return usageError(kProgram, "--dump-dir needs a value", kUsage);
         } else if (a == "--record") {
-            if (!value(&out->record_dir)) return usageError("--record needs a folder");
+            if (!value(&out->record_dir))
+                return usageError(kProgram, "--record needs a folder", kUsage);
             if (Status st = RecordingSource::checkFolder(out->record_dir); !st.isOk())
-                return usageError(st.message());
+                return usageError(kProgram, st.message(), kUsage);
         } else if (a == "--session-id") {
             if (!value(&v) || !parseInt64(v, &out->session_id) || out->session_id <= 0)
-                return usageError("--session-id needs a positive integer");
+                return usageError(kProgram, "--session-id needs a positive integer", kUsage);
         } else if (a == "--log-level") {
             if (!value(&v) || !log::parseLevel(v, &out->level))
-                return usageError("--log-level needs trace|debug|info|warn|error|off");
+                return usageError(kProgram, "--log-level needs trace|debug|info|warn|error|off",
+                                  kUsage);
         } else {
-            return usageError("unknown argument '" + a + "'");
+            return usageError(kProgram, "unknown argument '" + a + "'", kUsage);
         }
     }
-    if (out->source_uri.empty()) return usageError("--source is required");
+    if (out->source_uri.empty()) return usageError(kProgram, "--source is required", kUsage);
     if (!out->sim_noise.empty() && out->source_uri.rfind("sim:", 0) != 0) {
-        return usageError("--noise applies to sim: sources only");
+        return usageError(kProgram, "--noise applies to sim: sources only", kUsage);
     }
     return std::nullopt;
 }
@@ -258,7 +264,7 @@ int main(int argc, char** argv) {
     using namespace plumb;
     std::vector<std::string> args(argv + 1, argv + argc);
     auto config_args = config::extractConfigArgs(args);
-    if (!config_args.isOk()) return usageError(config_args.status().message());
+    if (!config_args.isOk()) return usageError(kProgram, config_args.status().message(), kUsage);
     DeviceArgs a;
     if (const std::optional<int> exit_code = parseArguments(args, &a)) return *exit_code;
     const std::string& source_uri = a.source_uri;
@@ -267,7 +273,7 @@ int main(int argc, char** argv) {
     device::DeviceRunOptions options;
     if (Status s = config::load(*config_args, options.config); !s.isOk()) {
         std::fprintf(stderr, "plumb-device: %s\n", s.toString().c_str());
-        return 2;
+        return kExitUsage;
     }
     if (!a.intrinsics.empty()) options.config.capture.intrinsics = a.intrinsics;
     if (a.realtime) options.config.capture.realtime = true;

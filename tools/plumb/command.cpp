@@ -8,8 +8,7 @@
 namespace plumb::tools {
 
 int usageError(std::string_view command, std::string_view message) {
-    fmt::print(stderr, "plumb {}: {} (see plumb {} --help)\n", command, message, command);
-    return kExitUsage;
+    return ::plumb::usageError(fmt::format("plumb {}", command), message);
 }
 
 int failure(std::string_view command, const Status& status, std::string_view context) {

@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "common/core/status.hpp"
+#include "common/core/usage.hpp"
 
 namespace plumb::tools {
 
@@ -35,12 +36,13 @@ const std::vector<Command>& commands();
 
 /// Exit codes shared by every command.
 constexpr int kExitOk = 0;
-constexpr int kExitFailure = 1;        ///< the work failed (bad data, failed stage)
-constexpr int kExitUsage = 2;          ///< bad command line or configuration
+constexpr int kExitFailure = 1;  ///< the work failed (bad data, failed stage)
+using ::plumb::kExitUsage;       ///< bad command line or configuration (common/core/usage.hpp)
 constexpr int kExitInterrupted = 130;  ///< stopped by Ctrl-C (SIGINT) or SIGTERM, as shells do
 
-/// Prints "plumb <command>: <message> (see plumb <command> --help)" to stderr and returns
-/// kExitUsage. `command` is the sub-command as typed ("fuse", "eval traj").
+/// plumb::usageError (common/core/usage.hpp) of `plumb <command>`: prints "plumb <command>:
+/// <message> (see plumb <command> --help)" to stderr and returns kExitUsage. `command` is the
+/// sub-command as typed ("fuse", "eval traj").
 int usageError(std::string_view command, std::string_view message);
 
 /// Prints "plumb <command>: [<context>: ]<status as text>" to stderr and returns kExitFailure.

@@ -80,9 +80,7 @@ int runGroup(const std::vector<std::string>& args) {
     if (members.empty()) return -1;
     const bool help = args.size() >= 2 && (args[1] == "--help" || args[1] == "-h");
     if (!help && args.size() >= 2) {
-        std::fprintf(stderr, "plumb %s: unknown command '%s' (see plumb %s --help)\n", word.c_str(),
-                     args[1].c_str(), word.c_str());
-        return kExitUsage;
+        return usageError(word, "unknown command '" + args[1] + "'");
     }
     FILE* out = help ? stdout : stderr;
     std::fprintf(out, "usage: plumb %s <what> [options]\n\ncommands:\n", word.c_str());
@@ -109,10 +107,7 @@ int main(int argc, char** argv) {
     std::vector<std::string> args(argv + 1, argv + argc);
     plumb::log::Level level = plumb::log::Level::kInfo;
     if (!extractLogLevel(args, &level)) {
-        std::fprintf(
-            stderr,
-            "plumb: --log-level takes trace|debug|info|warn|error|off (see plumb --help)\n");
-        return kExitUsage;
+        return plumb::usageError("plumb", "--log-level takes trace|debug|info|warn|error|off");
     }
     plumb::log::setupLogging("plumb", level);
     if (args.empty() || args[0] == "--help" || args[0] == "-h" || args[0] == "help") {
@@ -136,6 +131,5 @@ int main(int argc, char** argv) {
         }
     }
     if (const int group = runGroup(args); group >= 0) return group;
-    std::fprintf(stderr, "plumb: unknown command '%s' (see plumb --help)\n", args[0].c_str());
-    return kExitUsage;
+    return plumb::usageError("plumb", "unknown command '" + args[0] + "'");
 }
