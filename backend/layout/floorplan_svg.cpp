@@ -10,33 +10,11 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "common/geometry/polygon.hpp"
 #include "common/io/text_file.hpp"
 
 namespace plumb::layout {
 namespace {
-
-/// Andrew's monotone chain, counter-clockwise.
-Outline2 convexHull(std::vector<Eigen::Vector2d> pts) {
-    std::sort(pts.begin(), pts.end(), [](const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
-        return a.x() < b.x() || (a.x() == b.x() && a.y() < b.y());
-    });
-    if (pts.size() < 3) return {};
-    auto cross = [](const Eigen::Vector2d& o, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
-        return (a - o).x() * (b - o).y() - (a - o).y() * (b - o).x();
-    };
-    Outline2 hull(2 * pts.size());
-    size_t k = 0;
-    for (size_t i = 0; i < pts.size(); ++i) {
-        while (k >= 2 && cross(hull[k - 2], hull[k - 1], pts[i]) <= 0) --k;
-        hull[k++] = pts[i];
-    }
-    for (size_t i = pts.size() - 1, t = k + 1; i > 0; --i) {
-        while (k >= t && cross(hull[k - 2], hull[k - 1], pts[i - 1]) <= 0) --k;
-        hull[k++] = pts[i - 1];
-    }
-    hull.resize(k - 1);
-    return hull;
-}
 
 /// Points of fragment i in L (a stride subsample of at most `max_points`), finite ones only.
 template <typename Fn>
@@ -469,7 +447,10 @@ std::vector<Outline2> fragmentOutlines(const std::vector<Fragment>& fragments,
     forEachPointL(fragments, T_W_F, layout, max_points_per_fragment,
                   [&](size_t i, const Eigen::Vector3d& p) { xy[i].push_back(p.head<2>()); });
     std::vector<Outline2> out;
-    for (std::vector<Eigen::Vector2d>& pts : xy) out.push_back(convexHull(std::move(pts)));
+    for (std::vector<Eigen::Vector2d>& pts : xy) {
+        // A fragment with fewer than 3 points has no outline.
+        out.push_back(pts.size() < 3 ? Outline2{} : convexHull(std::move(pts)));
+    }
     return out;
 }
 

@@ -22,6 +22,10 @@ inline double cross2(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const E
 /// The polygon's signed area (shoelace formula): positive when counter-clockwise.
 double signedArea(const std::vector<Eigen::Vector2d>& polygon);
 
+/// Convex hull (Andrew's monotone chain), counter-clockwise, without repeating the first vertex
+/// and without collinear vertices. Fewer than 3 distinct points: those points, sorted by x then y.
+std::vector<Eigen::Vector2d> convexHull(std::vector<Eigen::Vector2d> points);
+
 /// True when `q` lies inside the polygon (even-odd rule; a point on an edge may count either
 /// way). Any orientation; fewer than 3 vertices contain nothing.
 bool insidePolygon(const std::vector<Eigen::Vector2d>& polygon, const Eigen::Vector2d& q);

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <nlohmann/json.hpp>
 
+#include "common/geometry/polygon.hpp"
 #include "tests/monitor/monitor_fixtures.hpp"
 #include "tools/monitor/monitor_state.hpp"
 #include "tools/monitor/top_view.hpp"

@@ -7,6 +7,7 @@
 #include <cmath>
 
 #include "common/core/timing.hpp"
+#include "common/geometry/polygon.hpp"
 #include "common/layout/layout_json.hpp"
 
 namespace plumb::monitor {

@@ -19,34 +19,6 @@ Eigen::Isometry3d viewFromWorld(const Layout* layout) {
     return T_V_W;
 }
 
-namespace {
-
-double cross(const Eigen::Vector2d& o, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
-    return (a.x() - o.x()) * (b.y() - o.y()) - (a.y() - o.y()) * (b.x() - o.x());
-}
-
-}  // namespace
-
-std::vector<Eigen::Vector2d> convexHull(std::vector<Eigen::Vector2d> points) {
-    std::sort(points.begin(), points.end(), [](const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
-        return a.x() != b.x() ? a.x() < b.x() : a.y() < b.y();
-    });
-    points.erase(std::unique(points.begin(), points.end()), points.end());
-    if (points.size() < 3) return points;
-    std::vector<Eigen::Vector2d> hull(2 * points.size());
-    size_t k = 0;
-    for (const auto& p : points) {  // lower hull
-        while (k >= 2 && cross(hull[k - 2], hull[k - 1], p) <= 0) --k;
-        hull[k++] = p;
-    }
-    for (size_t i = points.size() - 1, t = k + 1; i-- > 0;) {  // upper hull
-        while (k >= t && cross(hull[k - 2], hull[k - 1], points[i]) <= 0) --k;
-        hull[k++] = points[i];
-    }
-    hull.resize(k - 1);  // the last point repeats the first
-    return hull;
-}
-
 double CoverageGrid::coverageFraction() const {
     return cells_of_interest > 0
                ? static_cast<double>(covered_of_interest) / static_cast<double>(cells_of_interest)

@@ -21,10 +21,6 @@ namespace plumb::monitor {
 /// T_V_W: world -> view frame (see the header comment).
 Eigen::Isometry3d viewFromWorld(const Layout* layout);
 
-/// Convex hull of 2-D points (Andrew's monotone chain), counter-clockwise, without repeating the
-/// first vertex and without collinear vertices. Fewer than 3 distinct points: those points.
-std::vector<Eigen::Vector2d> convexHull(std::vector<Eigen::Vector2d> points);
-
 struct CoverageConfig {
     /// Edge length of a coverage cell on the floor, metres.
     double cell_m = 0.25;
