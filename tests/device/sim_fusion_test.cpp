@@ -18,6 +18,7 @@
 #include "common/eval/trajectory_metrics.hpp"
 #include "common/geometry/lie.hpp"
 #include "device/fusion/fragment_builder.hpp"
+#include "device/fusion/fuse_frames.hpp"
 #include "drivers/calibrated_source.hpp"
 #include "drivers/sim/scene.hpp"
 #include "drivers/sim/sim_source.hpp"
@@ -43,25 +44,25 @@ FusedRun fuse(FrameSource& source, const FusionConfig& config, size_t max_frames
               bool require_tracking = true) {
     FragmentBuilder builder(source.camera(), config);
     FusedRun out;
-    for (size_t k = 0; k < max_frames; ++k) {
-        Result<Frame> frame = source.next();
-        if (!frame.isOk()) {
-            EXPECT_EQ(frame.status().code(), StatusCode::kOutOfRange) << frame.status().toString();
-            break;
-        }
-        out.gt.push_back(frame->T_W_C_gt);
-        out.frames_with_colour += frame->colour.empty() ? 0 : 1;
-        Result<FrameReport> r = builder.process(*frame);
-        EXPECT_TRUE(r.isOk()) << r.status().toString();
-        if (!r.isOk()) break;
+    FuseHooks hooks;
+    hooks.on_frame = [&](const Frame& frame, const FrameReport& r) {
+        const size_t k = out.gt.size();
+        out.gt.push_back(frame.T_W_C_gt);
+        out.frames_with_colour += frame.colour.empty() ? 0 : 1;
         if (require_tracking) {
-            EXPECT_TRUE(r->tracked) << "frame " << k << ": " << r->message;
+            EXPECT_TRUE(r.tracked) << "frame " << k << ": " << r.message;
         }
-        out.tracking_failures += r->tracked ? 0 : 1;
-        out.frames_photometric += r->icp.photometric.used ? 1 : 0;
-        for (Fragment& f : r->closed) out.fragments.push_back(std::move(f));
-    }
-    if (auto last = builder.finish()) out.fragments.push_back(std::move(*last));
+        out.tracking_failures += r.tracked ? 0 : 1;
+        out.frames_photometric += r.icp.photometric.used ? 1 : 0;
+        return Status::ok();
+    };
+    hooks.on_fragment = [&](Fragment f) {
+        out.fragments.push_back(std::move(f));
+        return Status::ok();
+    };
+    // Reading stops at the end of the source (kOutOfRange) only.
+    const Result<bool> fused = fuseFrames(source, builder, hooks, max_frames);
+    EXPECT_TRUE(fused.isOk()) << fused.status().toString();
     return out;
 }
 

@@ -59,6 +59,7 @@
 #include "common/core/timing.hpp"
 #include "common/geometry/lie.hpp"
 #include "device/fusion/fragment_builder.hpp"
+#include "device/fusion/fuse_frames.hpp"
 #include "drivers/sim/sim_source.hpp"
 #include "tools/bench/bench_args.hpp"
 
@@ -162,19 +163,22 @@ Result<Scan> simulateScan(const Options& o, int* exit_code) {
     scan.description = (*source)->description();
     std::vector<Eigen::Isometry3d> gt_frames;
     const size_t n = (*source)->size().value_or(o.frames);
-    for (size_t k = 0; k < n; ++k) {
-        Result<Frame> frame = (*source)->next();
-        if (!frame.isOk()) return frame.status();
-        gt_frames.push_back(frame->T_W_C_gt.value_or(Eigen::Isometry3d::Identity()));
-        Result<device::FrameReport> r = builder.process(*frame);
-        if (!r.isOk()) return r.status();
-        for (Fragment& f : r->closed) scan.fragments.push_back(std::move(f));
+    device::FuseHooks hooks;
+    hooks.on_frame = [&](const Frame& frame, const device::FrameReport& report) {
+        gt_frames.push_back(frame.T_W_C_gt.value_or(Eigen::Isometry3d::Identity()));
+        const size_t k = gt_frames.size() - 1;
         if ((k + 1) % 25 == 0 || k + 1 == n) {
             std::fprintf(stderr, "\rsimulating and fusing: frame %zu/%zu, %zu fragments", k + 1, n,
-                         scan.fragments.size());
+                         scan.fragments.size() + report.closed.size());
         }
-    }
-    if (auto last = builder.finish()) scan.fragments.push_back(std::move(*last));
+        return Status::ok();
+    };
+    hooks.on_fragment = [&](Fragment f) {
+        scan.fragments.push_back(std::move(f));
+        return Status::ok();
+    };
+    Result<bool> fused = device::fuseFrames(**source, builder, hooks, n);
+    if (!fused.isOk()) return fused.status();
     std::fprintf(stderr, "\n");
     for (const Fragment& f : scan.fragments) {
         const size_t k = f.frames.empty() ? 0 : static_cast<size_t>(f.frames.front().frame_index);

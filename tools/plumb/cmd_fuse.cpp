@@ -35,6 +35,7 @@
 #include "common/io/text_file.hpp"
 #include "common/io/trajectory.hpp"
 #include "device/fusion/fragment_builder.hpp"
+#include "device/fusion/fuse_frames.hpp"
 #include "drivers/sim/scene.hpp"
 #include "drivers/sim/sim_source.hpp"
 #include "drivers/source.hpp"
@@ -441,7 +442,10 @@ class FuseRun {
     const FuseTally& tally() const { return t_; }
 
   private:
-    Status process(const Frame& frame, uint64_t position);
+    /// A frame the pass fuses, before the builder sees it: its stamps and ground truth.
+    void noteFused(const Frame& frame, uint64_t position);
+    /// The builder's report of a fused frame: the tracking tallies and warnings.
+    void noteReport(const device::FrameReport& report, const Frame& frame);
     /// Measures and writes one fragment (PLY and JSON) and adds it to the tally.
     Status emit(const Fragment& f);
     /// fragments.json of the frames so far, with its summary line.
@@ -452,6 +456,7 @@ class FuseRun {
     device::FragmentBuilder builder_;
     const PointCloud* gt_surface_W_;
     FuseTally t_;
+    std::chrono::steady_clock::time_point process_start_;  ///< of the frame in the builder
 };
 
 Status FuseRun::emit(const Fragment& f) {
@@ -512,7 +517,7 @@ Status FuseRun::emit(const Fragment& f) {
     return Status::ok();
 }
 
-Status FuseRun::process(const Frame& frame, uint64_t position) {
+void FuseRun::noteFused(const Frame& frame, uint64_t position) {
     ++t_.kept;
     if (!t_.first_stamp) t_.first_stamp = std::make_pair(position, frame.timestamp_s);
     t_.last_stamp = std::make_pair(position, frame.timestamp_s);
@@ -522,32 +527,29 @@ Status FuseRun::process(const Frame& frame, uint64_t position) {
         }
         t_.truth.T_W_C[static_cast<size_t>(frame.index)] = frame.T_W_C_gt;
     }
-    const auto t0 = std::chrono::steady_clock::now();
-    Result<device::FrameReport> report = builder_.process(frame);
-    t_.process_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    if (!report.isOk()) return report.status();
+}
+
+void FuseRun::noteReport(const device::FrameReport& report, const Frame& frame) {
     ++t_.frames;
-    t_.lost += report->tracked ? 0 : 1;
-    t_.relocalised += report->relocalised ? 1 : 0;
-    t_.segments_started += report->new_segment ? 1 : 0;
-    t_.budget += report->budget_reached ? 1 : 0;
-    if (report->tracked) {
-        t_.open_tracked[report->frame_index] = {frame.timestamp_s, report->T_W_C};
+    t_.lost += report.tracked ? 0 : 1;
+    t_.relocalised += report.relocalised ? 1 : 0;
+    t_.segments_started += report.new_segment ? 1 : 0;
+    t_.budget += report.budget_reached ? 1 : 0;
+    if (report.tracked) {
+        t_.open_tracked[report.frame_index] = {frame.timestamp_s, report.T_W_C};
     }
-    if (report->tracked && report->icp.num_degenerate_directions > 0) {
-        t_.unconstrained[report->frame_index] = report->icp.num_degenerate_directions;
+    if (report.tracked && report.icp.num_degenerate_directions > 0) {
+        t_.unconstrained[report.frame_index] = report.icp.num_degenerate_directions;
     }
-    if (report->tracked && report->icp.photometric.used) ++t_.frames_photometric;
-    if (report->tracked && !report->icp.photometric.fallback.empty()) {
-        const std::string& why = report->icp.photometric.fallback;
-        t_.depth_only[report->frame_index] = why;
+    if (report.tracked && report.icp.photometric.used) ++t_.frames_photometric;
+    if (report.tracked && !report.icp.photometric.fallback.empty()) {
+        const std::string& why = report.icp.photometric.fallback;
+        t_.depth_only[report.frame_index] = why;
         ++t_.depth_only_kinds[why.substr(0, why.find(':'))];
     }
-    if (!report->message.empty()) {
-        log::warn("frame {}: {}", report->frame_index, report->message);
+    if (!report.message.empty()) {
+        log::warn("frame {}: {}", report.frame_index, report.message);
     }
-    for (const Fragment& f : report->closed) PLUMB_RETURN_IF_ERROR(emit(f));
-    return Status::ok();
 }
 
 Result<bool> FuseRun::run(FrameSource& source, const std::function<bool()>& stop) {
@@ -556,29 +558,37 @@ Result<bool> FuseRun::run(FrameSource& source, const std::function<bool()>& stop
     po.unit = "frames";
     Progress progress("tracking and fusing", source.size().value_or(0), po);
     progress.advance(t_.read);
-    for (;;) {
-        if (stop && stop()) return false;
-        Result<Frame> frame = source.next();
-        if (!frame.isOk()) {
-            if (frame.status().code() == StatusCode::kOutOfRange) break;
-            if (source.canSkipErrors()) {
-                ++t_.positions;
-                log::warn("skipping a frame: {}", frame.status().toString());
-                continue;
-            }
-            return frame.status();
-        }
+    device::FuseHooks hooks;
+    hooks.stop = stop;
+    hooks.skip_error = [&](const Status& error) {
+        if (!source.canSkipErrors()) return false;
+        ++t_.positions;
+        log::warn("skipping a frame: {}", error.toString());
+        return true;
+    };
+    hooks.keep = [&](const Frame& frame) {
         ++t_.positions;
         const uint64_t position = t_.read++;
         if (position !=
             static_cast<uint64_t>(std::floor(static_cast<double>(t_.kept) * o_.frame_step))) {
             progress.advance();
-            continue;  // dropped, as a device that has no time for it
+            return false;  // dropped, as a device that has no time for it
         }
-        PLUMB_RETURN_IF_ERROR(process(*frame, position));
+        noteFused(frame, position);
+        process_start_ = std::chrono::steady_clock::now();
+        return true;
+    };
+    hooks.on_frame = [&](const Frame& frame, const device::FrameReport& report) {
+        t_.process_s +=
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - process_start_)
+                .count();
+        noteReport(report, frame);
         progress.advance();
-    }
-    if (std::optional<Fragment> last = builder_.finish()) PLUMB_RETURN_IF_ERROR(emit(*last));
+        return Status::ok();
+    };
+    hooks.on_fragment = [&](Fragment f) { return emit(f); };
+    Result<bool> finished = device::fuseFrames(source, builder_, hooks);
+    if (!finished.isOk() || !*finished) return finished;
     progress.finish();
     if (t_.frames == 0) return failedPrecondition("the source gave no frames");
     return true;

@@ -18,6 +18,7 @@
 
 #include "backend/ingest/ingest_run.hpp"
 #include "backend/ingest/ingestor.hpp"
+#include "device/fusion/fuse_frames.hpp"
 #include "device/stream/device_config.hpp"
 #include "device/stream/device_runner.hpp"
 #include "device/stream/fragment_publisher.hpp"
@@ -54,19 +55,15 @@ const std::vector<std::vector<uint8_t>>& deviceFragments() {
         fo.voxel_size_m = 0.02;
         device::FragmentBuilder builder((*source)->camera(), device::toFusionConfig(fo));
         std::vector<std::vector<uint8_t>> out;
-        auto add = [&](const Fragment& f) {
+        device::FuseHooks hooks;
+        hooks.on_fragment = [&](Fragment f) {
             auto bytes = messages::encodeFragment(f);
             PLUMB_CHECK(bytes.isOk()) << bytes.status().toString();
             out.push_back(std::move(bytes).value());
+            return Status::ok();
         };
-        while (true) {
-            auto frame = (*source)->next();
-            if (!frame.isOk()) break;
-            auto report = builder.process(*frame);
-            PLUMB_CHECK(report.isOk()) << report.status().toString();
-            for (const Fragment& f : report->closed) add(f);
-        }
-        if (auto last = builder.finish()) add(*last);
+        const Result<bool> fused = device::fuseFrames(**source, builder, hooks);
+        PLUMB_CHECK(fused.isOk()) << fused.status().toString();
         return out;
     }();
     return fragments;

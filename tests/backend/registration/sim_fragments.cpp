@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "device/fusion/fragment_builder.hpp"
+#include "device/fusion/fuse_frames.hpp"
 #include "drivers/sim/sim_source.hpp"
 #include "messages/files.hpp"
 #include "messages/fragment_codec.hpp"
@@ -44,18 +45,20 @@ Result<SimScan> generate(const SimScanOptions& o, std::vector<std::vector<uint8_
     device::FragmentBuilder builder((*source)->camera(), fc);
     SimScan scan;
     std::vector<Fragment> raw;
-    for (size_t k = 0; k < o.num_frames; ++k) {
-        Result<Frame> frame = (*source)->next();
-        if (!frame.isOk()) return frame.status();
+    device::FuseHooks hooks;
+    hooks.on_frame = [&](const Frame& frame, const device::FrameReport&) {
         io::StampedPose gt;
-        gt.timestamp_s = frame->timestamp_s;
-        gt.T_W_C = frame->T_W_C_gt.value_or(Eigen::Isometry3d::Identity());
+        gt.timestamp_s = frame.timestamp_s;
+        gt.T_W_C = frame.T_W_C_gt.value_or(Eigen::Isometry3d::Identity());
         scan.gt_frames.push_back(gt);
-        Result<device::FrameReport> r = builder.process(*frame);
-        if (!r.isOk()) return r.status();
-        for (Fragment& f : r->closed) raw.push_back(std::move(f));
-    }
-    if (auto last = builder.finish()) raw.push_back(std::move(*last));
+        return Status::ok();
+    };
+    hooks.on_fragment = [&](Fragment f) {
+        raw.push_back(std::move(f));
+        return Status::ok();
+    };
+    Result<bool> fused = device::fuseFrames(**source, builder, hooks, o.num_frames);
+    if (!fused.isOk()) return fused.status();
     for (const Fragment& f : raw) {
         // Round trip through the codec so fresh and cached runs are identical.
         auto bytes = messages::encodeFragment(f);
