@@ -9,6 +9,7 @@
 // Thread-safety: plain configuration structs; describe() and validate() touch only their
 // argument.
 
+#include <charconv>
 #include <cstdint>
 #include <string>
 
@@ -43,16 +44,31 @@ struct CaptureConfig {
     double wait_for_camera_s = 0.0;
 };
 
-/// The fusion parameters exposed to users (the rest keep FusionConfig's defaults).
+namespace detail {
+
+/// The double of `value`'s shortest decimal form: 0.04F gives 0.04, not 0.039999999105930328,
+/// so an option defaulting to a float parameter reads and prints as that parameter is written.
+inline double shortestDecimal(float value) {
+    char text[32];
+    const char* end = std::to_chars(text, text + sizeof(text), value).ptr;
+    double out = 0.0;
+    std::from_chars(text, end, out);
+    return out;
+}
+
+}  // namespace detail
+
+/// The fusion parameters exposed to users (the rest keep FusionConfig's defaults). FusionConfig
+/// holds the defaults: toFusionConfig(FusionOptions{}) has FusionConfig{}'s values.
 struct FusionOptions {
-    /// Frames per fragment (paper: 50).
-    int frames_per_fragment = 50;
+    /// Frames per fragment (FusionConfig::frames_per_fragment).
+    int frames_per_fragment = FusionConfig{}.frames_per_fragment;
     /// TSDF voxel edge length, metres.
-    double voxel_size_m = 3.0 / 512.0;
+    double voxel_size_m = detail::shortestDecimal(FusionConfig{}.tsdf.voxel_size_m);
     /// TSDF truncation distance, metres.
-    double truncation_m = 0.04;
-    /// Depth beyond this is ignored, metres.
-    double max_depth_m = 4.0;
+    double truncation_m = detail::shortestDecimal(FusionConfig{}.tsdf.truncation_m);
+    /// Depth beyond this is ignored (by preprocessing and integration), metres.
+    double max_depth_m = detail::shortestDecimal(FusionConfig{}.tsdf.max_depth_m);
 };
 
 struct StreamConfig {
