@@ -414,10 +414,60 @@ void optimiseOpen3d(o3reg::PoseGraph& g) {
 }
 #endif
 
-}  // namespace
+/// A pair of fragments registered one way: time, result and its error against the truth.
+struct PairOutcome {
+    double ms = 0.0;          ///< the whole pair, best run
+    double stage_ms[3] = {};  ///< RANSAC (with matching), ICP, information (best run)
+    bool registered = false;  ///< the pipeline returned a transform
+    std::string reason;       ///< why not
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    double overlap = 0.0;                ///< our evaluateAlignment of T
+    double err_cm = 0.0, err_deg = 0.0;  ///< against the ground truth
+    bool correct = false;                ///< within 10 cm and 5 degrees of the ground truth
+};
 
-int main(int argc, char** argv) {
-    Options o;
+/// The pairs registered one way, summed up.
+struct PairSummary {
+    double mean_ms = 0.0;
+    double overlapping_ms = 0.0;  ///< mean over the pairs that overlap in truth
+    size_t succeeded = 0;         ///< overlap >= 0.3 after registration
+    size_t correct = 0;           ///< succeeded and within 10 cm / 5 degrees of the truth
+};
+
+/// One ICP of an odometry edge.
+struct IcpRun {
+    double ms = std::numeric_limits<double>::max();  ///< best run
+    bool ok = false;
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    double err_cm = 0.0, err_deg = 0.0;  ///< against the ground truth
+    int iterations = 0;                  ///< ICP iterations over all levels (ours only)
+};
+
+#ifdef PLUMB_HAVE_OPEN3D
+constexpr bool kHaveOpen3d = true;
+#else
+constexpr bool kHaveOpen3d = false;
+#endif
+// A pair is a pure function of its inputs and seed, so repeats only sharpen the timing; runs
+// slower than this are not repeated.
+constexpr double kNoRepeatMs = 2000.0;
+// ours coloured, ours point-to-plane, Open3D coloured, Open3D point-to-plane
+constexpr int kIcpMethods = 4;
+const char* const kIcpNames[kIcpMethods] = {"ours coloured", "ours point-to-plane",
+                                            "Open3D coloured", "Open3D point-to-plane"};
+
+uint64_t seedOf(size_t i, size_t j) { return static_cast<uint64_t>(1000 * i + j + 1); }
+
+void keepBest(PairOutcome* r, double total, const double (&stages)[3]) {
+    if (total >= r->ms) return;
+    r->ms = total;
+    for (int s = 0; s < 3; ++s) r->stage_ms[s] = stages[s];
+}
+
+/// Reads the command line into `o`; an exit code when the program ends here (--help, or a bad
+/// argument already reported).
+std::optional<int> parseArgs(int argc, char** argv, Options* o_ptr) {
+    Options& o = *o_ptr;
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];
         auto num = [&](auto* out) { return plumb::bench::nextNumber(argc, argv, &i, out); };
@@ -448,17 +498,99 @@ int main(int argc, char** argv) {
             return 2;
         }
     }
-    // Open3D's CPU kernels use OpenMP; read at its first parallel region.
-    setenv("OMP_NUM_THREADS", std::to_string(o.threads).c_str(), 1);
-    tbb::global_control tbb_threads(tbb::global_control::max_allowed_parallelism,
-                                    static_cast<size_t>(o.threads));
-#ifdef PLUMB_HAVE_OPEN3D
-    open3d::utility::SetVerbosityLevel(open3d::utility::VerbosityLevel::Error);
-    constexpr bool kHaveOpen3d = true;
-#else
-    constexpr bool kHaveOpen3d = false;
-#endif
+    return std::nullopt;
+}
 
+/// The benchmark's steps in order and what they pass on; each step prints its figures. The
+/// steps returning bool print why they failed and return false.
+struct RegistrationBench {
+    Options o;
+    // 0. the simulated scan
+    Scan scan;
+    size_t nf = 0;
+    // 1. preparation and FPFH
+    registration::PrepareConfig pc;
+    std::vector<registration::PreparedFragment> prepared;
+    size_t total_points = 0;
+    double points_per_fragment = 0.0;
+    double fpfh_us = 0.0;
+    double o3d_fpfh_us = 0.0;
+#ifdef PLUMB_HAVE_OPEN3D
+    std::vector<std::shared_ptr<open3d::geometry::PointCloud>> o3d_coarse;
+    std::vector<std::shared_ptr<o3reg::Feature>> o3d_fpfh;
+#endif
+    // 2. loop-closure pairs
+    registration::IcpConfig icp;
+    registration::RansacConfig rc;
+    const double tau = 0.07;
+    registration::IcpConfig icp_plane;  ///< point-to-plane everywhere: the bare path's
+    std::vector<registration::FragmentIndex> index;
+    double index_ms = 0.0;
+    std::vector<std::pair<size_t, size_t>> pairs;
+    std::vector<PairOutcome> ours, theirs, stage;
+    registration::RegistrationConfig stage_config;
+    std::vector<double> gt_overlap;
+    size_t gt_overlapping = 0;
+    PairSummary ours_pairs, stage_pairs, theirs_pairs;
+    double pair_ms = 0.0;
+    // 2b. coloured ICP on the odometry edges
+    std::vector<size_t> odometry_pairs;
+    std::vector<std::array<IcpRun, kIcpMethods>> icp_runs;
+    std::array<double, kIcpMethods> icp_ms{}, icp_err_cm{}, icp_err_deg{};
+    bool have_coloured = false;
+    // 3. pose graph
+    posegraph::PoseGraphConfig pgc = poseGraphConfig();
+    SyntheticGraph sg;
+    double pg_ms = std::numeric_limits<double>::max();
+    double pg_ate = 0.0;
+    int pruned_wrong = 0;
+    double o3d_pg_ms = 0.0, o3d_pg_ate = 0.0;
+
+    /// 0. The scan and its fragments; the exit code on failure.
+    std::optional<int> simulate();
+    /// 1. Preparation and our FPFH.
+    bool prepareAndFpfh();
+#ifdef PLUMB_HAVE_OPEN3D
+    /// 1. Open3D's FPFH of the same clouds and the descriptors' agreement.
+    void open3dFpfh();
+#endif
+    /// 2. The per-fragment indices and the non-consecutive pairs.
+    void indexAndPairs();
+#ifdef PLUMB_HAVE_OPEN3D
+    /// 2. Whether our and Open3D's descriptors match the same points.
+    void matchingAgreement() const;
+#endif
+    /// 2. Every pair registered by the bare path, the registration stage and Open3D.
+    void registerPairs();
+    void registerBare(size_t k, size_t i, size_t j);
+    void registerStage(size_t k, size_t i, size_t j);
+#ifdef PLUMB_HAVE_OPEN3D
+    void registerOpen3d(size_t k, size_t i, size_t j);
+#endif
+    /// The overlap of r's transform and its error against the ground truth.
+    void judge(size_t i, size_t j, PairOutcome* r) const;
+    /// 2. The table of pairs and the summaries.
+    void printPairs() const;
+    PairSummary summarise(const std::vector<PairOutcome>& v, const char* who) const;
+    void summarisePairs();
+    /// 2b. Coloured and point-to-plane ICP on the odometry edges, ours and Open3D's.
+    void colouredIcp();
+#ifdef PLUMB_HAVE_OPEN3D
+    void open3dIcp(size_t i, size_t j, const Eigen::Isometry3d& init,
+                   std::array<IcpRun, kIcpMethods>& runs) const;
+#endif
+    void printIcp();
+    /// 3. The pose-graph solvers on a tiny exact graph, then on the synthetic graph.
+    void poseGraphConventionCheck() const;
+    bool poseGraph();
+#ifdef PLUMB_HAVE_OPEN3D
+    void open3dPoseGraph();
+#endif
+    /// The targets and the last line, one JSON object.
+    void printTargetsAndJson() const;
+};
+
+std::optional<int> RegistrationBench::simulate() {
     int exit_code = 1;
     const SteadyClock::time_point t_sim = SteadyClock::now();
     Result<Scan> scan_or = simulateScan(o, &exit_code);
@@ -466,34 +598,33 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "plumb-bench-registration: %s\n", scan_or.status().toString().c_str());
         return exit_code;
     }
-    const Scan& scan = *scan_or;
-    const size_t nf = scan.fragments.size();
+    scan = std::move(*scan_or);
+    nf = scan.fragments.size();
     std::printf("plumb-bench-registration: %s\n", scan.description.c_str());
     std::printf("%zu frames -> %zu fragments of 25 frames in %.1f s; threads %d, best of %d\n",
                 o.frames, nf, msSince(t_sim) / 1e3, o.threads, o.repeat);
+    return std::nullopt;
+}
 
-    // ---- 1. Preparation and FPFH ----
-    registration::PrepareConfig pc;
+bool RegistrationBench::prepareAndFpfh() {
     pc.num_threads = o.threads;
-    std::vector<registration::PreparedFragment> prepared;
     double prepare_ms = 0.0;
-    size_t total_points = 0;
     for (const Fragment& f : scan.fragments) {
         const SteadyClock::time_point t0 = SteadyClock::now();
         auto p = registration::prepareFragment(f, pc);
         prepare_ms += msSince(t0);
         if (!p.isOk()) {
             std::fprintf(stderr, "plumb-bench-registration: %s\n", p.status().toString().c_str());
-            return 1;
+            return false;
         }
         total_points += p->points.size();
         prepared.push_back(std::move(p).value());
     }
     if (total_points == 0) {
         std::fprintf(stderr, "plumb-bench-registration: the fragments have no points\n");
-        return 1;
+        return false;
     }
-    const double points_per_fragment =
+    points_per_fragment =
         static_cast<double>(total_points) / static_cast<double>(std::max<size_t>(nf, 1));
     std::printf(
         "prepared clouds: %.0f points per fragment at %.0f cm (prepareFragment %.1f ms per "
@@ -506,18 +637,19 @@ int main(int argc, char** argv) {
         for (const registration::PreparedFragment& p : prepared) {
             const auto fpfh =
                 registration::computeFpfh(p.points, pc.fpfh_radius_m, pc.fpfh_max_nn, o.threads);
-            if (fpfh.size() != p.points.size()) return 1;
+            if (fpfh.size() != p.points.size()) return false;
         }
         fpfh_ms = std::min(fpfh_ms, msSince(t0));
     }
-    const double fpfh_us = fpfh_ms * 1e3 / static_cast<double>(total_points);
+    fpfh_us = fpfh_ms * 1e3 / static_cast<double>(total_points);
     std::printf("ours   FPFH: %.3f us/point (%.1f ms for all %zu points)\n", fpfh_us, fpfh_ms,
                 total_points);
+    return true;
+}
 
-    double o3d_fpfh_us = 0.0;
 #ifdef PLUMB_HAVE_OPEN3D
-    std::vector<std::shared_ptr<open3d::geometry::PointCloud>> o3d_coarse;
-    std::vector<std::shared_ptr<o3reg::Feature>> o3d_fpfh(nf);
+void RegistrationBench::open3dFpfh() {
+    o3d_fpfh.resize(nf);
     for (const registration::PreparedFragment& p : prepared)
         o3d_coarse.push_back(toOpen3d(p.points));
     {
@@ -558,21 +690,15 @@ int main(int argc, char** argv) {
             abs_sum / static_cast<double>(bins), rel_sum / static_cast<double>(total_points),
             rel_max, 100.0 * static_cast<double>(close) / static_cast<double>(total_points));
     }
-#else
-    std::printf("Open3D FPFH: n/a (not available at build time)\n");
+}
 #endif
 
-    // ---- 2. One loop-closure pair ----
-    registration::IcpConfig icp;
+void RegistrationBench::indexAndPairs() {
     icp.num_threads = o.threads;
-    registration::RansacConfig rc;
     rc.num_threads = o.threads;
-    const double tau = 0.07;
-    // Point-to-plane everywhere: the bare path and its Open3D peer.
-    registration::IcpConfig icp_plane = icp;
+    icp_plane = icp;
     icp_plane.colour = false;
-    std::vector<registration::FragmentIndex> index;
-    double index_ms = 0.0, index_plane_ms = 0.0;
+    double index_plane_ms = 0.0;
     for (size_t k = 0; k < nf; ++k) {
         SteadyClock::time_point t0 = SteadyClock::now();
         const registration::FragmentIndex plane_only =
@@ -582,7 +708,6 @@ int main(int argc, char** argv) {
         index.push_back(registration::buildFragmentIndex(scan.fragments[k], prepared[k], icp));
         index_ms += msSince(t0);
     }
-    std::vector<std::pair<size_t, size_t>> pairs;
     for (size_t i = 0; i < nf; ++i) {
         for (size_t j = i + 2; j < nf; ++j) {
             if (prepared[i].points.size() >= 3 && prepared[j].points.size() >= 3) {
@@ -598,8 +723,10 @@ int main(int argc, char** argv) {
         "gradients) %.1f ms, of which gradients %.1f ms\n",
         pairs.size(), index_ms / static_cast<double>(nf),
         (index_ms - index_plane_ms) / static_cast<double>(nf));
+}
 
 #ifdef PLUMB_HAVE_OPEN3D
+void RegistrationBench::matchingAgreement() const {
     if (!pairs.empty()) {
         // Matching agreement: the fraction of target points whose nearest source point in
         // feature space is the same with our descriptors and with Open3D's (first 5 pairs).
@@ -617,151 +744,151 @@ int main(int argc, char** argv) {
             total > 0 ? 100.0 * static_cast<double>(same) / static_cast<double>(total) : 0.0,
             total);
     }
+}
 #endif
 
-    struct PairOutcome {
-        double ms = 0.0;          ///< the whole pair, best run
-        double stage_ms[3] = {};  ///< RANSAC (with matching), ICP, information (best run)
-        bool registered = false;  ///< the pipeline returned a transform
-        std::string reason;       ///< why not
-        Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-        double overlap = 0.0;                ///< our evaluateAlignment of T
-        double err_cm = 0.0, err_deg = 0.0;  ///< against the ground truth
-        bool correct = false;                ///< within 10 cm and 5 degrees of the ground truth
-    };
-    // A pair is a pure function of its inputs and seed, so repeats only sharpen the timing; runs
-    // slower than this are not repeated.
-    constexpr double kNoRepeatMs = 2000.0;
-    auto seedOf = [](size_t i, size_t j) { return static_cast<uint64_t>(1000 * i + j + 1); };
-    auto judge = [&](size_t i, size_t j, PairOutcome* r) {
-        r->overlap =
-            r->registered
-                ? registration::evaluateAlignment(index[i], index[j], r->T, tau, o.threads).overlap
-                : 0.0;
-        const Eigen::Isometry3d T_gt = scan.gt_T_W_F[i].inverse() * scan.gt_T_W_F[j];
-        const auto [dt, dr] = poseDifference(T_gt, r->T);
-        r->err_cm = dt * 100.0;
-        r->err_deg = dr;
-        r->correct = r->registered && dt < 0.10 && dr < 5.0;
-    };
-    auto keepBest = [](PairOutcome* r, double total, const double(&stages)[3]) {
-        if (total >= r->ms) return;
-        r->ms = total;
-        for (int s = 0; s < 3; ++s) r->stage_ms[s] = stages[s];
-    };
-    std::vector<PairOutcome> ours(pairs.size()), theirs(pairs.size()), stage(pairs.size());
-    registration::RegistrationConfig stage_config;
+void RegistrationBench::judge(size_t i, size_t j, PairOutcome* r) const {
+    r->overlap =
+        r->registered
+            ? registration::evaluateAlignment(index[i], index[j], r->T, tau, o.threads).overlap
+            : 0.0;
+    const Eigen::Isometry3d T_gt = scan.gt_T_W_F[i].inverse() * scan.gt_T_W_F[j];
+    const auto [dt, dr] = poseDifference(T_gt, r->T);
+    r->err_cm = dt * 100.0;
+    r->err_deg = dr;
+    r->correct = r->registered && dt < 0.10 && dr < 5.0;
+}
+
+void RegistrationBench::registerPairs() {
+    ours.assign(pairs.size(), PairOutcome());
+    theirs.assign(pairs.size(), PairOutcome());
+    stage.assign(pairs.size(), PairOutcome());
     stage_config.icp = icp;
     stage_config.ransac = rc;
     stage_config.num_threads = o.threads;
-    std::vector<double> gt_overlap(pairs.size());
-    size_t gt_overlapping = 0;
+    gt_overlap.assign(pairs.size(), 0.0);
     for (size_t k = 0; k < pairs.size(); ++k) {
         const auto [i, j] = pairs[k];
         const Eigen::Isometry3d T_gt = scan.gt_T_W_F[i].inverse() * scan.gt_T_W_F[j];
         gt_overlap[k] =
             registration::evaluateAlignment(index[i], index[j], T_gt, tau, o.threads).overlap;
         gt_overlapping += gt_overlap[k] >= 0.3 ? 1 : 0;
-        PairOutcome& r = ours[k];
-        r.ms = std::numeric_limits<double>::max();
-        for (int rep = 0; rep < o.repeat && (rep == 0 || r.ms < kNoRepeatMs); ++rep) {
-            double stages[3] = {};
-            const SteadyClock::time_point t0 = SteadyClock::now();
-            const registration::PairResult ransac =
-                registration::ransacFeatureMatching(index[i], index[j], rc, seedOf(i, j));
-            stages[0] = msSince(t0);
-            r.registered = ransac.success;
-            r.reason = ransac.reason;
-            r.T = ransac.T_source_target;
-            if (r.registered) {
-                const SteadyClock::time_point t1 = SteadyClock::now();
-                const registration::PairResult refined =
-                    registration::multiScaleIcp(index[i], index[j], r.T, icp_plane);
-                stages[1] = msSince(t1);
-                r.registered = refined.success;
-                r.reason = refined.reason;
-                r.T = refined.T_source_target;
-                if (r.registered) {
-                    const SteadyClock::time_point t2 = SteadyClock::now();
-                    const registration::PairResult eval =
-                        registration::evaluateAlignment(index[i], index[j], r.T, tau, o.threads);
-                    stages[2] = msSince(t2);
-                    r.registered = eval.success;
-                }
-            }
-            keepBest(&r, msSince(t0), stages);
-        }
-        judge(i, j, &r);
-        // The registration stage's loop path (registerLoopPair), with the device odometry.
-        PairOutcome& st = stage[k];
-        st.ms = std::numeric_limits<double>::max();
-        for (int rep = 0; rep < o.repeat && (rep == 0 || st.ms < kNoRepeatMs); ++rep) {
-            const SteadyClock::time_point t0 = SteadyClock::now();
-            const registration::PoseGraphEdge e = registration::registerLoopPair(
-                index[i], index[j], stage_config,
-                registration::odometryBetween(scan.fragments[i], scan.fragments[j]));
-            const double total = msSince(t0);
-            st.ms = std::min(st.ms, total);
-            st.registered = e.kept;
-            st.reason = e.reason;
-            st.T = e.T_source_target;
-        }
-        judge(i, j, &st);
+        registerBare(k, i, j);
+        registerStage(k, i, j);
 #ifdef PLUMB_HAVE_OPEN3D
-        // Open3D's loop-pair recipe with source and target swapped: its transform maps its
-        // source (our target) into its target (our source), i.e. it estimates our T_source_target.
-        PairOutcome& q = theirs[k];
-        q.ms = std::numeric_limits<double>::max();
-        const o3reg::CorrespondenceCheckerBasedOnEdgeLength edge_check(rc.edge_length_similarity);
-        const o3reg::CorrespondenceCheckerBasedOnDistance distance_check(tau);
-        // The same ICP pyramids as ours (voxel averages of the fused points and normals).
-        std::vector<std::shared_ptr<open3d::geometry::PointCloud>> src_levels, tgt_levels;
-        for (const registration::IndexedCloud& l : index[i].levels) {
-            src_levels.push_back(toOpen3d(l.cloud()));
-        }
-        for (const registration::IndexedCloud& l : index[j].levels) {
-            tgt_levels.push_back(toOpen3d(l.cloud()));
-        }
-        for (int rep = 0; rep < o.repeat && (rep == 0 || q.ms < kNoRepeatMs); ++rep) {
-            open3d::utility::random::Seed(static_cast<int>(seedOf(i, j)));
-            double stages[3] = {};
-            const SteadyClock::time_point t0 = SteadyClock::now();
-            const o3reg::RegistrationResult ransac =
-                o3reg::RegistrationRANSACBasedOnFeatureMatching(
-                    *o3d_coarse[j], *o3d_coarse[i], *o3d_fpfh[j], *o3d_fpfh[i], rc.mutual_filter,
-                    tau, o3reg::TransformationEstimationPointToPoint(false), 3,
-                    {std::cref(edge_check), std::cref(distance_check)},
-                    o3reg::RANSACConvergenceCriteria(1000000, rc.confidence));
-            stages[0] = msSince(t0);
-            Eigen::Matrix4d T = ransac.transformation_;
-            // Open3D's reconstruction system treats an identity RANSAC result as a failure.
-            q.registered = !T.isIdentity(0.0);
-            q.reason = q.registered ? "" : "RANSAC returned the identity";
-            if (q.registered) {
-                const SteadyClock::time_point t1 = SteadyClock::now();
-                for (size_t l = 0; l < icp.voxel_sizes_m.size() && l < src_levels.size(); ++l) {
-                    const o3reg::RegistrationResult step = o3reg::RegistrationICP(
-                        *tgt_levels[l], *src_levels[l], icp.distance_factor * icp.voxel_sizes_m[l],
-                        T, o3reg::TransformationEstimationPointToPlane(),
-                        o3reg::ICPConvergenceCriteria(icp.relative_change, icp.relative_change,
-                                                      static_cast<int>(icp.iterations[l])));
-                    T = step.transformation_;
-                }
-                stages[1] = msSince(t1);
-                const SteadyClock::time_point t2 = SteadyClock::now();
-                const Eigen::Matrix6d info = o3reg::GetInformationMatrixFromPointClouds(
-                    *o3d_coarse[j], *o3d_coarse[i], tau, T);
-                stages[2] = msSince(t2);
-                if (!info.allFinite()) q.registered = false;
-            }
-            q.T = Eigen::Isometry3d(T);
-            keepBest(&q, msSince(t0), stages);
-        }
-        judge(i, j, &q);
+        registerOpen3d(k, i, j);
 #endif
         std::fprintf(stderr, "\rregistering pair %zu/%zu", k + 1, pairs.size());
     }
     std::fprintf(stderr, "\n");
+}
+
+void RegistrationBench::registerBare(size_t k, size_t i, size_t j) {
+    PairOutcome& r = ours[k];
+    r.ms = std::numeric_limits<double>::max();
+    for (int rep = 0; rep < o.repeat && (rep == 0 || r.ms < kNoRepeatMs); ++rep) {
+        double stages[3] = {};
+        const SteadyClock::time_point t0 = SteadyClock::now();
+        const registration::PairResult ransac =
+            registration::ransacFeatureMatching(index[i], index[j], rc, seedOf(i, j));
+        stages[0] = msSince(t0);
+        r.registered = ransac.success;
+        r.reason = ransac.reason;
+        r.T = ransac.T_source_target;
+        if (r.registered) {
+            const SteadyClock::time_point t1 = SteadyClock::now();
+            const registration::PairResult refined =
+                registration::multiScaleIcp(index[i], index[j], r.T, icp_plane);
+            stages[1] = msSince(t1);
+            r.registered = refined.success;
+            r.reason = refined.reason;
+            r.T = refined.T_source_target;
+            if (r.registered) {
+                const SteadyClock::time_point t2 = SteadyClock::now();
+                const registration::PairResult eval =
+                    registration::evaluateAlignment(index[i], index[j], r.T, tau, o.threads);
+                stages[2] = msSince(t2);
+                r.registered = eval.success;
+            }
+        }
+        keepBest(&r, msSince(t0), stages);
+    }
+    judge(i, j, &r);
+}
+
+void RegistrationBench::registerStage(size_t k, size_t i, size_t j) {
+    // The registration stage's loop path (registerLoopPair), with the device odometry.
+    PairOutcome& st = stage[k];
+    st.ms = std::numeric_limits<double>::max();
+    for (int rep = 0; rep < o.repeat && (rep == 0 || st.ms < kNoRepeatMs); ++rep) {
+        const SteadyClock::time_point t0 = SteadyClock::now();
+        const registration::PoseGraphEdge e = registration::registerLoopPair(
+            index[i], index[j], stage_config,
+            registration::odometryBetween(scan.fragments[i], scan.fragments[j]));
+        const double total = msSince(t0);
+        st.ms = std::min(st.ms, total);
+        st.registered = e.kept;
+        st.reason = e.reason;
+        st.T = e.T_source_target;
+    }
+    judge(i, j, &st);
+}
+
+#ifdef PLUMB_HAVE_OPEN3D
+void RegistrationBench::registerOpen3d(size_t k, size_t i, size_t j) {
+    // Open3D's loop-pair recipe with source and target swapped: its transform maps its
+    // source (our target) into its target (our source), i.e. it estimates our T_source_target.
+    PairOutcome& q = theirs[k];
+    q.ms = std::numeric_limits<double>::max();
+    const o3reg::CorrespondenceCheckerBasedOnEdgeLength edge_check(rc.edge_length_similarity);
+    const o3reg::CorrespondenceCheckerBasedOnDistance distance_check(tau);
+    // The same ICP pyramids as ours (voxel averages of the fused points and normals).
+    std::vector<std::shared_ptr<open3d::geometry::PointCloud>> src_levels, tgt_levels;
+    for (const registration::IndexedCloud& l : index[i].levels) {
+        src_levels.push_back(toOpen3d(l.cloud()));
+    }
+    for (const registration::IndexedCloud& l : index[j].levels) {
+        tgt_levels.push_back(toOpen3d(l.cloud()));
+    }
+    for (int rep = 0; rep < o.repeat && (rep == 0 || q.ms < kNoRepeatMs); ++rep) {
+        open3d::utility::random::Seed(static_cast<int>(seedOf(i, j)));
+        double stages[3] = {};
+        const SteadyClock::time_point t0 = SteadyClock::now();
+        const o3reg::RegistrationResult ransac = o3reg::RegistrationRANSACBasedOnFeatureMatching(
+            *o3d_coarse[j], *o3d_coarse[i], *o3d_fpfh[j], *o3d_fpfh[i], rc.mutual_filter, tau,
+            o3reg::TransformationEstimationPointToPoint(false), 3,
+            {std::cref(edge_check), std::cref(distance_check)},
+            o3reg::RANSACConvergenceCriteria(1000000, rc.confidence));
+        stages[0] = msSince(t0);
+        Eigen::Matrix4d T = ransac.transformation_;
+        // Open3D's reconstruction system treats an identity RANSAC result as a failure.
+        q.registered = !T.isIdentity(0.0);
+        q.reason = q.registered ? "" : "RANSAC returned the identity";
+        if (q.registered) {
+            const SteadyClock::time_point t1 = SteadyClock::now();
+            for (size_t l = 0; l < icp.voxel_sizes_m.size() && l < src_levels.size(); ++l) {
+                const o3reg::RegistrationResult step = o3reg::RegistrationICP(
+                    *tgt_levels[l], *src_levels[l], icp.distance_factor * icp.voxel_sizes_m[l], T,
+                    o3reg::TransformationEstimationPointToPlane(),
+                    o3reg::ICPConvergenceCriteria(icp.relative_change, icp.relative_change,
+                                                  static_cast<int>(icp.iterations[l])));
+                T = step.transformation_;
+            }
+            stages[1] = msSince(t1);
+            const SteadyClock::time_point t2 = SteadyClock::now();
+            const Eigen::Matrix6d info =
+                o3reg::GetInformationMatrixFromPointClouds(*o3d_coarse[j], *o3d_coarse[i], tau, T);
+            stages[2] = msSince(t2);
+            if (!info.allFinite()) q.registered = false;
+        }
+        q.T = Eigen::Isometry3d(T);
+        keepBest(&q, msSince(t0), stages);
+    }
+    judge(i, j, &q);
+}
+#endif
+
+void RegistrationBench::printPairs() const {
     std::printf(
         "  pair    GT overlap | ours, registration stage: ms, overlap error cm/deg or why not | "
         "ours, bare: ms (RANSAC/ICP/info) overlap error cm/deg | Open3D: ms (RANSAC/ICP/info) "
@@ -784,44 +911,41 @@ int main(int argc, char** argv) {
         }
         std::printf("%s\n", line.c_str());
     }
-    struct PairSummary {
-        double mean_ms = 0.0;
-        double overlapping_ms = 0.0;  ///< mean over the pairs that overlap in truth
-        size_t succeeded = 0;         ///< overlap >= 0.3 after registration
-        size_t correct = 0;           ///< succeeded and within 10 cm / 5 degrees of the truth
-    };
-    auto summarise = [&](const std::vector<PairOutcome>& v, const char* who) {
-        std::vector<double> ms, overlapping_ms;
-        double stage[3] = {};
-        PairSummary out;
-        size_t correct_any = 0;
-        for (size_t k = 0; k < v.size(); ++k) {
-            const PairOutcome& r = v[k];
-            ms.push_back(r.ms);
-            if (gt_overlap[k] >= 0.3) overlapping_ms.push_back(r.ms);
-            for (int st = 0; st < 3; ++st) {
-                stage[st] += r.stage_ms[st] / static_cast<double>(v.size());
-            }
-            const bool ok = r.registered && r.overlap >= 0.3;
-            out.succeeded += ok ? 1 : 0;
-            out.correct += ok && r.correct ? 1 : 0;
-            correct_any += r.correct ? 1 : 0;
+}
+
+PairSummary RegistrationBench::summarise(const std::vector<PairOutcome>& v, const char* who) const {
+    std::vector<double> ms, overlapping_ms;
+    double stage[3] = {};
+    PairSummary out;
+    size_t correct_any = 0;
+    for (size_t k = 0; k < v.size(); ++k) {
+        const PairOutcome& r = v[k];
+        ms.push_back(r.ms);
+        if (gt_overlap[k] >= 0.3) overlapping_ms.push_back(r.ms);
+        for (int st = 0; st < 3; ++st) {
+            stage[st] += r.stage_ms[st] / static_cast<double>(v.size());
         }
-        out.mean_ms = mean(ms);
-        out.overlapping_ms = mean(overlapping_ms);
-        std::printf(
-            "%s pair: mean %.1f ms (RANSAC %.1f, ICP %.1f, information %.1f), median %.1f ms, "
-            "max %.1f ms, mean over the %zu pairs that overlap %.1f ms; succeeded (overlap >= "
-            "0.3) %zu/%zu, of which correct %zu; correct overall %zu\n",
-            who, out.mean_ms, stage[0], stage[1], stage[2], median(ms),
-            ms.empty() ? 0.0 : *std::max_element(ms.begin(), ms.end()), overlapping_ms.size(),
-            out.overlapping_ms, out.succeeded, v.size(), out.correct, correct_any);
-        return out;
-    };
+        const bool ok = r.registered && r.overlap >= 0.3;
+        out.succeeded += ok ? 1 : 0;
+        out.correct += ok && r.correct ? 1 : 0;
+        correct_any += r.correct ? 1 : 0;
+    }
+    out.mean_ms = mean(ms);
+    out.overlapping_ms = mean(overlapping_ms);
+    std::printf(
+        "%s pair: mean %.1f ms (RANSAC %.1f, ICP %.1f, information %.1f), median %.1f ms, "
+        "max %.1f ms, mean over the %zu pairs that overlap %.1f ms; succeeded (overlap >= "
+        "0.3) %zu/%zu, of which correct %zu; correct overall %zu\n",
+        who, out.mean_ms, stage[0], stage[1], stage[2], median(ms),
+        ms.empty() ? 0.0 : *std::max_element(ms.begin(), ms.end()), overlapping_ms.size(),
+        out.overlapping_ms, out.succeeded, v.size(), out.correct, correct_any);
+    return out;
+}
+
+void RegistrationBench::summarisePairs() {
     std::printf("ground truth: %zu of the %zu pairs overlap by >= 0.3\n", gt_overlapping,
                 pairs.size());
-    const PairSummary ours_pairs = summarise(ours, "ours   bare");
-    PairSummary stage_pairs;
+    ours_pairs = summarise(ours, "ours   bare");
     {
         std::vector<double> ms, overlapping_ms;
         for (size_t k = 0; k < stage.size(); ++k) {
@@ -841,8 +965,7 @@ int main(int argc, char** argv) {
             ms.empty() ? 0.0 : *std::max_element(ms.begin(), ms.end()), overlapping_ms.size(),
             stage_pairs.overlapping_ms, stage_pairs.succeeded, stage.size(), stage_pairs.correct);
     }
-    const double pair_ms = stage_pairs.mean_ms;
-    PairSummary theirs_pairs;
+    pair_ms = stage_pairs.mean_ms;
 #ifdef PLUMB_HAVE_OPEN3D
     theirs_pairs = summarise(theirs, "Open3D");
     {
@@ -870,27 +993,16 @@ int main(int argc, char** argv) {
 #else
     std::printf("Open3D pair: n/a (not available at build time)\n");
 #endif
+}
 
-    // ---- 2b. Coloured ICP on the odometry edges ----
-    struct IcpRun {
-        double ms = std::numeric_limits<double>::max();  ///< best run
-        bool ok = false;
-        Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-        double err_cm = 0.0, err_deg = 0.0;  ///< against the ground truth
-        int iterations = 0;                  ///< ICP iterations over all levels (ours only)
-    };
-    // ours coloured, ours point-to-plane, Open3D coloured, Open3D point-to-plane
-    constexpr int kIcpMethods = 4;
-    const char* const kIcpNames[kIcpMethods] = {"ours coloured", "ours point-to-plane",
-                                                "Open3D coloured", "Open3D point-to-plane"};
-    std::vector<size_t> odometry_pairs;
+void RegistrationBench::colouredIcp() {
     for (size_t i = 0; i + 1 < nf; ++i) {
         if (!index[i].level_colours.empty() && !index[i + 1].level_colours.empty() &&
             registration::odometryBetween(scan.fragments[i], scan.fragments[i + 1])) {
             odometry_pairs.push_back(i);
         }
     }
-    std::vector<std::array<IcpRun, kIcpMethods>> icp_runs(odometry_pairs.size());
+    icp_runs.assign(odometry_pairs.size(), std::array<IcpRun, kIcpMethods>());
     for (size_t k = 0; k < odometry_pairs.size(); ++k) {
         const size_t i = odometry_pairs[k], j = i + 1;
         const Eigen::Isometry3d init =
@@ -910,46 +1022,7 @@ int main(int argc, char** argv) {
             }
         }
 #ifdef PLUMB_HAVE_OPEN3D
-        // Open3D's source is our target (it estimates our T_source_target), on our pyramids.
-        std::vector<std::shared_ptr<open3d::geometry::PointCloud>> src_levels, tgt_levels;
-        for (const registration::IndexedCloud& l : index[i].levels) {
-            src_levels.push_back(toOpen3d(l.cloud()));
-        }
-        for (const registration::IndexedCloud& l : index[j].levels) {
-            tgt_levels.push_back(toOpen3d(l.cloud()));
-        }
-        for (int m = 2; m < kIcpMethods; ++m) {
-            IcpRun& r = runs[static_cast<size_t>(m)];
-            for (int rep = 0; rep < o.repeat && (rep == 0 || r.ms < kNoRepeatMs); ++rep) {
-                const SteadyClock::time_point t0 = SteadyClock::now();
-                Eigen::Matrix4d T = init.matrix();
-                bool ok = true;
-                for (size_t l = 0; ok && l < icp.voxel_sizes_m.size() && l < src_levels.size();
-                     ++l) {
-                    const double distance = icp.distance_factor * icp.voxel_sizes_m[l];
-                    const o3reg::ICPConvergenceCriteria criteria(
-                        icp.relative_change, icp.relative_change,
-                        static_cast<int>(icp.iterations[l]));
-                    try {
-                        const o3reg::RegistrationResult step =
-                            m == 2 ? o3reg::RegistrationColoredICP(
-                                         *tgt_levels[l], *src_levels[l], distance, T,
-                                         o3reg::TransformationEstimationForColoredICP(
-                                             icp.lambda_geometric),
-                                         criteria)
-                                   : o3reg::RegistrationICP(
-                                         *tgt_levels[l], *src_levels[l], distance, T,
-                                         o3reg::TransformationEstimationPointToPlane(), criteria);
-                        T = step.transformation_;
-                    } catch (const std::exception&) {
-                        ok = false;  // Open3D's coloured ICP throws without correspondences
-                    }
-                }
-                r.ms = std::min(r.ms, msSince(t0));
-                r.ok = ok && T.allFinite();
-                r.T = Eigen::Isometry3d(T);
-            }
-        }
+        open3dIcp(i, j, init, runs);
 #endif
         for (IcpRun& r : runs) {
             const auto [dt, dr] = poseDifference(T_gt, r.T);
@@ -959,6 +1032,53 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "\rodometry edge %zu/%zu", k + 1, odometry_pairs.size());
     }
     if (!odometry_pairs.empty()) std::fprintf(stderr, "\n");
+}
+
+#ifdef PLUMB_HAVE_OPEN3D
+void RegistrationBench::open3dIcp(size_t i, size_t j, const Eigen::Isometry3d& init,
+                                  std::array<IcpRun, kIcpMethods>& runs) const {
+    // Open3D's source is our target (it estimates our T_source_target), on our pyramids.
+    std::vector<std::shared_ptr<open3d::geometry::PointCloud>> src_levels, tgt_levels;
+    for (const registration::IndexedCloud& l : index[i].levels) {
+        src_levels.push_back(toOpen3d(l.cloud()));
+    }
+    for (const registration::IndexedCloud& l : index[j].levels) {
+        tgt_levels.push_back(toOpen3d(l.cloud()));
+    }
+    for (int m = 2; m < kIcpMethods; ++m) {
+        IcpRun& r = runs[static_cast<size_t>(m)];
+        for (int rep = 0; rep < o.repeat && (rep == 0 || r.ms < kNoRepeatMs); ++rep) {
+            const SteadyClock::time_point t0 = SteadyClock::now();
+            Eigen::Matrix4d T = init.matrix();
+            bool ok = true;
+            for (size_t l = 0; ok && l < icp.voxel_sizes_m.size() && l < src_levels.size(); ++l) {
+                const double distance = icp.distance_factor * icp.voxel_sizes_m[l];
+                const o3reg::ICPConvergenceCriteria criteria(
+                    icp.relative_change, icp.relative_change, static_cast<int>(icp.iterations[l]));
+                try {
+                    const o3reg::RegistrationResult step =
+                        m == 2 ? o3reg::RegistrationColoredICP(
+                                     *tgt_levels[l], *src_levels[l], distance, T,
+                                     o3reg::TransformationEstimationForColoredICP(
+                                         icp.lambda_geometric),
+                                     criteria)
+                               : o3reg::RegistrationICP(
+                                     *tgt_levels[l], *src_levels[l], distance, T,
+                                     o3reg::TransformationEstimationPointToPlane(), criteria);
+                    T = step.transformation_;
+                } catch (const std::exception&) {
+                    ok = false;  // Open3D's coloured ICP throws without correspondences
+                }
+            }
+            r.ms = std::min(r.ms, msSince(t0));
+            r.ok = ok && T.allFinite();
+            r.T = Eigen::Isometry3d(T);
+        }
+    }
+}
+#endif
+
+void RegistrationBench::printIcp() {
     const int icp_methods_run = kHaveOpen3d ? kIcpMethods : 2;
     std::printf(
         "odometry edges with colour on both sides: %zu; error cm/deg against the ground "
@@ -966,7 +1086,6 @@ int main(int argc, char** argv) {
         odometry_pairs.size());
     for (int m = 0; m < icp_methods_run; ++m) std::printf("| %-24s", kIcpNames[m]);
     std::printf("\n");
-    std::array<double, kIcpMethods> icp_ms{}, icp_err_cm{}, icp_err_deg{};
     std::array<int, kIcpMethods> icp_failed{};
     double odo_err_cm = 0.0;
     std::vector<double> ours_vs_open3d_cm, ours_vs_open3d_deg;
@@ -996,7 +1115,7 @@ int main(int argc, char** argv) {
             ours_vs_open3d_deg.push_back(dr);
         }
     }
-    const bool have_coloured = !odometry_pairs.empty();
+    have_coloured = !odometry_pairs.empty();
     if (have_coloured) {
         std::printf("odometry: mean error %.2f cm\n", odo_err_cm);
         for (int m = 0; m < icp_methods_run; ++m) {
@@ -1016,59 +1135,57 @@ int main(int argc, char** argv) {
                 icp_ms[2] / icp_ms[0]);
         }
     }
+}
 
-    // ---- 3. Pose graph ----
-    const posegraph::PoseGraphConfig pgc = poseGraphConfig();
-    {
-        // Convention check: exact edges on three nodes, both solvers started away from the truth
-        // must return it.
-        SyntheticGraph tiny;
-        const double deg = std::numbers::pi / 180.0;
-        Eigen::Isometry3d T1 = Eigen::Isometry3d::Identity(), T2 = Eigen::Isometry3d::Identity();
-        T1.translate(Eigen::Vector3d(0.8, 0.1, 0.0))
-            .rotate(Eigen::AngleAxisd(30 * deg, Eigen::Vector3d::UnitZ()));
-        T2.translate(Eigen::Vector3d(1.0, 0.9, 0.2))
-            .rotate(Eigen::AngleAxisd(80 * deg, Eigen::Vector3d::UnitZ()) *
-                    Eigen::AngleAxisd(10 * deg, Eigen::Vector3d::UnitX()));
-        tiny.truth = {Eigen::Isometry3d::Identity(), T1, T2};
-        std::mt19937_64 rng(3);
-        const std::pair<int, int> edges[] = {{0, 1}, {1, 2}, {0, 2}};
-        for (const auto& [s, t] : edges) {
-            posegraph::PoseGraphEdge e;
-            e.source = static_cast<uint32_t>(s);
-            e.target = static_cast<uint32_t>(t);
-            e.kind = t == s + 1 ? posegraph::PoseGraphEdge::Kind::kOdometry
-                                : posegraph::PoseGraphEdge::Kind::kLoop;
-            e.T_source_target = tiny.truth[s].inverse() * tiny.truth[t];
-            e.information = randomInformation(rng);
-            tiny.graph.edges.push_back(e);
-        }
-        tiny.graph.T_W_F = {tiny.truth[0], perturbed(T1, rng, 3.0 * deg, 0.05),
-                            perturbed(T2, rng, 3.0 * deg, 0.05)};
-        posegraph::PoseGraph g = tiny.graph;
-        auto r = posegraph::optimisePoseGraph(g, pgc);
-        const auto [ot, orr] = maxPoseError(g.T_W_F, tiny.truth);
-        std::printf(
-            "pose-graph convention check (3 nodes, exact edges, perturbed start): ours %s"
-            " max error %.3g mm / %.3g deg",
-            r.isOk() ? "ok," : "failed,", ot * 1e3, orr);
-#ifdef PLUMB_HAVE_OPEN3D
-        o3reg::PoseGraph og = toOpen3d(tiny.graph);
-        optimiseOpen3d(og);
-        const auto [tt, tr] = maxPoseError(posesOf(og), tiny.truth);
-        std::printf(
-            "; Open3D max error %.3g mm / %.3g deg -> %s\n", tt * 1e3, tr,
-            tt < 1e-3 && tr < 0.05 && ot < 1e-3 && orr < 0.05 ? "same problem" : "MISMATCH");
-#else
-        std::printf("\n");
-#endif
+void RegistrationBench::poseGraphConventionCheck() const {
+    // Convention check: exact edges on three nodes, both solvers started away from the truth
+    // must return it.
+    SyntheticGraph tiny;
+    const double deg = std::numbers::pi / 180.0;
+    Eigen::Isometry3d T1 = Eigen::Isometry3d::Identity(), T2 = Eigen::Isometry3d::Identity();
+    T1.translate(Eigen::Vector3d(0.8, 0.1, 0.0))
+        .rotate(Eigen::AngleAxisd(30 * deg, Eigen::Vector3d::UnitZ()));
+    T2.translate(Eigen::Vector3d(1.0, 0.9, 0.2))
+        .rotate(Eigen::AngleAxisd(80 * deg, Eigen::Vector3d::UnitZ()) *
+                Eigen::AngleAxisd(10 * deg, Eigen::Vector3d::UnitX()));
+    tiny.truth = {Eigen::Isometry3d::Identity(), T1, T2};
+    std::mt19937_64 rng(3);
+    const std::pair<int, int> edges[] = {{0, 1}, {1, 2}, {0, 2}};
+    for (const auto& [s, t] : edges) {
+        posegraph::PoseGraphEdge e;
+        e.source = static_cast<uint32_t>(s);
+        e.target = static_cast<uint32_t>(t);
+        e.kind = t == s + 1 ? posegraph::PoseGraphEdge::Kind::kOdometry
+                            : posegraph::PoseGraphEdge::Kind::kLoop;
+        e.T_source_target = tiny.truth[s].inverse() * tiny.truth[t];
+        e.information = randomInformation(rng);
+        tiny.graph.edges.push_back(e);
     }
+    tiny.graph.T_W_F = {tiny.truth[0], perturbed(T1, rng, 3.0 * deg, 0.05),
+                        perturbed(T2, rng, 3.0 * deg, 0.05)};
+    posegraph::PoseGraph g = tiny.graph;
+    auto r = posegraph::optimisePoseGraph(g, pgc);
+    const auto [ot, orr] = maxPoseError(g.T_W_F, tiny.truth);
+    std::printf(
+        "pose-graph convention check (3 nodes, exact edges, perturbed start): ours %s"
+        " max error %.3g mm / %.3g deg",
+        r.isOk() ? "ok," : "failed,", ot * 1e3, orr);
+#ifdef PLUMB_HAVE_OPEN3D
+    o3reg::PoseGraph og = toOpen3d(tiny.graph);
+    optimiseOpen3d(og);
+    const auto [tt, tr] = maxPoseError(posesOf(og), tiny.truth);
+    std::printf("; Open3D max error %.3g mm / %.3g deg -> %s\n", tt * 1e3, tr,
+                tt < 1e-3 && tr < 0.05 && ot < 1e-3 && orr < 0.05 ? "same problem" : "MISMATCH");
+#else
+    std::printf("\n");
+#endif
+}
 
-    const SyntheticGraph sg = makeSyntheticGraph(o.nodes, 1000, 11);
+bool RegistrationBench::poseGraph() {
+    sg = makeSyntheticGraph(o.nodes, 1000, 11);
     std::printf(
         "pose graph: %d nodes, %zu edges (%d loops, %d of them wrong); initial ATE %.3f m\n",
         o.nodes, sg.graph.edges.size(), sg.num_loops, sg.num_wrong, ate(sg.graph.T_W_F, sg.truth));
-    double pg_ms = std::numeric_limits<double>::max();
     posegraph::PoseGraph ours_graph;
     posegraph::PoseGraphReport report;
     for (int rep = 0; rep < o.repeat; ++rep) {
@@ -1078,56 +1195,57 @@ int main(int argc, char** argv) {
         pg_ms = std::min(pg_ms, msSince(t0));
         if (!r.isOk()) {
             std::fprintf(stderr, "plumb-bench-registration: %s\n", r.status().toString().c_str());
-            return 1;
+            return false;
         }
         report = *r;
         ours_graph = std::move(g);
     }
-    int pruned_wrong = 0, pruned_right = 0;
+    int pruned_right = 0;
     for (size_t k = 0; k < ours_graph.edges.size(); ++k) {
         if (ours_graph.edges[k].kept) continue;
         (sg.wrong[k] ? pruned_wrong : pruned_right) += 1;
     }
-    const double pg_ate = ate(ours_graph.T_W_F, sg.truth);
+    pg_ate = ate(ours_graph.T_W_F, sg.truth);
     std::printf(
         "ours   pose graph: %.1f ms (%d LM iterations, %d rounds, %d factorisations, %d CG "
         "iterations, final cost %.9g); ATE %.4f m; pruned %d/%d wrong loops and %d right ones\n",
         pg_ms, report.iterations, report.rounds, report.factorisations, report.cg_iterations,
         report.final_cost, pg_ate, pruned_wrong, sg.num_wrong, pruned_right);
-    double o3d_pg_ms = 0.0, o3d_pg_ate = 0.0;
+    return true;
+}
+
 #ifdef PLUMB_HAVE_OPEN3D
-    {
-        o3d_pg_ms = std::numeric_limits<double>::max();
-        o3reg::PoseGraph result;
-        for (int rep = 0; rep < o.repeat; ++rep) {
-            o3reg::PoseGraph g = toOpen3d(sg.graph);
-            const SteadyClock::time_point t0 = SteadyClock::now();
-            optimiseOpen3d(g);
-            o3d_pg_ms = std::min(o3d_pg_ms, msSince(t0));
-            result = std::move(g);
-            if (o3d_pg_ms > 5000.0) break;  // seconds per run: one is enough
-        }
-        // Open3D drops pruned edges; the survivors keep their (target, source) node ids.
-        std::set<std::pair<int, int>> kept;
-        for (const o3reg::PoseGraphEdge& e : result.edges_) {
-            kept.insert({e.target_node_id_, e.source_node_id_});
-        }
-        int o_wrong = 0, o_right = 0;
-        for (size_t k = 0; k < sg.graph.edges.size(); ++k) {
-            const posegraph::PoseGraphEdge& e = sg.graph.edges[k];
-            if (kept.count({static_cast<int>(e.source), static_cast<int>(e.target)}) != 0) continue;
-            (sg.wrong[k] ? o_wrong : o_right) += 1;
-        }
-        o3d_pg_ate = ate(posesOf(result), sg.truth);
-        std::printf(
-            "Open3D pose graph: %.1f ms; ATE %.4f m; pruned %d/%d wrong loops and %d right ones\n",
-            o3d_pg_ms, o3d_pg_ate, o_wrong, sg.num_wrong, o_right);
-        std::printf("ratio Open3D / ours (pose graph): %.1f\n", o3d_pg_ms / pg_ms);
+void RegistrationBench::open3dPoseGraph() {
+    o3d_pg_ms = std::numeric_limits<double>::max();
+    o3reg::PoseGraph result;
+    for (int rep = 0; rep < o.repeat; ++rep) {
+        o3reg::PoseGraph g = toOpen3d(sg.graph);
+        const SteadyClock::time_point t0 = SteadyClock::now();
+        optimiseOpen3d(g);
+        o3d_pg_ms = std::min(o3d_pg_ms, msSince(t0));
+        result = std::move(g);
+        if (o3d_pg_ms > 5000.0) break;  // seconds per run: one is enough
     }
-#else
-    std::printf("Open3D pose graph: n/a (not available at build time)\n");
+    // Open3D drops pruned edges; the survivors keep their (target, source) node ids.
+    std::set<std::pair<int, int>> kept;
+    for (const o3reg::PoseGraphEdge& e : result.edges_) {
+        kept.insert({e.target_node_id_, e.source_node_id_});
+    }
+    int o_wrong = 0, o_right = 0;
+    for (size_t k = 0; k < sg.graph.edges.size(); ++k) {
+        const posegraph::PoseGraphEdge& e = sg.graph.edges[k];
+        if (kept.count({static_cast<int>(e.source), static_cast<int>(e.target)}) != 0) continue;
+        (sg.wrong[k] ? o_wrong : o_right) += 1;
+    }
+    o3d_pg_ate = ate(posesOf(result), sg.truth);
+    std::printf(
+        "Open3D pose graph: %.1f ms; ATE %.4f m; pruned %d/%d wrong loops and %d right ones\n",
+        o3d_pg_ms, o3d_pg_ate, o_wrong, sg.num_wrong, o_right);
+    std::printf("ratio Open3D / ours (pose graph): %.1f\n", o3d_pg_ms / pg_ms);
+}
 #endif
 
+void RegistrationBench::printTargetsAndJson() const {
     constexpr double kTargetFpfhUs = 5.0, kTargetPairMs = 100.0, kTargetPoseGraphMs = 50.0;
     // The targets are judged only when all three were measured (a pair, 500 nodes).
     const bool have_pairs = !pairs.empty();
@@ -1188,5 +1306,47 @@ int main(int argc, char** argv) {
             kTargetFpfhUs, kTargetPairMs, kTargetPoseGraphMs,
             judged ? (meets ? "true" : "false") : "null")
             .c_str());
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    RegistrationBench b;
+    if (const std::optional<int> exit_code = parseArgs(argc, argv, &b.o)) return *exit_code;
+    // Open3D's CPU kernels use OpenMP; read at its first parallel region.
+    setenv("OMP_NUM_THREADS", std::to_string(b.o.threads).c_str(), 1);
+    tbb::global_control tbb_threads(tbb::global_control::max_allowed_parallelism,
+                                    static_cast<size_t>(b.o.threads));
+#ifdef PLUMB_HAVE_OPEN3D
+    open3d::utility::SetVerbosityLevel(open3d::utility::VerbosityLevel::Error);
+#endif
+    if (const std::optional<int> exit_code = b.simulate()) return *exit_code;
+    // ---- 1. Preparation and FPFH ----
+    if (!b.prepareAndFpfh()) return 1;
+#ifdef PLUMB_HAVE_OPEN3D
+    b.open3dFpfh();
+#else
+    std::printf("Open3D FPFH: n/a (not available at build time)\n");
+#endif
+    // ---- 2. One loop-closure pair ----
+    b.indexAndPairs();
+#ifdef PLUMB_HAVE_OPEN3D
+    b.matchingAgreement();
+#endif
+    b.registerPairs();
+    b.printPairs();
+    b.summarisePairs();
+    // ---- 2b. Coloured ICP on the odometry edges ----
+    b.colouredIcp();
+    b.printIcp();
+    // ---- 3. Pose graph ----
+    b.poseGraphConventionCheck();
+    if (!b.poseGraph()) return 1;
+#ifdef PLUMB_HAVE_OPEN3D
+    b.open3dPoseGraph();
+#else
+    std::printf("Open3D pose graph: n/a (not available at build time)\n");
+#endif
+    b.printTargetsAndJson();
     return 0;
 }

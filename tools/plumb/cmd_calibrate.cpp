@@ -128,16 +128,11 @@ int printComparison(const DistortionTable& learned, const calibration::Distortio
     return kExitOk;
 }
 
-int runCalibrate(const std::vector<std::string>& arguments) {
-    std::vector<std::string> args = arguments;
-    Result<config::ConfigArgs> config_args = config::extractConfigArgs(args);
-    if (!config_args.isOk()) return usageError(kCommand, config_args.status().message());
+/// The command line of `plumb calibrate`.
+struct CalibrateArgs {
     std::string source_uri;
     std::filesystem::path out;
     SourceOptions source_options;
-    source_options.max_frames = 300;
-    source_options.colour = false;
-    source_options.depth_calibration = "none";  // the raw depth is what is calibrated
     std::optional<int> iterations;
     std::optional<std::filesystem::path> poses_path;
     std::optional<std::filesystem::path> reference_path;
@@ -147,216 +142,185 @@ int runCalibrate(const std::vector<std::string>& arguments) {
     bool planar_first = true;
     int threads = 0;
     bool quiet = false;
+};
+
+/// Reads the options of `args` (without --config/--set) into `a`; an exit code when the command
+/// ends here (--help, or a usage error already printed).
+std::optional<int> parseCalibrateArgs(const std::vector<std::string>& args, CalibrateArgs* a) {
+    SourceOptions& source_options = a->source_options;
+    source_options.max_frames = 300;
+    source_options.colour = false;
+    source_options.depth_calibration = "none";  // the raw depth is what is calibrated
     for (size_t i = 0; i < args.size(); ++i) {
-        const std::string& a = args[i];
+        const std::string& arg = args[i];
         auto value = [&](std::string* v) {
             if (i + 1 >= args.size()) return false;
             *v = args[++i];
             return true;
         };
         std::string v;
-        if (a == "-h" || a == "--help") {
+        if (arg == "-h" || arg == "--help") {
             std::cout << kUsage;
             return kExitOk;
-        } else if (a == "--out") {
+        } else if (arg == "--out") {
             if (!value(&v) || v.empty()) return usageError(kCommand, "--out needs a file");
-            out = v;
-        } else if (a == "--frames") {
+            a->out = v;
+        } else if (arg == "--frames") {
             if (!value(&v) || !parseNumber(v, &source_options.max_frames) ||
                 source_options.max_frames == 0)
                 return usageError(kCommand, "--frames needs a positive integer");
-        } else if (a == "--poses") {
+        } else if (arg == "--poses") {
             if (!value(&v) || v.empty())
                 return usageError(kCommand, "--poses needs a trajectory file");
-            poses_path = v;
-        } else if (a == "--refine-poses") {
-            refine_poses = true;
-        } else if (a == "--planar-only") {
-            planar_only = true;
-        } else if (a == "--no-planar") {
-            planar_first = false;
-        } else if (a == "--reference") {
+            a->poses_path = v;
+        } else if (arg == "--refine-poses") {
+            a->refine_poses = true;
+        } else if (arg == "--planar-only") {
+            a->planar_only = true;
+        } else if (arg == "--no-planar") {
+            a->planar_first = false;
+        } else if (arg == "--reference") {
             if (!value(&v) || v.empty())
                 return usageError(kCommand, "--reference needs a table file");
-            reference_path = v;
-        } else if (a == "--initial") {
+            a->reference_path = v;
+        } else if (arg == "--initial") {
             if (!value(&v) || v.empty())
                 return usageError(kCommand, "--initial needs a table file");
-            initial_path = v;
-        } else if (a == "--iterations") {
+            a->initial_path = v;
+        } else if (arg == "--iterations") {
             int k = 0;
             if (!value(&v) || !parseNumber(v, &k) || k < 1)
                 return usageError(kCommand, "--iterations needs a positive integer");
-            iterations = k;
-        } else if (a == "--intrinsics") {
+            a->iterations = k;
+        } else if (arg == "--intrinsics") {
             if (!value(&source_options.intrinsics))
                 return usageError(kCommand, "--intrinsics needs a preset or a file");
-        } else if (a == "--depth-scale") {
+        } else if (arg == "--depth-scale") {
             if (!value(&v) || !parseNumber(v, &source_options.depth_scale) ||
                 !(source_options.depth_scale > 0))
                 return usageError(kCommand, "--depth-scale needs a positive number");
-        } else if (a == "--seed") {
+        } else if (arg == "--seed") {
             if (!value(&v) || !parseNumber(v, &source_options.seed))
                 return usageError(kCommand, "--seed needs a non-negative integer");
-        } else if (a == "--noise") {
+        } else if (arg == "--noise") {
             if (!value(&source_options.sim_noise))
                 return usageError(kCommand, "--noise needs a mode");
             if (Status s = sim::checkNoiseMode(source_options.sim_noise); !s.isOk())
                 return usageError(kCommand, s.message());
-        } else if (a == "--threads") {
-            if (!value(&v) || !parseNumber(v, &threads) || threads < 1)
+        } else if (arg == "--threads") {
+            if (!value(&v) || !parseNumber(v, &a->threads) || a->threads < 1)
                 return usageError(kCommand, "--threads needs a positive integer");
-        } else if (a == "--quiet") {
-            quiet = true;
-        } else if (!a.empty() && a[0] == '-') {
-            return usageError(kCommand, "unknown option " + a);
-        } else if (source_uri.empty()) {
-            source_uri = a;
+        } else if (arg == "--quiet") {
+            a->quiet = true;
+        } else if (!arg.empty() && arg[0] == '-') {
+            return usageError(kCommand, "unknown option " + arg);
+        } else if (a->source_uri.empty()) {
+            a->source_uri = arg;
         } else {
-            return usageError(kCommand, "more than one source given: " + source_uri + " and " + a);
+            return usageError(kCommand,
+                              "more than one source given: " + a->source_uri + " and " + arg);
         }
     }
-    if (source_uri.empty()) return usageError(kCommand, "no source given");
-    if (out.empty()) return usageError(kCommand, "--out is required");
-    if (planar_only && !planar_first)
+    if (a->source_uri.empty()) return usageError(kCommand, "no source given");
+    if (a->out.empty()) return usageError(kCommand, "--out is required");
+    if (a->planar_only && !a->planar_first)
         return usageError(kCommand, "--planar-only and --no-planar exclude each other");
-    if (planar_only && (poses_path || refine_poses)) {
+    if (a->planar_only && (a->poses_path || a->refine_poses)) {
         return usageError(kCommand, "--planar-only uses no poses: drop --poses and --refine-poses");
     }
+    return std::nullopt;
+}
 
-    calibration::SelfCalibrationConfig cfg;
-    if (Status s = config::load(*config_args, cfg); !s.isOk())
-        return usageError(kCommand, s.message());
-    if (iterations) cfg.max_iterations = *iterations;
-    if (Status s = calibration::validate(cfg); !s.isOk()) return usageError(kCommand, s.message());
-    std::optional<tbb::global_control> thread_limit;
-    if (threads > 0) {
-        thread_limit.emplace(tbb::global_control::max_allowed_parallelism,
-                             static_cast<size_t>(threads));
+/// --planar-only: the bend from the frames' planes, composed with `initial`, written to a.out.
+int runPlanarOnly(FrameSource& source, const CalibrateArgs& a,
+                  const calibration::SelfCalibrationConfig& cfg,
+                  const std::optional<DistortionTable>& initial,
+                  const std::optional<DistortionTable>& reference) {
+    Result<PlanarStage> planar = learnPlanarTable(source, cfg.planar, planarPrinter(a.quiet));
+    if (!planar.isOk()) return failure(kCommand, planar.status());
+    if (initial) planar->table = composeTables(*initial, planar->table);
+    if (Status s = planar->table.save(a.out); !s.isOk()) return failure(kCommand, s);
+    if (!a.quiet) {
+        std::printf(
+            "the bend from the planes of %zu frames (the scan's halves agree within %.3f "
+            "%%); table written to %s\n",
+            planar->frames_read, 100.0 * planar->estimate.split_disagreement,
+            a.out.string().c_str());
     }
+    if (reference) {
+        return printComparison(planar->table, planarCoverage(planar->estimate), *reference,
+                               *a.reference_path);
+    }
+    return kExitOk;
+}
 
-    const std::string uri =
-        (source_uri.rfind("sim:", 0) == 0 || source_uri.rfind("dataset:", 0) == 0)
-            ? source_uri
-            : "dataset:" + source_uri;
-    if (!source_options.sim_noise.empty() && uri.rfind("sim:", 0) != 0) {
-        return usageError(kCommand, "--noise applies to sim: sources only");
-    }
-    if (Status s = checkSourceArguments(uri, source_options); !s.isOk())
-        return usageError(kCommand, s.message());
-    std::optional<PoseLookup> pose_file;
-    if (poses_path) {
-        Result<PoseLookup> p = PoseLookup::read(*poses_path);
-        if (!p.isOk()) return failure(kCommand, p.status());
-        pose_file = std::move(*p);
-    }
-    std::optional<DistortionTable> reference;
-    if (reference_path) {
-        Result<DistortionTable> t = DistortionTable::load(*reference_path);
-        if (!t.isOk()) return failure(kCommand, t.status());
-        reference = std::move(*t);
-    }
-    std::optional<DistortionTable> initial;
-    if (initial_path) {
-        Result<DistortionTable> t = DistortionTable::load(*initial_path);
-        if (!t.isOk()) return failure(kCommand, t.status());
-        initial = std::move(*t);
-    }
-    // --planar-only --initial TABLE: the bend left in the depth undistorted by TABLE.
-    if (planar_only && initial_path) source_options.depth_calibration = initial_path->string();
-    Result<std::unique_ptr<FrameSource>> opened = openFrameSource(uri, source_options);
-    if (!opened.isOk()) return failure(kCommand, opened.status());
-    std::unique_ptr<FrameSource> source = std::move(opened).value();
-    const PinholeCamera camera = source->camera();
-    if (planar_only) {
-        Result<PlanarStage> planar = learnPlanarTable(*source, cfg.planar, planarPrinter(quiet));
-        if (!planar.isOk()) return failure(kCommand, planar.status());
-        if (initial) planar->table = composeTables(*initial, planar->table);
-        if (Status s = planar->table.save(out); !s.isOk()) return failure(kCommand, s);
-        if (!quiet) {
-            std::printf(
-                "the bend from the planes of %zu frames (the scan's halves agree within %.3f "
-                "%%); table written to %s\n",
-                planar->frames_read, 100.0 * planar->estimate.split_disagreement,
-                out.string().c_str());
-        }
-        if (reference) {
-            return printComparison(planar->table, planarCoverage(planar->estimate), *reference,
-                                   *reference_path);
-        }
-        return kExitOk;
-    }
-
-    std::vector<DepthImage> depth;
-    std::vector<Eigen::Isometry3d> T_W_C;
-    size_t without_pose = 0;
+/// The raw depth of every frame with its pose: from `pose_file` when given, else the frames'
+/// ground truth (a frame without one is an error). Fails when no frame has a pose.
+Result<PosedDepth> readCalibrationFrames(FrameSource& source,
+                                         const std::optional<PoseLookup>& pose_file,
+                                         const std::optional<std::filesystem::path>& poses_path) {
+    PosedDepth posed;
     if (pose_file) {
-        Result<PosedDepth> posed = readPosedDepth(*source, *pose_file);
-        if (!posed.isOk()) return failure(kCommand, posed.status());
-        depth = std::move(posed->depth);
-        T_W_C = std::move(posed->T_W_C);
-        without_pose = posed->without_pose;
+        Result<PosedDepth> read = readPosedDepth(source, *pose_file);
+        if (!read.isOk()) return read.status();
+        posed = std::move(*read);
     }
     while (!pose_file) {
-        Result<Frame> frame = source->next();
+        Result<Frame> frame = source.next();
         if (!frame.isOk()) {
             if (frame.status().code() == StatusCode::kOutOfRange) break;
-            return failure(kCommand, frame.status());
+            return frame.status();
         }
         if (!frame->T_W_C_gt) {
-            return failure(
-                kCommand,
-                invalidArgument(fmt::format(
-                    "frame {} ({}) has no ground-truth pose: plumb calibrate needs a source with "
-                    "ground truth (sim:SCENE, or a dataset with groundtruth.txt), --poses FILE, "
-                    "or --planar-only",
-                    frame->index, frame->name)));
+            return invalidArgument(fmt::format(
+                "frame {} ({}) has no ground-truth pose: plumb calibrate needs a source with "
+                "ground truth (sim:SCENE, or a dataset with groundtruth.txt), --poses FILE, "
+                "or --planar-only",
+                frame->index, frame->name));
         }
-        depth.push_back(std::move(frame->depth));
-        T_W_C.push_back(*frame->T_W_C_gt);
+        posed.depth.push_back(std::move(frame->depth));
+        posed.T_W_C.push_back(*frame->T_W_C_gt);
     }
-    if (depth.empty()) {
-        return failure(
-            kCommand,
-            invalidArgument(
-                pose_file ? fmt::format("none of the source's frames has a pose in {} ({} poses)",
-                                        poses_path->string(), pose_file->size())
-                          : std::string("the source delivered no frames")));
+    if (posed.depth.empty()) {
+        return invalidArgument(
+            pose_file ? fmt::format("none of the source's frames has a pose in {} ({} poses)",
+                                    poses_path->string(), pose_file->size())
+                      : std::string("the source delivered no frames"));
     }
-    if (!quiet) {
-        std::printf("calibrating from %zu frames of %s (%dx%d), poses from %s\n", depth.size(),
-                    source->description().c_str(), camera.width, camera.height,
-                    poses_path ? poses_path->string().c_str() : "the ground truth");
-        if (without_pose > 0)
-            std::printf("%zu frames without a pose in the trajectory skipped\n", without_pose);
-    }
+    return posed;
+}
 
-    if (planar_first && !initial) {
-        calibration::PlanarDistortionEstimator estimator(camera, cfg.planar);
-        for (const DepthImage& d : depth) {
-            if (Status s = estimator.addFrame(d); !s.isOk()) return failure(kCommand, s);
+/// The first stage before the alternation: the bend of the frames' planes as the starting table
+/// (nullopt, with a warning, when the planes do not determine it).
+Result<std::optional<DistortionTable>> planarStartingTable(
+    const std::vector<DepthImage>& depth, const PinholeCamera& camera,
+    const calibration::SelfCalibrationConfig& cfg, bool quiet) {
+    calibration::PlanarDistortionEstimator estimator(camera, cfg.planar);
+    for (const DepthImage& d : depth) PLUMB_RETURN_IF_ERROR(estimator.addFrame(d));
+    Result<calibration::PlanarEstimate> planar = estimator.estimate(planarPrinter(quiet));
+    if (planar.isOk()) {
+        if (!quiet) {
+            std::printf(
+                "the alternation starts from the bend of the frames' planes (the scan's "
+                "halves agree within %.3f %%)\n",
+                100.0 * planar->split_disagreement);
         }
-        Result<calibration::PlanarEstimate> planar = estimator.estimate(planarPrinter(quiet));
-        if (planar.isOk()) {
-            initial = planar->model.toTable();
-            if (!quiet) {
-                std::printf(
-                    "the alternation starts from the bend of the frames' planes (the scan's "
-                    "halves agree within %.3f %%)\n",
-                    100.0 * planar->split_disagreement);
-            }
-        } else if (planar.status().code() == StatusCode::kFailedPrecondition) {
-            std::fprintf(stderr,
-                         "plumb calibrate: warning: %s; the alternation starts from the "
-                         "neutral table\n",
-                         planar.status().message().c_str());
-        } else {
-            return failure(kCommand, planar.status());
-        }
+        return std::optional<DistortionTable>(planar->model.toTable());
     }
+    if (planar.status().code() != StatusCode::kFailedPrecondition) return planar.status();
+    std::fprintf(stderr,
+                 "plumb calibrate: warning: %s; the alternation starts from the "
+                 "neutral table\n",
+                 planar.status().message().c_str());
+    return std::optional<DistortionTable>();
+}
 
+/// Prints each iteration of the alternation (nothing when quiet), with the comparison against
+/// `reference` when there is one.
+std::function<void(const calibration::CalibrationIteration&)> iterationPrinter(
+    bool quiet, const std::optional<DistortionTable>& reference) {
     const auto start = std::chrono::steady_clock::now();
-    auto report = [&](const calibration::CalibrationIteration& it) {
+    return [quiet, &reference, start](const calibration::CalibrationIteration& it) {
         if (quiet) return;
         const calibration::DistortionEstimate& e = it.estimate;
         const double s =
@@ -377,30 +341,112 @@ int runCalibrate(const std::vector<std::string>& arguments) {
         }
         std::fflush(stdout);
     };
+}
+
+/// The alternation at the poses from `initial`, the table written to a.out.
+int runAlternation(const PosedDepth& posed, const PinholeCamera& camera, const CalibrateArgs& a,
+                   const calibration::SelfCalibrationConfig& cfg,
+                   const std::optional<DistortionTable>& initial,
+                   const std::optional<DistortionTable>& reference) {
     size_t unaligned = 0;
-    const bool refine = refine_poses;
+    const bool refine = a.refine_poses;
     const calibration::FrameAligner aligner =
         refine ? icpFrameAligner(CalibrationAlignerConfig{}, &unaligned) : nullptr;
     Result<calibration::SelfCalibrationResult> result = calibration::selfCalibrate(
-        depth, camera, T_W_C, cfg, initial ? &*initial : nullptr, report, aligner);
+        posed.depth, camera, posed.T_W_C, cfg, initial ? &*initial : nullptr,
+        iterationPrinter(a.quiet, reference), aligner);
     if (!result.isOk()) return failure(kCommand, result.status());
-    if (Status s = result->table.save(out); !s.isOk()) return failure(kCommand, s);
-    if (!quiet && refine) {
+    if (Status s = result->table.save(a.out); !s.isOk()) return failure(kCommand, s);
+    if (!a.quiet && refine) {
         std::printf(
             "poses refined against every iteration's model; %zu alignments failed (the "
             "frame kept its pose)\n",
             unaligned);
     }
-    if (!quiet) {
+    if (!a.quiet) {
         std::printf("%s after %zu iterations; table written to %s\n",
                     result->converged ? "converged" : "stopped at the iteration limit",
-                    result->iterations.size(), out.string().c_str());
+                    result->iterations.size(), a.out.string().c_str());
     }
     if (reference) {
         return printComparison(result->table, result->iterations.back().estimate, *reference,
-                               *reference_path);
+                               *a.reference_path);
     }
     return kExitOk;
+}
+
+/// Reads the table at `path`, when given.
+Result<std::optional<DistortionTable>> loadTable(const std::optional<std::filesystem::path>& path) {
+    if (!path) return std::optional<DistortionTable>();
+    Result<DistortionTable> t = DistortionTable::load(*path);
+    if (!t.isOk()) return t.status();
+    return std::optional<DistortionTable>(std::move(*t));
+}
+
+int runCalibrate(const std::vector<std::string>& arguments) {
+    std::vector<std::string> args = arguments;
+    Result<config::ConfigArgs> config_args = config::extractConfigArgs(args);
+    if (!config_args.isOk()) return usageError(kCommand, config_args.status().message());
+    CalibrateArgs a;
+    if (const std::optional<int> exit_code = parseCalibrateArgs(args, &a)) return *exit_code;
+    SourceOptions& source_options = a.source_options;
+
+    calibration::SelfCalibrationConfig cfg;
+    if (Status s = config::load(*config_args, cfg); !s.isOk())
+        return usageError(kCommand, s.message());
+    if (a.iterations) cfg.max_iterations = *a.iterations;
+    if (Status s = calibration::validate(cfg); !s.isOk()) return usageError(kCommand, s.message());
+    std::optional<tbb::global_control> thread_limit;
+    if (a.threads > 0) {
+        thread_limit.emplace(tbb::global_control::max_allowed_parallelism,
+                             static_cast<size_t>(a.threads));
+    }
+
+    const std::string uri =
+        (a.source_uri.rfind("sim:", 0) == 0 || a.source_uri.rfind("dataset:", 0) == 0)
+            ? a.source_uri
+            : "dataset:" + a.source_uri;
+    if (!source_options.sim_noise.empty() && uri.rfind("sim:", 0) != 0) {
+        return usageError(kCommand, "--noise applies to sim: sources only");
+    }
+    if (Status s = checkSourceArguments(uri, source_options); !s.isOk())
+        return usageError(kCommand, s.message());
+    std::optional<PoseLookup> pose_file;
+    if (a.poses_path) {
+        Result<PoseLookup> p = PoseLookup::read(*a.poses_path);
+        if (!p.isOk()) return failure(kCommand, p.status());
+        pose_file = std::move(*p);
+    }
+    Result<std::optional<DistortionTable>> reference = loadTable(a.reference_path);
+    if (!reference.isOk()) return failure(kCommand, reference.status());
+    Result<std::optional<DistortionTable>> initial = loadTable(a.initial_path);
+    if (!initial.isOk()) return failure(kCommand, initial.status());
+    // --planar-only --initial TABLE: the bend left in the depth undistorted by TABLE.
+    if (a.planar_only && a.initial_path)
+        source_options.depth_calibration = a.initial_path->string();
+    Result<std::unique_ptr<FrameSource>> opened = openFrameSource(uri, source_options);
+    if (!opened.isOk()) return failure(kCommand, opened.status());
+    std::unique_ptr<FrameSource> source = std::move(opened).value();
+    const PinholeCamera camera = source->camera();
+    if (a.planar_only) return runPlanarOnly(*source, a, cfg, *initial, *reference);
+
+    Result<PosedDepth> posed = readCalibrationFrames(*source, pose_file, a.poses_path);
+    if (!posed.isOk()) return failure(kCommand, posed.status());
+    if (!a.quiet) {
+        std::printf("calibrating from %zu frames of %s (%dx%d), poses from %s\n",
+                    posed->depth.size(), source->description().c_str(), camera.width, camera.height,
+                    a.poses_path ? a.poses_path->string().c_str() : "the ground truth");
+        if (posed->without_pose > 0)
+            std::printf("%zu frames without a pose in the trajectory skipped\n",
+                        posed->without_pose);
+    }
+    if (a.planar_first && !*initial) {
+        Result<std::optional<DistortionTable>> start =
+            planarStartingTable(posed->depth, camera, cfg, a.quiet);
+        if (!start.isOk()) return failure(kCommand, start.status());
+        *initial = std::move(*start);
+    }
+    return runAlternation(*posed, camera, a, cfg, *initial, *reference);
 }
 
 }  // namespace
