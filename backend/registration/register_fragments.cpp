@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <future>
+#include <memory>
 #include <numbers>
 #include <optional>
 #include <string>
@@ -659,7 +661,8 @@ Result<RegistrationOutcome> registerFragments(const std::vector<Fragment>& fragm
 
 // ---- LiveRegistrar ----
 
-LiveRegistrar::LiveRegistrar(RegistrationConfig config) : config_(std::move(config)) {}
+LiveRegistrar::LiveRegistrar(RegistrationConfig config, TaskRunner run_optimisation)
+    : config_(std::move(config)), run_optimisation_(std::move(run_optimisation)) {}
 
 LiveRegistrar::~LiveRegistrar() { waitBackground(); }
 
@@ -762,14 +765,22 @@ Status LiveRegistrar::addFragment(Fragment fragment) {
     prepared_.push_back(std::move(prepared.value()));
     index_.push_back(std::move(index));
 
-    // Background re-optimisation of a snapshot; its poses are adopted at the next wait.
+    // Re-optimisation of a snapshot, run by the program's runner (or here); its poses are
+    // adopted at the next wait.
     PoseGraph snapshot = graph_;
     const posegraph::PoseGraphConfig pg = config_.pose_graph;
-    background_ = std::async(std::launch::async, [snapshot = std::move(snapshot), pg]() mutable {
-        // On failure the snapshot's poses are returned unchanged.
-        (void)posegraph::optimisePoseGraph(snapshot, pg);
-        return snapshot.T_W_F;
-    });
+    auto task = std::make_shared<std::packaged_task<std::vector<Eigen::Isometry3d>()>>(
+        [snapshot = std::move(snapshot), pg]() mutable {
+            // On failure the snapshot's poses are returned unchanged.
+            (void)posegraph::optimisePoseGraph(snapshot, pg);
+            return snapshot.T_W_F;
+        });
+    background_ = task->get_future();
+    if (run_optimisation_) {
+        run_optimisation_([task] { (*task)(); });
+    } else {
+        (*task)();
+    }
     return Status::ok();
 }
 

@@ -12,14 +12,16 @@
 //   4. a refinement pass: every surviving edge is re-aligned by multi-scale ICP from the
 //      optimised relative pose and the graph optimised again.
 // Offline (buildPoseGraph / registerFragments: all pairs after capture) and live (LiveRegistrar:
-// each arriving fragment against candidates chosen by predicted overlap, re-optimised in the
-// background) modes. Edge convention: see pose_graph.hpp (T_W_target ≈ T_W_source * T_s_t).
+// each arriving fragment against candidates chosen by predicted overlap, the graph re-optimised
+// by a task the program runs where it likes) modes. Edge convention: see pose_graph.hpp (T_W_target
+// ≈ T_W_source * T_s_t).
 //
 // Determinism: every pair is a pure function of its two fragments, the configuration and a seed
 // derived from (seed, source, target); pairs run in parallel but their results are gathered by
 // index, so outputs are identical for any thread count and run.
 
 #include <cstdint>
+#include <functional>
 #include <future>
 #include <memory>
 #include <optional>
@@ -186,16 +188,22 @@ Result<RegistrationOutcome> registerFragments(const std::vector<Fragment>& fragm
                                               const std::vector<PreparedFragment>& prepared,
                                               const RegistrationConfig& config, Progress* progress);
 
+/// Runs a task to its end: at once on the calling thread, or on a thread the program owns. The
+/// task holds copies of what it needs (no reference into its LiveRegistrar).
+using TaskRunner = std::function<void(std::function<void()> task)>;
+
 /// Live mode: fragments arrive one at a time. addFragment() prepares the fragment, registers it
 /// against its predecessor (ICP from odometry) and against earlier fragments chosen by predicted
-/// overlap under the current pose estimates (FPFH + RANSAC + ICP + overlap test), then starts a
-/// background re-optimisation of the graph. The next addFragment() (or poses(), finish()) first
-/// waits for that optimisation, so every decision uses the same poses whatever the timing:
-/// the final result depends on the fragments and the configuration only.
+/// overlap under the current pose estimates (FPFH + RANSAC + ICP + overlap test), then hands a
+/// re-optimisation of a snapshot of the graph to `run_optimisation` (threads belong to programs:
+/// a program that wants it in the background runs it on a thread of its own; without a runner it
+/// runs at once, inside addFragment()). The next addFragment() (or poses(), graph(), finish(),
+/// the destructor) first waits for that optimisation, so every decision uses the same poses
+/// whatever the timing: the final result depends on the fragments and the configuration only.
 /// Not thread-safe: one caller.
 class LiveRegistrar {
   public:
-    explicit LiveRegistrar(RegistrationConfig config);
+    explicit LiveRegistrar(RegistrationConfig config, TaskRunner run_optimisation = {});
     ~LiveRegistrar();
     LiveRegistrar(const LiveRegistrar&) = delete;
     LiveRegistrar& operator=(const LiveRegistrar&) = delete;
@@ -219,6 +227,7 @@ class LiveRegistrar {
     void waitBackground();
 
     RegistrationConfig config_;
+    TaskRunner run_optimisation_;
     std::vector<Fragment> fragments_;
     std::vector<PreparedFragment> prepared_;
     std::vector<std::unique_ptr<FragmentIndex>> index_;

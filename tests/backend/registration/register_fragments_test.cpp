@@ -12,6 +12,8 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
+#include <future>
 #include <random>
 #include <set>
 #include <sstream>
@@ -325,7 +327,16 @@ TEST(Registration, LiveModeIsDeterministicAndAccurate) {
     auto runLive = [](int threads, PoseGraph* graph_out) {
         RegistrationConfig c = config();
         c.num_threads = threads;
-        LiveRegistrar live(c);
+        // With all threads the re-optimisations run on threads of the test's own (joined when
+        // `jobs` goes, after `live`), with one inside addFragment().
+        std::vector<std::future<void>> jobs;
+        TaskRunner runner;
+        if (threads == 0) {
+            runner = [&jobs](std::function<void()> task) {
+                jobs.push_back(std::async(std::launch::async, std::move(task)));
+            };
+        }
+        LiveRegistrar live(c, runner);
         for (const Fragment& f : scan().fragments) {
             Status s = live.addFragment(f);
             EXPECT_TRUE(s.isOk()) << s.toString();
