@@ -9,7 +9,7 @@
 #include "tools/plumb/command.hpp"
 
 #ifdef PLUMB_HAVE_BACKEND
-#include "backend/ingest/backend_cli.hpp"
+#include "backend/app/backend_cli.hpp"
 #endif
 #ifdef PLUMB_HAVE_DEVICE_STREAM
 #include "common/config/registry.hpp"

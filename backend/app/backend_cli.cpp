@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "backend/ingest/backend_cli.hpp"
+#include "backend/app/backend_cli.hpp"
 
 #include <csignal>
 #include <cstdio>
