@@ -63,7 +63,7 @@ Result<std::unique_ptr<FragmentStore>> FragmentStore::open(const std::filesystem
         f.crc32 = crc32(*bytes);
         f.size_bytes = static_cast<int64_t>(bytes->size());
         f.path = path;
-        store->index_.emplace(SpoolKey{f.session_id, f.fragment_id}, f);
+        store->index_.emplace(FragmentKey{f.session_id, f.fragment_id}, f);
     }
     return store;
 }
@@ -71,7 +71,7 @@ Result<std::unique_ptr<FragmentStore>> FragmentStore::open(const std::filesystem
 Result<bool> FragmentStore::put(int64_t session_id, uint32_t fragment_id,
                                 std::span<const uint8_t> bytes) {
     const uint32_t crc = crc32(bytes);
-    const SpoolKey key{session_id, fragment_id};
+    const FragmentKey key{session_id, fragment_id};
     if (auto it = index_.find(key); it != index_.end()) {
         if (it->second.crc32 == crc &&
             it->second.size_bytes == static_cast<int64_t>(bytes.size())) {
@@ -97,7 +97,7 @@ Result<bool> FragmentStore::put(int64_t session_id, uint32_t fragment_id,
 }
 
 Result<std::vector<uint8_t>> FragmentStore::get(int64_t session_id, uint32_t fragment_id) const {
-    auto it = index_.find(SpoolKey{session_id, fragment_id});
+    auto it = index_.find(FragmentKey{session_id, fragment_id});
     if (it == index_.end()) {
         return notFound(
             fmt::format("fragment store: no fragment {} of session {}", fragment_id, session_id));
@@ -111,7 +111,7 @@ Result<std::vector<uint8_t>> FragmentStore::get(int64_t session_id, uint32_t fra
 }
 
 bool FragmentStore::contains(int64_t session_id, uint32_t fragment_id) const {
-    return index_.count(SpoolKey{session_id, fragment_id}) > 0;
+    return index_.count(FragmentKey{session_id, fragment_id}) > 0;
 }
 
 std::vector<StoredFragment> FragmentStore::fragments() const {

@@ -17,7 +17,7 @@
 #include <vector>
 
 #include "common/core/status.hpp"
-#include "messages/spool.hpp"
+#include "messages/fragment_files.hpp"
 
 namespace plumb::messages {
 
@@ -53,7 +53,7 @@ class FragmentStore {
     explicit FragmentStore(std::filesystem::path dir) : dir_(std::move(dir)) {}
 
     std::filesystem::path dir_;
-    std::map<SpoolKey, StoredFragment> index_;
+    std::map<FragmentKey, StoredFragment> index_;
     std::vector<std::filesystem::path> quarantined_;
 };
 

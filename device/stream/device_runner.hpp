@@ -37,7 +37,7 @@
 
 #include "common/frame/frame_source.hpp"
 #include "device/stream/device_config.hpp"
-#include "messages/spool.hpp"
+#include "device/stream/spool.hpp"
 #include "messages/transport.hpp"
 
 namespace plumb::device {
@@ -76,7 +76,7 @@ struct DeviceRunReport {
     std::string source_message;  ///< its error
     /// Fragments still unacknowledged at exit: kept (in the spool directory when there is one,
     /// else lost with the process).
-    std::vector<messages::SpoolKey> unacknowledged;
+    std::vector<messages::FragmentKey> unacknowledged;
     /// Fragments of this session that were cut but never entered the spool (it stayed full
     /// until the end, or refused them): lost.
     std::vector<uint32_t> lost;
@@ -84,7 +84,7 @@ struct DeviceRunReport {
     std::string spool_error;
     /// Fragments the backend rejected for good in this run, moved to `quarantine_dir` (each with
     /// a .reason file; empty dir: no spool directory, dropped).
-    std::vector<messages::SpoolKey> quarantined;
+    std::vector<messages::FragmentKey> quarantined;
     std::filesystem::path quarantine_dir;
 };
 

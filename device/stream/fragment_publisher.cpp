@@ -8,13 +8,13 @@
 
 namespace plumb::device {
 
-using messages::SpoolKey;
+using messages::FragmentKey;
 
 Result<std::unique_ptr<FragmentPublisher>> FragmentPublisher::create(
     PublisherConfig config, messages::Transport& transport) {
     if (config.max_in_flight < 1) return invalidArgument("publisher: max_in_flight must be >= 1");
     std::unique_ptr<FragmentPublisher> p(new FragmentPublisher(std::move(config), transport));
-    auto spool = messages::Spool::open(p->config_.spool);
+    auto spool = Spool::open(p->config_.spool);
     if (!spool.isOk()) return spool.status();
     p->spool_ = std::move(spool).value();
     p->stats_.fragments_resumed = p->spool_->size();
@@ -34,7 +34,7 @@ messages::FragmentSender& FragmentPublisher::senderFor(int64_t session_id) {
 }
 
 Status FragmentPublisher::submit(uint32_t fragment_id, std::vector<uint8_t> encoded, double now_s) {
-    const SpoolKey key{config_.session_id, fragment_id};
+    const FragmentKey key{config_.session_id, fragment_id};
     PLUMB_RETURN_IF_ERROR(spool_->put(key, std::move(encoded)));
     ++stats_.fragments_submitted;
     fill(now_s);
@@ -56,13 +56,13 @@ void FragmentPublisher::onMessage(const std::string& channel, std::span<const ui
 void FragmentPublisher::collect() {
     for (auto& [session, sender] : senders_) {
         for (uint32_t id : sender->takeAcknowledged()) {
-            const SpoolKey key{session, id};
+            const FragmentKey key{session, id};
             in_flight_.erase(key);
             if (!spool_->erase(key).isOk()) ++stats_.spool_errors;
             ++stats_.fragments_acked;
         }
         for (uint32_t id : sender->takeRejected()) {
-            const SpoolKey key{session, id};
+            const FragmentKey key{session, id};
             in_flight_.erase(key);
             ++stats_.fragments_rejected;
             const std::string reason = fmt::format(
@@ -82,7 +82,7 @@ void FragmentPublisher::collect() {
 
 void FragmentPublisher::fill(double now_s) {
     if (static_cast<int>(in_flight_.size()) >= config_.max_in_flight) return;
-    for (const SpoolKey& key : spool_->keys()) {
+    for (const FragmentKey& key : spool_->keys()) {
         if (static_cast<int>(in_flight_.size()) >= config_.max_in_flight) break;
         if (in_flight_.count(key) || rejected_.count(key)) continue;
         auto bytes = spool_->get(key);

@@ -21,8 +21,8 @@
 #include <string>
 #include <vector>
 
+#include "device/stream/spool.hpp"
 #include "messages/fragment_sender.hpp"
-#include "messages/spool.hpp"
 #include "messages/transport.hpp"
 
 namespace plumb::device {
@@ -35,7 +35,7 @@ struct PublisherConfig {
     /// Fragments on the wire at once.
     int max_in_flight = 8;
     /// Where unacknowledged fragments wait.
-    messages::SpoolConfig spool;
+    SpoolConfig spool;
 };
 
 struct PublisherStats {
@@ -68,10 +68,10 @@ class FragmentPublisher {
     size_t unacknowledged() const { return spool_->size(); }
     /// Fragments the backend refused for good in this run, taken out of the spool into its
     /// quarantine folder (spool directory/quarantine/, each beside a .reason file), ascending.
-    const std::vector<messages::SpoolKey>& quarantined() const { return quarantined_; }
+    const std::vector<messages::FragmentKey>& quarantined() const { return quarantined_; }
     std::filesystem::path quarantineDir() const { return spool_->quarantineDir(); }
     /// Unacknowledged fragments as (session, id), ascending.
-    std::vector<messages::SpoolKey> unacknowledgedKeys() const { return spool_->keys(); }
+    std::vector<messages::FragmentKey> unacknowledgedKeys() const { return spool_->keys(); }
     int64_t spoolBytes() const { return spool_->memoryBytes() + spool_->diskBytes(); }
     size_t inFlight() const { return in_flight_.size(); }
     const PublisherStats& stats() const { return stats_; }
@@ -89,11 +89,11 @@ class FragmentPublisher {
 
     PublisherConfig config_;
     messages::Transport& transport_;
-    std::unique_ptr<messages::Spool> spool_;
+    std::unique_ptr<Spool> spool_;
     std::map<int64_t, std::unique_ptr<messages::FragmentSender>> senders_;
-    std::set<messages::SpoolKey> in_flight_;
-    std::set<messages::SpoolKey> rejected_;  ///< refused, but quarantine() failed: not resent
-    std::vector<messages::SpoolKey> quarantined_;
+    std::set<messages::FragmentKey> in_flight_;
+    std::set<messages::FragmentKey> rejected_;  ///< refused, but quarantine() failed: not resent
+    std::vector<messages::FragmentKey> quarantined_;
     PublisherStats stats_;
 };
 

@@ -18,7 +18,7 @@
 #include "drivers/source.hpp"
 #include "messages/files.hpp"
 #include "messages/fragment_codec.hpp"
-#include "messages/spool.hpp"
+#include "messages/fragment_files.hpp"
 #include "tests/testing/run_program.hpp"
 #include "tests/testing/shared_data.hpp"
 #include "tools/monitor/monitor_state.hpp"

@@ -10,8 +10,8 @@
 
 #include "common/io/trajectory.hpp"
 #include "common/layout/layout_json.hpp"
+#include "messages/fragment_files.hpp"
 #include "messages/fragment_store.hpp"
-#include "messages/spool.hpp"
 #include "tests/monitor/monitor_fixtures.hpp"
 #include "tests/monitor/session_log.hpp"
 #include "tools/monitor/sources.hpp"

@@ -16,9 +16,9 @@
 #include "messages/conversions.hpp"
 #include "messages/files.hpp"
 #include "messages/fragment_codec.hpp"
+#include "messages/fragment_files.hpp"
 #include "messages/fragment_store.hpp"
 #include "messages/lcm_transport.hpp"
-#include "messages/spool.hpp"
 #include "messages/wire.hpp"
 
 namespace plumb::monitor {

@@ -23,7 +23,7 @@
 #include <nlohmann/json.hpp>
 
 #include "messages/files.hpp"
-#include "messages/spool.hpp"
+#include "messages/fragment_files.hpp"
 
 extern char** environ;
 

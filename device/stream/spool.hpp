@@ -7,7 +7,8 @@
 // power loss loses nothing the spool took; memory then only caches fragments for resending.
 // Without a directory fragments live in memory up to the budget. Disk entries survive a device
 // restart and are found again by open(); quarantined ones (disk_dir/quarantine/) are not.
-// Entries are keyed by (session, fragment id).
+// Entries are keyed by (session, fragment id) and named on disk as the fragment store names them
+// (messages/fragment_files.hpp).
 // Not thread-safe.
 
 #include <cstdint>
@@ -19,9 +20,10 @@
 #include <vector>
 
 #include "common/core/status.hpp"
+#include "messages/fragment_files.hpp"
 #include "messages/wire.hpp"
 
-namespace plumb::messages {
+namespace plumb::device {
 
 struct SpoolConfig {
     /// Bytes of fragments held in memory: without disk_dir the spool's capacity, with it a
@@ -34,12 +36,6 @@ struct SpoolConfig {
     int64_t disk_budget_bytes = int64_t{4} << 30;
 };
 
-struct SpoolKey {
-    int64_t session_id = 0;
-    uint32_t fragment_id = 0;
-    auto operator<=>(const SpoolKey&) const = default;
-};
-
 class Spool {
   public:
     /// Creates `disk_dir` if needed, removes temporary files of interrupted writes and indexes the
@@ -50,21 +46,21 @@ class Spool {
     /// memory. InvalidArgument for an empty fragment or a key already present with other bytes
     /// (same bytes: no-op); IoError when full or on disk errors such as a full disk (nothing is
     /// lost: the fragment simply is not in the spool, the message says why).
-    Status put(const SpoolKey& key, std::vector<uint8_t> bytes);
+    Status put(const messages::FragmentKey& key, std::vector<uint8_t> bytes);
     /// NotFound when absent; IoError/Corrupt when the disk copy cannot be read back intact.
-    Result<std::vector<uint8_t>> get(const SpoolKey& key) const;
+    Result<std::vector<uint8_t>> get(const messages::FragmentKey& key) const;
     /// Removes an acknowledged fragment (absent: no-op).
-    Status erase(const SpoolKey& key);
+    Status erase(const messages::FragmentKey& key);
     /// Takes a fragment the backend refused for good out of the spool: with disk_dir its file
     /// moves to disk_dir/quarantine/ beside "<name>.reason" holding `reason`; without, it is
     /// dropped. Absent: no-op. IoError when the move fails (the fragment stays in the spool).
-    Status quarantine(const SpoolKey& key, const std::string& reason);
+    Status quarantine(const messages::FragmentKey& key, const std::string& reason);
     /// Where quarantine() puts fragments (empty without disk_dir).
     std::filesystem::path quarantineDir() const;
 
-    bool contains(const SpoolKey& key) const { return entries_.count(key) > 0; }
+    bool contains(const messages::FragmentKey& key) const { return entries_.count(key) > 0; }
     /// Keys in ascending order (oldest session and fragment first).
-    std::vector<SpoolKey> keys() const;
+    std::vector<messages::FragmentKey> keys() const;
     size_t size() const { return entries_.size(); }
     int64_t memoryBytes() const { return memory_bytes_; }
     int64_t diskBytes() const { return disk_bytes_; }
@@ -77,17 +73,12 @@ class Spool {
         uint32_t crc = 0;
     };
     explicit Spool(SpoolConfig config) : config_(std::move(config)) {}
-    std::filesystem::path pathOf(const SpoolKey& key) const;
+    std::filesystem::path pathOf(const messages::FragmentKey& key) const;
 
     SpoolConfig config_;
-    std::map<SpoolKey, Entry> entries_;
+    std::map<messages::FragmentKey, Entry> entries_;
     int64_t memory_bytes_ = 0;
     int64_t disk_bytes_ = 0;
 };
 
-/// File name used by the spool and the fragment store: "s<session, 16 hex>_f<id, 10 digits>.plf".
-std::string fragmentFileName(int64_t session_id, uint32_t fragment_id);
-/// Inverse of fragmentFileName; false for any other name.
-bool parseFragmentFileName(const std::string& name, int64_t& session_id, uint32_t& fragment_id);
-
-}  // namespace plumb::messages
+}  // namespace plumb::device

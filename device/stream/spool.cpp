@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "messages/spool.hpp"
+#include "device/stream/spool.hpp"
 
 #include <fmt/format.h>
 
@@ -9,33 +9,17 @@
 #include "messages/crc32.hpp"
 #include "messages/files.hpp"
 
-namespace plumb::messages {
+namespace plumb::device {
 
-std::string fragmentFileName(int64_t session_id, uint32_t fragment_id) {
-    return fmt::format("s{:016x}_f{:010d}.plf", static_cast<uint64_t>(session_id), fragment_id);
-}
-
-bool parseFragmentFileName(const std::string& name, int64_t& session_id, uint32_t& fragment_id) {
-    if (name.size() != 1 + 16 + 2 + 10 + 4 || name[0] != 's' || name.compare(17, 2, "_f") != 0 ||
-        name.compare(29, 4, ".plf") != 0) {
-        return false;
-    }
-    uint64_t s = 0, f = 0;
-    for (size_t i = 1; i < 17; ++i) {
-        const char c = name[i];
-        const int d = c >= '0' && c <= '9' ? c - '0' : c >= 'a' && c <= 'f' ? c - 'a' + 10 : -1;
-        if (d < 0) return false;
-        s = s * 16 + static_cast<uint64_t>(d);
-    }
-    for (size_t i = 19; i < 29; ++i) {
-        if (name[i] < '0' || name[i] > '9') return false;
-        f = f * 10 + static_cast<uint64_t>(name[i] - '0');
-    }
-    if (f > UINT32_MAX) return false;
-    session_id = static_cast<int64_t>(s);
-    fragment_id = static_cast<uint32_t>(f);
-    return true;
-}
+using messages::crc32;
+using messages::fragmentFileName;
+using messages::FragmentKey;
+using messages::kTempSuffix;
+using messages::moveFile;
+using messages::parseFragmentFileName;
+using messages::readFile;
+using messages::removeFile;
+using messages::writeFileAtomic;
 
 Result<std::unique_ptr<Spool>> Spool::open(SpoolConfig config) {
     if (config.memory_budget_bytes < 0 || config.disk_budget_bytes < 0) {
@@ -53,7 +37,7 @@ Result<std::unique_ptr<Spool>> Spool::open(SpoolConfig config) {
             PLUMB_RETURN_IF_ERROR(removeFile(item.path()));  // an interrupted write
             continue;
         }
-        SpoolKey key;
+        FragmentKey key;
         if (!parseFragmentFileName(name, key.session_id, key.fragment_id)) continue;
         auto bytes = readFile(item.path(), int64_t{1} << 32);
         if (!bytes.isOk()) return bytes.status();
@@ -68,11 +52,11 @@ Result<std::unique_ptr<Spool>> Spool::open(SpoolConfig config) {
     return spool;
 }
 
-std::filesystem::path Spool::pathOf(const SpoolKey& key) const {
+std::filesystem::path Spool::pathOf(const FragmentKey& key) const {
     return config_.disk_dir / fragmentFileName(key.session_id, key.fragment_id);
 }
 
-Status Spool::put(const SpoolKey& key, std::vector<uint8_t> bytes) {
+Status Spool::put(const FragmentKey& key, std::vector<uint8_t> bytes) {
     if (bytes.empty()) return invalidArgument("spool: empty fragment");
     const uint32_t crc = crc32(bytes);
     const auto size = static_cast<int64_t>(bytes.size());
@@ -116,7 +100,7 @@ Status Spool::put(const SpoolKey& key, std::vector<uint8_t> bytes) {
     return Status::ok();
 }
 
-Result<std::vector<uint8_t>> Spool::get(const SpoolKey& key) const {
+Result<std::vector<uint8_t>> Spool::get(const FragmentKey& key) const {
     auto it = entries_.find(key);
     if (it == entries_.end()) {
         return notFound(
@@ -131,7 +115,7 @@ Result<std::vector<uint8_t>> Spool::get(const SpoolKey& key) const {
     return bytes;
 }
 
-Status Spool::erase(const SpoolKey& key) {
+Status Spool::erase(const FragmentKey& key) {
     auto it = entries_.find(key);
     if (it == entries_.end()) return Status::ok();
     if (it->second.on_disk) {
@@ -147,7 +131,7 @@ std::filesystem::path Spool::quarantineDir() const {
     return config_.disk_dir.empty() ? std::filesystem::path() : config_.disk_dir / "quarantine";
 }
 
-Status Spool::quarantine(const SpoolKey& key, const std::string& reason) {
+Status Spool::quarantine(const FragmentKey& key, const std::string& reason) {
     auto it = entries_.find(key);
     if (it == entries_.end()) return Status::ok();
     if (it->second.on_disk) {
@@ -170,11 +154,11 @@ Status Spool::quarantine(const SpoolKey& key, const std::string& reason) {
     return Status::ok();
 }
 
-std::vector<SpoolKey> Spool::keys() const {
-    std::vector<SpoolKey> out;
+std::vector<FragmentKey> Spool::keys() const {
+    std::vector<FragmentKey> out;
     out.reserve(entries_.size());
     for (const auto& [k, e] : entries_) out.push_back(k);
     return out;
 }
 
-}  // namespace plumb::messages
+}  // namespace plumb::device
