@@ -84,7 +84,8 @@ Result<AlternationResult> alternate(const std::vector<GlobalCloud>& clouds,
                                     const std::vector<Eigen::Isometry3d>& initial_T_W_F,
                                     const std::vector<PairPrior>& priors,
                                     const LayoutEstimator& estimate_layout,
-                                    const AlternationConfig& config, Progress* progress) {
+                                    const AlternationConfig& config,
+                                    const ProgressCallback& progress) {
     {
         const Status s = config::validate(config);
         if (!s.isOk()) return invalidArgument("alternation: " + s.message());
@@ -160,7 +161,7 @@ Result<AlternationResult> alternate(const std::vector<GlobalCloud>& clouds,
         previous = rec.layout;
         result.layout = rec.layout;
         result.iterations.push_back(std::move(rec));
-        if (progress != nullptr) progress->advance();
+        report(progress);
         if (layout_settled && poses_settled) {
             result.converged = true;
             result.stop_reason = "converged";
@@ -174,7 +175,8 @@ Result<AlternationResult> alternate(const std::vector<Fragment>& fragments,
                                     const std::vector<Eigen::Isometry3d>& initial_T_W_F,
                                     const std::vector<PairPrior>& priors,
                                     const LayoutEstimator& estimate_layout,
-                                    const AlternationConfig& config, Progress* progress) {
+                                    const AlternationConfig& config,
+                                    const ProgressCallback& progress) {
     Result<std::vector<GlobalCloud>> clouds = prepareClouds(fragments, config.global);
     if (!clouds.isOk()) return clouds.status();
     return alternate(clouds.value(), initial_T_W_F, priors, estimate_layout, config, progress);

@@ -27,7 +27,7 @@
 
 #include "backend/global/global_registration.hpp"
 #include "common/config/schema.hpp"
-#include "common/core/progress.hpp"
+#include "common/core/progress_callback.hpp"
 #include "common/core/status.hpp"
 #include "common/fragment/fragment.hpp"
 #include "common/layout/layout.hpp"
@@ -99,21 +99,23 @@ struct AlternationResult {
 /// Layout estimation at given fragment poses (the paper's §3.2 step).
 using LayoutEstimator = std::function<Result<Layout>(const std::vector<Eigen::Isometry3d>&)>;
 
-/// Runs Algorithm 1 from `initial_T_W_F`. `progress` (may be null) advances once per outer
+/// Runs Algorithm 1 from `initial_T_W_F`. `progress` (may be empty) is called once per outer
 /// iteration. Errors: those of prepareClouds()/refinePoses() and of the layout callback (with
 /// the outer iteration named).
 Result<AlternationResult> alternate(const std::vector<Fragment>& fragments,
                                     const std::vector<Eigen::Isometry3d>& initial_T_W_F,
                                     const std::vector<PairPrior>& priors,
                                     const LayoutEstimator& estimate_layout,
-                                    const AlternationConfig& config, Progress* progress = nullptr);
+                                    const AlternationConfig& config,
+                                    const ProgressCallback& progress = {});
 
 /// The same on prepared clouds (prepareClouds() with config.global).
 Result<AlternationResult> alternate(const std::vector<GlobalCloud>& clouds,
                                     const std::vector<Eigen::Isometry3d>& initial_T_W_F,
                                     const std::vector<PairPrior>& priors,
                                     const LayoutEstimator& estimate_layout,
-                                    const AlternationConfig& config, Progress* progress = nullptr);
+                                    const AlternationConfig& config,
+                                    const ProgressCallback& progress = {});
 
 /// Change between two layouts: planes matched per kind by closest world normal; false when the
 /// number of planes of a kind differs. Largest normal angle (deg) and offset (m) change.

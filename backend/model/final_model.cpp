@@ -174,7 +174,7 @@ Status integrateAll(std::vector<tsdf::TsdfVolume>& volumes, const DepthImage& de
 Result<std::vector<FinalModel>> integrateRawFrames(
     FrameSource& source, const std::vector<Fragment>& fragments,
     const std::vector<std::vector<Eigen::Isometry3d>>& T_W_F, const FinalModelConfig& config,
-    Progress* progress) {
+    const ProgressCallback& progress) {
     PLUMB_RETURN_IF_ERROR(config.validate());
     PLUMB_RETURN_IF_ERROR(checkVariants(fragments, T_W_F));
     // Frame index -> (fragment, T_F_C) of every tracked frame.
@@ -205,7 +205,7 @@ Result<std::vector<FinalModel>> integrateRawFrames(
     std::future<Result<Frame>> next = std::async(std::launch::async, read);
     for (;;) {
         Result<Frame> frame = next.get();
-        if (progress) progress->advance(seen - passed);
+        report(progress, seen - passed);
         passed = seen;
         if (!frame.isOk()) {
             if (frame.status().code() == StatusCode::kOutOfRange) break;
@@ -234,7 +234,7 @@ Result<std::vector<FinalModel>> integrateRawFrames(
 Result<std::vector<FinalModel>> fuseFragmentSurfaces(
     const std::vector<Fragment>& fragments,
     const std::vector<std::vector<Eigen::Isometry3d>>& T_W_F, const PinholeCamera& camera,
-    const FinalModelConfig& config, Progress* progress) {
+    const FinalModelConfig& config, const ProgressCallback& progress) {
     PLUMB_RETURN_IF_ERROR(config.validate());
     PLUMB_RETURN_IF_ERROR(camera.validate());
     PLUMB_RETURN_IF_ERROR(checkVariants(fragments, T_W_F));
@@ -253,7 +253,7 @@ Result<std::vector<FinalModel>> fuseFragmentSurfaces(
             if (!s.isOk()) return s;
             ++integrated;
         }
-        if (progress) progress->advance();
+        report(progress);
     }
     if (integrated == 0) return invalidArgument("no tracked frame in any fragment");
     return finishAll(volumes, config, integrated, false);

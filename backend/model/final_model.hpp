@@ -21,7 +21,7 @@
 #include "common/camera/pinhole.hpp"
 #include "common/cloud/point_cloud.hpp"
 #include "common/config/schema.hpp"
-#include "common/core/progress.hpp"
+#include "common/core/progress_callback.hpp"
 #include "common/core/status.hpp"
 #include "common/fragment/fragment.hpp"
 #include "common/frame/frame_source.hpp"
@@ -82,7 +82,7 @@ struct FinalModel {
 Result<std::vector<FinalModel>> integrateRawFrames(
     FrameSource& source, const std::vector<Fragment>& fragments,
     const std::vector<std::vector<Eigen::Isometry3d>>& T_W_F, const FinalModelConfig& config,
-    Progress* progress = nullptr);
+    const ProgressCallback& progress = {});
 
 /// Fuses the fragments' surfaces through synthetic depth frames (see the file comment), one
 /// volume per variant of `T_W_F` (as integrateRawFrames); each synthetic frame is rendered once
@@ -90,6 +90,6 @@ Result<std::vector<FinalModel>> integrateRawFrames(
 Result<std::vector<FinalModel>> fuseFragmentSurfaces(
     const std::vector<Fragment>& fragments,
     const std::vector<std::vector<Eigen::Isometry3d>>& T_W_F, const PinholeCamera& camera,
-    const FinalModelConfig& config, Progress* progress = nullptr);
+    const FinalModelConfig& config, const ProgressCallback& progress = {});
 
 }  // namespace plumb::backend

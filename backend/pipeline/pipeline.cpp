@@ -83,13 +83,14 @@ Result<std::vector<TriangleMesh>> finalMeshes(const PipelineInput& input,
         const std::optional<size_t> total = (*source)->size();
         Progress progress("re-integrating frames (" + what + ")", total.value_or(0),
                           progressOptions(show_progress));
-        models = integrateRawFrames(**source, input.fragments, T, config, &progress);
+        models = integrateRawFrames(**source, input.fragments, T, config, advanceOf(progress));
         progress.finish();
         *from_raw = true;
     } else {
         Progress progress("fusing fragment surfaces (" + what + ")", input.fragments.size(),
                           progressOptions(show_progress));
-        models = fuseFragmentSurfaces(input.fragments, T, input.camera, config, &progress);
+        models =
+            fuseFragmentSurfaces(input.fragments, T, input.camera, config, advanceOf(progress));
         progress.finish();
         *from_raw = false;
     }
@@ -471,8 +472,8 @@ Result<PipelineResult> runPipeline(const PipelineInput& input, const PipelineCon
     {
         auto scope = timer.scope("initial registration (pairs, loop closures, pose graph)");
         Progress progress("registering fragment pairs", 0, progressOptions(show_progress));
-        Result<registration::RegistrationOutcome> r =
-            registration::registerFragments(fragments, prepared, config.registration, &progress);
+        Result<registration::RegistrationOutcome> r = registration::registerFragments(
+            fragments, prepared, config.registration, advanceOf(progress));
         progress.finish();
         if (!r.isOk()) return prefixed(r.status(), "initial registration");
         outcome = std::move(*r);
@@ -522,7 +523,7 @@ Result<PipelineResult> runPipeline(const PipelineInput& input, const PipelineCon
                           progressOptions(show_progress));
         Result<global::AlternationResult> a =
             global::alternate(fragments, T_baseline, pairPriors(outcome.graph), estimator,
-                              config.alternation, &progress);
+                              config.alternation, advanceOf(progress));
         progress.finish();
         if (!a.isOk()) return prefixed(a.status(), "layout-constrained global registration");
         T_full = a->T_W_F;

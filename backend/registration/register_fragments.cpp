@@ -402,7 +402,7 @@ std::vector<FragmentIndex> buildIndices(const std::vector<Fragment>& fragments,
 }
 
 void refineWithIndex(PoseGraph& graph, const std::vector<const FragmentIndex*>& idx,
-                     const RegistrationConfig& c, Progress* progress) {
+                     const RegistrationConfig& c, const ProgressCallback& progress) {
     const RegistrationConfig inner = innerConfig(c);
     std::vector<size_t> todo;
     for (size_t k = 0; k < graph.edges.size(); ++k) {
@@ -431,14 +431,14 @@ void refineWithIndex(PoseGraph& graph, const std::vector<const FragmentIndex*>& 
             }
         }
         e.line_process = 1.0;
-        if (progress != nullptr) progress->advance();
+        report(progress);
     });
 }
 
 Result<RegistrationOutcome> finishGraph(PoseGraph graph,
                                         const std::vector<const FragmentIndex*>& idx,
                                         const RegistrationConfig& c, const PairStats& stats,
-                                        Progress* progress) {
+                                        const ProgressCallback& progress) {
     RegistrationOutcome out;
     out.stats = stats;
     Stopwatch watch;
@@ -546,7 +546,7 @@ namespace {
 /// buildPoseGraph on checked inputs and their indices.
 PoseGraph buildPoseGraphWith(const std::vector<Fragment>& fragments,
                              const std::vector<FragmentIndex>& idx,
-                             const RegistrationConfig& config, Progress* progress,
+                             const RegistrationConfig& config, const ProgressCallback& progress,
                              PairStats* stats_out) {
     const RegistrationConfig inner = innerConfig(config);
     int skipped = 0;
@@ -567,7 +567,7 @@ PoseGraph buildPoseGraphWith(const std::vector<Fragment>& fragments,
             outcome[k] = 2 + static_cast<int>(o);
             if (o != LoopOutcome::kRansacFailed) edges[k] = std::move(e);
         }
-        if (progress != nullptr) progress->advance();
+        report(progress);
     });
     PoseGraph graph;
     for (const Fragment& f : fragments) graph.T_W_F.push_back(f.T_W_F);
@@ -614,7 +614,7 @@ PoseGraph buildPoseGraphWith(const std::vector<Fragment>& fragments,
 
 Result<PoseGraph> buildPoseGraph(const std::vector<Fragment>& fragments,
                                  const std::vector<PreparedFragment>& prepared,
-                                 const RegistrationConfig& config, Progress* progress,
+                                 const RegistrationConfig& config, const ProgressCallback& progress,
                                  PairStats* stats_out) {
     PLUMB_RETURN_IF_ERROR(checkInputs(fragments, prepared, config));
     const std::vector<FragmentIndex> idx = buildIndices(fragments, prepared, config);
@@ -623,7 +623,7 @@ Result<PoseGraph> buildPoseGraph(const std::vector<Fragment>& fragments,
 
 Status refineEdges(PoseGraph& graph, const std::vector<Fragment>& fragments,
                    const std::vector<PreparedFragment>& prepared, const RegistrationConfig& config,
-                   Progress* progress) {
+                   const ProgressCallback& progress) {
     PLUMB_RETURN_IF_ERROR(checkInputs(fragments, prepared, config));
     if (graph.T_W_F.size() != fragments.size()) {
         return invalidArgument("refinement: the graph has " + std::to_string(graph.T_W_F.size()) +
@@ -642,7 +642,7 @@ Status refineEdges(PoseGraph& graph, const std::vector<Fragment>& fragments,
 Result<RegistrationOutcome> registerFragments(const std::vector<Fragment>& fragments,
                                               const std::vector<PreparedFragment>& prepared,
                                               const RegistrationConfig& config,
-                                              Progress* progress) {
+                                              const ProgressCallback& progress) {
     PLUMB_RETURN_IF_ERROR(checkInputs(fragments, prepared, config));
     PairStats stats;
     Stopwatch watch;
@@ -784,7 +784,7 @@ Status LiveRegistrar::addFragment(Fragment fragment) {
     return Status::ok();
 }
 
-Result<RegistrationOutcome> LiveRegistrar::finish(Progress* progress) {
+Result<RegistrationOutcome> LiveRegistrar::finish(const ProgressCallback& progress) {
     waitBackground();
     if (fragments_.empty()) return failedPrecondition("live registration: no fragments added");
     std::vector<const FragmentIndex*> idx;

@@ -33,7 +33,7 @@
 #include "backend/registration/pair_registration.hpp"
 #include "backend/registration/prepared_fragment.hpp"
 #include "common/config/schema.hpp"
-#include "common/core/progress.hpp"
+#include "common/core/progress_callback.hpp"
 #include "common/core/status.hpp"
 #include "common/fragment/fragment.hpp"
 
@@ -157,11 +157,11 @@ PoseGraphEdge registerLoopPair(const FragmentIndex& source, const FragmentIndex&
 /// fragment 0 is). Edges, sorted by (source, target): one odometry edge per consecutive pair
 /// (ICP result, or the odometry transform with reason set when ICP fails), and one loop edge per
 /// non-consecutive pair whose RANSAC succeeded: kept when its overlap ≥ min_overlap, otherwise
-/// kept = false with the reason. `progress` (may be null) counts pairs.
+/// kept = false with the reason. `progress` (may be empty) is called once per pair.
 /// Errors: empty input, mismatched sizes or ids, invalid configuration.
 Result<PoseGraph> buildPoseGraph(const std::vector<Fragment>& fragments,
                                  const std::vector<PreparedFragment>& prepared,
-                                 const RegistrationConfig& config, Progress* progress,
+                                 const RegistrationConfig& config, const ProgressCallback& progress,
                                  PairStats* stats = nullptr);
 
 /// Refinement pass (reference §3.7): every kept edge is re-aligned by multi-scale ICP from the
@@ -169,7 +169,7 @@ Result<PoseGraph> buildPoseGraph(const std::vector<Fragment>& fragments,
 /// overlap falls below min_overlap is dropped (kept = false, reason). Line processes are reset.
 Status refineEdges(PoseGraph& graph, const std::vector<Fragment>& fragments,
                    const std::vector<PreparedFragment>& prepared, const RegistrationConfig& config,
-                   Progress* progress);
+                   const ProgressCallback& progress);
 
 struct RegistrationOutcome {
     PoseGraph graph;
@@ -186,7 +186,8 @@ struct RegistrationOutcome {
 /// The whole offline stage: build, optimise (prune), refine, optimise again.
 Result<RegistrationOutcome> registerFragments(const std::vector<Fragment>& fragments,
                                               const std::vector<PreparedFragment>& prepared,
-                                              const RegistrationConfig& config, Progress* progress);
+                                              const RegistrationConfig& config,
+                                              const ProgressCallback& progress);
 
 /// Runs a task to its end: at once on the calling thread, or on a thread the program owns. The
 /// task holds copies of what it needs (no reference into its LiveRegistrar).
@@ -221,7 +222,7 @@ class LiveRegistrar {
     const std::vector<PreparedFragment>& prepared() const { return prepared_; }
 
     /// Final optimisation with pruning, the refinement pass and the last optimisation.
-    Result<RegistrationOutcome> finish(Progress* progress = nullptr);
+    Result<RegistrationOutcome> finish(const ProgressCallback& progress = {});
 
   private:
     void waitBackground();

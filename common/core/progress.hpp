@@ -28,6 +28,8 @@
 #include <ostream>
 #include <string>
 
+#include "common/core/progress_callback.hpp"
+
 namespace plumb {
 
 struct ProgressOptions {
@@ -110,5 +112,11 @@ class Progress {
 std::string formatRate(double items_per_s);
 /// "42s", "3m07s", "2h05m" (seconds rounded up to whole seconds).
 std::string formatDuration(double seconds);
+
+/// The callback that advances `progress` (which must outlive it): what a program hands to an
+/// algorithm that reports through a ProgressCallback.
+inline ProgressCallback advanceOf(Progress& progress) {
+    return [&progress](uint64_t n) { progress.advance(n); };
+}
 
 }  // namespace plumb

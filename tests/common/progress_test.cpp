@@ -139,6 +139,17 @@ TEST(Progress, UnknownTotalShowsCountAndRateOnly) {
     EXPECT_EQ(out.str(), "receiving: 10 2.50 packets/s, done in 4.0s\n");
 }
 
+TEST(Progress, AnAlgorithmsCallbackAdvancesTheProgressItIsConnectedTo) {
+    Progress p("pairs", 10, ProgressOptions{ProgressOptions::Mode::kQuiet});
+    const ProgressCallback callback = advanceOf(p);
+    report(callback);
+    report(callback, 4);
+    EXPECT_EQ(p.count(), 5u);
+    const ProgressCallback nobody;
+    report(nobody, 3);  // an empty callback is a no-op
+    EXPECT_EQ(p.count(), 5u);
+}
+
 TEST(Progress, QuietPrintsNothingAndStillCounts) {
     FakeClock clock;
     std::ostringstream out;
