@@ -12,10 +12,10 @@
 #include <sstream>
 
 #include "backend/layout/estimate_layout.hpp"
-#include "backend/layout/floorplan_svg.hpp"
 #include "backend/layout/fragment_planes.hpp"
-#include "backend/registration/outputs.hpp"
 #include "backend/registration/prepared_fragment.hpp"
+#include "backend/report/floorplan_svg.hpp"
+#include "backend/report/registration_outputs.hpp"
 #include "backend/report/report_html.hpp"
 #include "backend/report/stage_timer.hpp"
 #include "common/core/logging.hpp"

@@ -112,7 +112,7 @@ inline Fragment roomFragment(int k, double step_m = 0.05, int frames_per_fragmen
     return f;
 }
 
-/// pose_graph.json in the registration stage's format (backend/registration/outputs.cpp) for
+/// pose_graph.json in the registration stage's format (backend/report/registration_outputs.cpp) for
 /// fragments 0..n-1: odometry edges i -> i+1, a kept loop 0 -> n-1 (weight 0.9) and a pruned
 /// loop 1 -> n-2 (weight 0.1).
 inline std::string poseGraphJsonText(int n) {

@@ -19,8 +19,8 @@
 
 #include "backend/global/alternation.hpp"
 #include "backend/layout/estimate_layout.hpp"
-#include "backend/layout/floorplan_svg.hpp"
 #include "backend/layout/fragment_planes.hpp"
+#include "backend/report/floorplan_svg.hpp"
 #include "common/eval/layout_metrics.hpp"
 #include "common/geometry/lie.hpp"
 #include "drivers/sim/sim_source.hpp"

@@ -18,8 +18,8 @@
 #include <set>
 #include <sstream>
 
-#include "backend/registration/outputs.hpp"
 #include "backend/registration/register_fragments.hpp"
+#include "backend/report/registration_outputs.hpp"
 #include "common/eval/trajectory_metrics.hpp"
 #include "tests/backend/registration/sim_fragments.hpp"
 

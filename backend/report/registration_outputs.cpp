@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "backend/registration/outputs.hpp"
+#include "backend/report/registration_outputs.hpp"
 
 #include <algorithm>
 #include <fstream>

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "backend/layout/floorplan_svg.hpp"
+#include "backend/report/floorplan_svg.hpp"
 
 #include <fmt/format.h>
 
