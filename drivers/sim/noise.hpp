@@ -62,9 +62,6 @@ struct NoiseConfig {
     double random_dropout = 0.005;
 };
 
-/// The table of step A.3 (common/calibration/distortion_table.hpp), also by its simulator name.
-using DistortionTable = ::plumb::DistortionTable;
-
 /// Finds the distortion table: `explicit_path` when non-empty, else $PLUMB_NOISE_MODEL, else the
 /// compiled-in shared-data default. kNotFound explains how to point at the file.
 Result<std::filesystem::path> findNoiseModelFile(const std::string& explicit_path);

@@ -20,6 +20,7 @@
 
 #include "backend/calibration/self_calibration.hpp"
 #include "backend/pipeline/pipeline.hpp"
+#include "common/calibration/distortion_table.hpp"
 #include "common/config/config.hpp"
 #include "common/config/registry.hpp"
 #include "common/core/logging.hpp"
@@ -374,7 +375,7 @@ Result<PlanarStage> planarStage(const std::string& uri, const Options& o,
         });
     if (!planar.isOk()) return prefixed(planar.status(), "self-calibration, planes");
     if (undistort != "none") {
-        Result<sim::DistortionTable> first = sim::DistortionTable::load(undistort);
+        Result<DistortionTable> first = DistortionTable::load(undistort);
         if (!first.isOk()) return first.status();
         planar->table = composeTables(*first, planar->table);
     }
@@ -549,7 +550,7 @@ Result<backend::PipelineResult> selfCalibratedRun(FrameSource& raw_source, const
         {"iterations", refined->iterations},
         {"converged", refined->learned.converged},
         {"covered_cells", last.covered_cells},
-        {"gauge_bin_m", sim::DistortionTable::binCentreM(last.gauge_bin)},
+        {"gauge_bin_m", DistortionTable::binCentreM(last.gauge_bin)},
         {"gauge_scale", last.gauge_scale},
         {"first_table", planar ? "self_calibration/planar_table.txt" : "none"},
         {"planar", planar ? planarFigures(*planar) : nlohmann::json(nullptr)},

@@ -9,6 +9,7 @@
 #include "common/core/logging.hpp"
 #include "common/core/progress.hpp"
 #include "common/io/state_archive.hpp"
+#include "device/fusion/fuse_frames.hpp"
 #include "messages/files.hpp"
 #include "messages/fragment_codec.hpp"
 
@@ -137,30 +138,29 @@ Result<bool> FusionPass::run(FrameSource& source, const std::function<bool()>& s
     po.unit = "frames";
     Progress progress("tracking and fusing", source.size().value_or(0), po);
     progress.advance(counts_.read);
-    for (;;) {
-        if (stop && stop()) return false;
-        Result<Frame> frame = source.next();
-        if (!frame.isOk()) {
-            if (frame.status().code() == StatusCode::kOutOfRange) break;
-            return frame.status();
-        }
-        if (frame->T_W_C_gt) poses_read_.push_back({frame->timestamp_s, *frame->T_W_C_gt});
+    device::FuseHooks hooks;
+    hooks.stop = [&stop] { return stop && stop(); };
+    hooks.keep = [this, &progress](const Frame& frame) {
+        if (frame.T_W_C_gt) poses_read_.push_back({frame.timestamp_s, *frame.T_W_C_gt});
         const uint64_t position = counts_.read++;
         const auto due =
             static_cast<uint64_t>(std::floor(static_cast<double>(counts_.fused) * frame_step_));
         progress.advance();
-        if (position != due) continue;  // dropped, as a device keeping up with 1 / frame_step
+        if (position != due) return false;  // dropped, as a device keeping up with 1 / frame_step
         ++counts_.fused;
-        Result<device::FrameReport> report = builder_.process(*frame);
-        if (!report.isOk()) return report.status();
-        if (report->tracked) {
-            tracked_.push_back({frame->timestamp_s, report->T_W_C});
+        return true;
+    };
+    hooks.on_frame = [this](const Frame& frame, const device::FrameReport& report) {
+        if (report.tracked) {
+            tracked_.push_back({frame.timestamp_s, report.T_W_C});
         } else {
             ++counts_.lost;
         }
-        for (Fragment& f : report->closed) PLUMB_RETURN_IF_ERROR(store(std::move(f)));
-    }
-    if (std::optional<Fragment> last = builder_.finish()) PLUMB_RETURN_IF_ERROR(store(*last));
+        return Status::ok();
+    };
+    hooks.on_fragment = [this](Fragment f) { return store(std::move(f)); };
+    Result<bool> ran = device::fuseFrames(source, builder_, hooks);
+    if (!ran.isOk() || !*ran) return ran;
     progress.finish();
     finished_ = true;
     if (counts_.lost > 0) {
