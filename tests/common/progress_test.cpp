@@ -140,7 +140,9 @@ TEST(Progress, UnknownTotalShowsCountAndRateOnly) {
 }
 
 TEST(Progress, AnAlgorithmsCallbackAdvancesTheProgressItIsConnectedTo) {
-    Progress p("pairs", 10, ProgressOptions{ProgressOptions::Mode::kQuiet});
+    ProgressOptions quiet;
+    quiet.mode = ProgressOptions::Mode::kQuiet;
+    Progress p("pairs", 10, quiet);
     const ProgressCallback callback = advanceOf(p);
     report(callback);
     report(callback, 4);
