@@ -8,6 +8,7 @@
 // exclusive access.
 
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 #include "common/core/check.hpp"
@@ -21,6 +22,14 @@ class Image {
     Image(int width, int height, T fill = T{})
         : width_(width), height_(height), data_(static_cast<size_t>(width) * height, fill) {
         PLUMB_CHECK(width >= 0 && height >= 0) << "image size " << width << "x" << height;
+    }
+
+    /// An image holding `pixels` (row-major, width * height of them).
+    Image(int width, int height, std::vector<T> pixels)
+        : width_(width), height_(height), data_(std::move(pixels)) {
+        PLUMB_CHECK(width >= 0 && height >= 0 &&
+                    data_.size() == static_cast<size_t>(width) * static_cast<size_t>(height))
+            << "image size " << width << "x" << height << " for " << data_.size() << " pixels";
     }
 
     int width() const { return width_; }

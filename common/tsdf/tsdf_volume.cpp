@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
+#include <bit>
 #include <climits>
 #include <cmath>
 #include <cstring>
@@ -19,6 +20,7 @@ namespace {
 /// Four float or int lanes (GCC vector extensions: SSE2 on x86-64, NEON on aarch64).
 using Float4 = float __attribute__((vector_size(16)));
 using Int4 = int32_t __attribute__((vector_size(16)));
+using UInt4 = uint32_t __attribute__((vector_size(16)));
 
 /// What one integration pass needs per voxel row, in the camera frame.
 struct RowIntegrator {
@@ -83,21 +85,45 @@ struct RowIntegrator {
             if (colours != nullptr) {
                 const Float4 abs_sdf = sdf < 0.0f ? -sdf : sdf;
                 const Int4 near = ok & (abs_sdf <= colour_band_m);
-                for (int k = 0; k < 4; ++k) {
-                    if (near[k]) blendColour(colour[pixels[g][k]], &colours[4 * g + k]);
+                if ((near[0] | near[1] | near[2] | near[3]) != 0) {
+                    blendColours(near, pixels[g], &colours[4 * g]);
                 }
             }
         }
         std::memcpy(static_cast<void*>(row), vox, sizeof(vox));
     }
 
-    /// C <- (W C + c) / (W + 1) per channel (blendColourChannel), W saturating at max_w.
-    void blendColour(const Rgb8& c, VoxelColour* v) const {
-        const uint32_t w = v->weight;
-        v->r = blendColourChannel(v->r, w, c.r);
-        v->g = blendColourChannel(v->g, w, c.g);
-        v->b = blendColourChannel(v->b, w, c.b);
-        if (static_cast<float>(w + 1) <= max_w && w < 255) v->weight = static_cast<uint8_t>(w + 1);
+    /// C <- (W C + c) / (W + 1) per channel, W saturating at max_w, for the four voxel colours
+    /// v[0..3] whose lane in `near` is set, from the colour pixels `pixels` (valid indices in
+    /// every lane): blendColourChannel's float operations in lanes, so each lane gets exactly its
+    /// result. The other lanes keep their colour.
+    void blendColours(Int4 near, Int4 pixels, VoxelColour* v) const {
+        UInt4 packed;
+        static_assert(sizeof(packed) == 4 * sizeof(VoxelColour));
+        static_assert(std::endian::native == std::endian::little, "r, g, b, weight from bit 0");
+        std::memcpy(&packed, v, sizeof(packed));
+        const Rgb8 c[4] = {colour[pixels[0]], colour[pixels[1]], colour[pixels[2]],
+                           colour[pixels[3]]};
+        const UInt4 sample_r = {c[0].r, c[1].r, c[2].r, c[3].r};
+        const UInt4 sample_g = {c[0].g, c[1].g, c[2].g, c[3].g};
+        const UInt4 sample_b = {c[0].b, c[1].b, c[2].b, c[3].b};
+        const UInt4 w = packed >> 24;
+        const Float4 wf = __builtin_convertvector(w, Float4);
+        const Float4 w1 = wf + 1.0f;
+        const auto channel = [&](UInt4 avg, UInt4 sample) {
+            const Float4 q = (wf * __builtin_convertvector(avg, Float4) +
+                              __builtin_convertvector(sample, Float4)) /
+                             w1;
+            return __builtin_convertvector(q + 0.5f, UInt4);
+        };
+        const UInt4 r = channel(packed & 0xffu, sample_r);
+        const UInt4 g = channel((packed >> 8) & 0xffu, sample_g);
+        const UInt4 b = channel((packed >> 16) & 0xffu, sample_b);
+        const Int4 grows = (w1 <= max_w) & (w < 255u);
+        const UInt4 new_w = grows ? w + 1u : w;
+        const UInt4 blended = r | (g << 8) | (b << 16) | (new_w << 24);
+        packed = near ? blended : packed;
+        std::memcpy(static_cast<void*>(v), &packed, sizeof(packed));
     }
 };
 

@@ -47,19 +47,15 @@ struct VoxelColour {
 static_assert(sizeof(VoxelColour) == 4, "a voxel colour must stay 4 bytes");
 
 /// One channel of the colour running average, round((w avg + sample) / (w + 1)) with halves
-/// rounded up, for w in [0, 255], computed as a multiplication by the reciprocal ceil(2^26 /
-/// (w + 1)): exact, since the numerator stays below 2^17 (the error is below 2^17 / 2^26, less
-/// than the 1 / 256 a quotient's fraction can come near an integer).
-constexpr std::array<uint32_t, 256> colourReciprocals() {
-    std::array<uint32_t, 256> r{};
-    for (uint32_t w = 0; w < 256; ++w) r[w] = ((uint32_t{1} << 26) + w) / (w + 1);
-    return r;
-}
-inline constexpr std::array<uint32_t, 256> kColourReciprocal = colourReciprocals();
-
+/// rounded up, for w, avg, sample in [0, 255], in float: the numerator is an integer below 2^16
+/// (exact), the division is correctly rounded, and a quotient is either exactly k + 1/2 (which
+/// float holds) or at least 1 / (2 (w + 1)) >= 1/512 away from it, far more than its rounding
+/// error, so floor(q + 1/2) is exact. The integration's four-lane blend does the same operations
+/// lane by lane.
 inline uint8_t blendColourChannel(uint32_t avg, uint32_t w, uint32_t sample) {
-    const uint64_t x = 2 * (w * avg + sample) + w + 1;  // round(. / (w + 1)) = floor(x / 2(w + 1))
-    return static_cast<uint8_t>((x * kColourReciprocal[w]) >> 27);
+    const float q = (static_cast<float>(w) * static_cast<float>(avg) + static_cast<float>(sample)) /
+                    (static_cast<float>(w) + 1.0f);
+    return static_cast<uint8_t>(q + 0.5f);
 }
 
 class BlockCache;

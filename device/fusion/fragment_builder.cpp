@@ -15,6 +15,14 @@ Status FusionConfig::validate() const {
             "fusion: raycast_interval and raycast_interval_rgbd must be >= 1, got " +
             std::to_string(raycast_interval) + " and " + std::to_string(raycast_interval_rgbd));
     }
+    if (!(max_integration_hz >= 0.0)) {
+        return invalidArgument("fusion: max_integration_hz must be >= 0, got " +
+                               std::to_string(max_integration_hz));
+    }
+    if (min_model_width_px < 1) {
+        return invalidArgument("fusion: min_model_width_px must be >= 1, got " +
+                               std::to_string(min_model_width_px));
+    }
     if (frames_per_fragment < 1) {
         return invalidArgument("fusion: frames_per_fragment must be >= 1, got " +
                                std::to_string(frames_per_fragment));
@@ -54,6 +62,7 @@ void FragmentBuilder::openFragment(const Eigen::Isometry3d& T_W_F, bool handover
     model_.clear();  // cast the new model afresh
     T_W_M_ = T_W_F;
     T_M_last_ = Eigen::Isometry3d::Identity();
+    T_M_fused_ = Eigen::Isometry3d::Identity();
     have_model_ = false;
     quality_sum_ = 0.0;
     quality_count_ = 0;
@@ -94,16 +103,42 @@ bool FragmentBuilder::integrate(const FramePyramid& pyramid, const Eigen::Isomet
         return false;
     }
     have_model_ = true;
+    T_M_fused_ = T_F_C;
+    last_fused_time_s_ = frame_time_s_;
     if (config_.raycast_from_last_depth) last_depth_ = pyramid.depth;
     return true;
+}
+
+bool FragmentBuilder::integrationDue() const {
+    if (!(config_.max_integration_hz > 0.0)) return true;
+    const double dt = frame_time_s_ - last_fused_time_s_;
+    return !(dt > 0.0) || dt >= 0.75 / config_.max_integration_hz;
 }
 
 void FragmentBuilder::setReference(const FramePyramid& pyramid,
                                    const std::vector<IntensityLevel>& intensity) {
     have_reference_ = !intensity.empty();
     if (!have_reference_) return;
-    reference_ = selectReference(pyramid, intensity, config_.tracking);
+    reference_ =
+        selectReference(pyramid, intensity, config_.tracking, config_.preprocess.num_threads);
     T_W_R_ = T_W_C_;
+}
+
+void FragmentBuilder::updateModel(const tsdf::TsdfVolume& model_volume,
+                                  const Eigen::Isometry3d& T_X_M, const FramePyramid& pyramid,
+                                  bool rgbd, FrameTiming* timing) {
+    const int interval = rgbd ? config_.raycast_interval_rgbd : config_.raycast_interval;
+    if (model_.empty() || model_uses_ >= interval) {
+        const SteadyClock::time_point t_raycast = SteadyClock::now();
+        T_X_P_ = T_X_M * T_M_fused_;
+        int level = rgbd ? config_.model_level_rgbd : config_.model_level;
+        while (level > 0 && (camera_.width >> level) < config_.min_model_width_px) --level;
+        model_ = predictModel(model_volume, pyramid, T_X_P_, config_.raycast, level,
+                              last_depth_.empty() ? nullptr : &last_depth_);
+        model_uses_ = 0;
+        timing->raycast_ms = msSince(t_raycast);
+    }
+    ++model_uses_;
 }
 
 Result<FrameReport> FragmentBuilder::process(const Frame& frame) {
@@ -135,6 +170,7 @@ Result<FrameReport> FragmentBuilder::processImpl(const Frame& frame) {
     }
     FrameReport report;
     report.frame_index = frame.index;
+    frame_time_s_ = frame.timestamp_s;
     report.timing.preprocess_ms = msSince(t_pre);
     colour_ = config_.fuse_colour && !frame.colour.empty() ? &frame.colour : nullptr;
 
@@ -164,17 +200,7 @@ Result<FrameReport> FragmentBuilder::processImpl(const Frame& frame) {
     // Model X: the open fragment's volume (X = M), or the previous one during a handover.
     const tsdf::TsdfVolume& model_volume = handover_ ? previous_volume_ : volume_;
     const Eigen::Isometry3d T_X_M = handover_ ? T_P_M_ : Eigen::Isometry3d::Identity();
-    const int interval =
-        intensity.empty() ? config_.raycast_interval : config_.raycast_interval_rgbd;
-    if (model_.empty() || model_uses_ >= interval) {
-        const SteadyClock::time_point t_raycast = SteadyClock::now();
-        T_X_P_ = T_X_M * T_M_last_;
-        model_ = predictModel(model_volume, pyramid, T_X_P_, config_.raycast, config_.model_level,
-                              last_depth_.empty() ? nullptr : &last_depth_);
-        model_uses_ = 0;
-        report.timing.raycast_ms = msSince(t_raycast);
-    }
-    ++model_uses_;
+    updateModel(model_volume, T_X_M, pyramid, /*rgbd=*/!intensity.empty(), &report.timing);
     // Start from a constant-velocity prediction: along directions the geometry leaves free
     // (solution remapping in the ICP) the camera keeps moving as it did.
     const Eigen::Isometry3d T_M_pred =
@@ -186,8 +212,10 @@ Result<FrameReport> FragmentBuilder::processImpl(const Frame& frame) {
         photometric.T_M_R = T_X_M * T_W_M_.inverse() * T_W_R_;  // in the tracking model's frame
         photometric.config = config_.tracking;
     }
-    report.icp = alignFrameToModel(pyramid, model_, T_X_P_, T_X_M * T_M_pred, config_.icp,
-                                   photometric.current != nullptr ? &photometric : nullptr);
+    const Eigen::Isometry3d T_X_last = T_X_M * T_M_last_;
+    report.icp =
+        alignFrameToModel(pyramid, model_, T_X_P_, T_X_M * T_M_pred, config_.icp,
+                          photometric.current != nullptr ? &photometric : nullptr, &T_X_last);
     if (handover_) report.icp.T_M_C = T_P_M_.inverse() * report.icp.T_M_C;
     report.timing.track_ms = msSince(t_track);
 
@@ -199,7 +227,12 @@ Result<FrameReport> FragmentBuilder::processImpl(const Frame& frame) {
         report.relocalised = lost_;
         lost_ = false;
         setReference(pyramid, intensity);
-        if (current_) {
+        if (current_ && !integrationDue()) {
+            // Tracked only: too soon after the last frame fused (max_integration_hz).
+            addFrame(frame, T_M_C, true, report.icp.inlier_fraction);
+            T_M_last_ = T_M_C;
+            report.tracked_only = true;
+        } else if (current_) {
             // Normal tracking inside the open fragment (M = F).
             if (integrate(pyramid, T_M_C, &report)) {
                 addFrame(frame, T_M_C, true, report.icp.inlier_fraction);

@@ -21,6 +21,7 @@
 // Not thread-safe; one caller feeds frames in order. No I/O: callers log the reports.
 
 #include <Eigen/Geometry>
+#include <limits>
 #include <optional>
 #include <span>
 #include <string>
@@ -49,9 +50,18 @@ struct FusionConfig {
     tsdf::TsdfConfig tsdf;
     /// Model prediction for tracking.
     tsdf::RaycastConfig raycast;
-    /// Pyramid level the model is raycast at (0 = full resolution, 1 = half: 4x fewer rays);
-    /// finer frame levels associate against it.
+    /// Pyramid level the model is raycast at for frames tracked by depth alone (0 = full
+    /// resolution, 1 = half: 4x fewer rays); finer frame levels associate against it (the
+    /// nearest coarse hit). By depth alone a half-resolution model tracks about 10 % worse.
     int model_level = 0;
+    /// The same for frames tracked with colour: their photometric term works at full
+    /// resolution, and a half-resolution model tracks as well as a full one (nine 600-frame
+    /// scans, per-fragment ATE within 1 %).
+    int model_level_rgbd = 1;
+    /// The model is cast no coarser than the finest level at least this wide, pixels, whatever
+    /// model_level and model_level_rgbd ask: a 160x120 camera tracked against an 80x60 model
+    /// loses frames; 640x480 casts at 320x240, 320x240 at 160x120.
+    int min_model_width_px = 160;
     /// Rays of the model prediction march from the depth last fused from the same pose (a
     /// truncation in front of it) instead of from the nearest block: fewer samples per ray, the
     /// same hits unless the model holds a surface that frame saw as free space.
@@ -64,8 +74,16 @@ struct FusionConfig {
     int raycast_interval = 1;
     /// The same for frames tracked with colour (the photometric term, `tracking`), whose
     /// intensity residuals against the reference frame do not depend on the prediction. Over nine
-    /// 600-frame scans 2 tracks as well as 1 with colour and a few per cent worse by depth alone.
-    int raycast_interval_rgbd = 2;
+    /// 600-frame scans 2, 3 and 4 track as well as 1 with colour (per-fragment ATE within 1 %),
+    /// and 2 a few per cent worse than 1 by depth alone.
+    int raycast_interval_rgbd = 4;
+    /// Frames that arrive faster than this are tracked but fused at about this rate: a frame is
+    /// integrated when at least 0.75 / max_integration_hz seconds (by its timestamp) have passed
+    /// since the last one fused, so a 60 Hz camera fuses every other frame, the same frames a
+    /// second as a 30 Hz one, and a 30 Hz camera (or jittered timestamps near it) every frame.
+    /// A fragment's first frame, and frames whose timestamps do not increase, are always fused.
+    /// 0 = fuse every tracked frame.
+    double max_integration_hz = 30.0;
     /// Surface points of a closed fragment.
     tsdf::SurfaceConfig surface;
     /// Frame preprocessing (filter, pyramid).
@@ -95,8 +113,11 @@ struct FrameTiming {
 /// What happened to one frame.
 struct FrameReport {
     int64_t frame_index = 0;
-    bool tracked = false;         ///< pose from ICP (or the first frame of a segment)
-    bool integrated = false;      ///< fused into a fragment volume
+    bool tracked = false;     ///< pose from ICP (or the first frame of a segment)
+    bool integrated = false;  ///< fused into a fragment volume
+    /// Tracked and kept in its fragment but not fused: it came sooner after the last frame
+    /// fused than FusionConfig::max_integration_hz allows.
+    bool tracked_only = false;
     bool relocalised = false;     ///< tracking recovered against the last closed fragment
     bool new_segment = false;     ///< tracking restarted: a new segment began at this frame
     bool budget_reached = false;  ///< the block budget closed a fragment on this frame
@@ -144,6 +165,14 @@ class FragmentBuilder {
     Result<FrameReport> processImpl(const Frame& frame);
     bool integrate(const FramePyramid& pyramid, const Eigen::Isometry3d& T_F_C,
                    FrameReport* report);
+    /// The model prediction the frame is tracked against: cast afresh from T_M_fused_ (into
+    /// model volume X, at T_X_M) when there is none or it has served its raycast interval, at
+    /// the model level of frames with colour (`rgbd`) or without.
+    void updateModel(const tsdf::TsdfVolume& model_volume, const Eigen::Isometry3d& T_X_M,
+                     const FramePyramid& pyramid, bool rgbd, FrameTiming* timing);
+    /// False when the frame being processed came too soon after the last one fused
+    /// (max_integration_hz): it is tracked only.
+    bool integrationDue() const;
     /// The frame just tracked at T_W_C_ becomes the photometric reference of the next one (no
     /// reference when it has no colour).
     void setReference(const FramePyramid& pyramid, const std::vector<IntensityLevel>& intensity);
@@ -160,10 +189,14 @@ class FragmentBuilder {
     bool lost_ = false;        ///< the last tracking attempt failed
     Eigen::Isometry3d T_W_M_ = Eigen::Isometry3d::Identity();     ///< frame of volume_
     Eigen::Isometry3d T_M_last_ = Eigen::Isometry3d::Identity();  ///< last good camera in M
-    /// The depth last integrated into volume_, at T_M_last_ (every successful integration sets
-    /// both; openFragment clears it): the raycast's start hint, since tracking predicts the
-    /// model from T_M_last_. Empty when raycast_from_last_depth is off.
+    /// The camera of the frame last integrated into volume_ and its depth (every successful
+    /// integration sets both; openFragment clears them): the model is cast from T_M_fused_,
+    /// its rays starting from last_depth_. Empty when raycast_from_last_depth is off.
+    Eigen::Isometry3d T_M_fused_ = Eigen::Isometry3d::Identity();
     DepthImage last_depth_;
+    /// Timestamp of the frame being processed and of the last one fused (max_integration_hz).
+    double frame_time_s_ = 0.0;
+    double last_fused_time_s_ = -std::numeric_limits<double>::infinity();
     /// The last model prediction, cast from T_X_P_ in the frame X of the tracking volume, and
     /// how many frames have tracked against it (raycast_interval). Cleared whenever the
     /// tracking volume changes or tracking fails: the next frame casts afresh.

@@ -10,7 +10,7 @@ namespace plumb::device {
 namespace {
 
 constexpr uint32_t kStateMagic = 0x53424650u;  // "PFBS"
-constexpr uint32_t kStateVersion = 1;
+constexpr uint32_t kStateVersion = 2;
 
 void saveFragment(io::StateWriter& out, const Fragment& f) {
     out.value(f.id);
@@ -116,7 +116,9 @@ std::vector<uint8_t> FragmentBuilder::saveState() const {
     out.value<uint8_t>(lost_);
     out.pose(T_W_M_);
     out.pose(T_M_last_);
+    out.pose(T_M_fused_);
     out.image(last_depth_);
+    out.value(last_fused_time_s_);
     saveModel(out, model_);
     out.pose(T_X_P_);
     out.value(model_uses_);
@@ -156,8 +158,9 @@ Status FragmentBuilder::restoreState(std::span<const uint8_t> bytes) {
     current_.reset();
     if (ok && has_current) ok = loadFragment(in, &current_.emplace());
     ok = ok && in.value(&have_model) && in.value(&lost) && in.pose(&T_W_M_) &&
-         in.pose(&T_M_last_) && in.image(&last_depth_) && loadModel(in, &model_) &&
-         in.pose(&T_X_P_) && in.value(&model_uses_) && in.pose(&T_W_C_) && in.pose(&velocity_) &&
+         in.pose(&T_M_last_) && in.pose(&T_M_fused_) && in.image(&last_depth_) &&
+         in.value(&last_fused_time_s_) && loadModel(in, &model_) && in.pose(&T_X_P_) &&
+         in.value(&model_uses_) && in.pose(&T_W_C_) && in.pose(&velocity_) &&
          loadReference(in, &reference_) && in.pose(&T_W_R_) && in.value(&have_reference) &&
          in.value(&next_id_) && in.value(&segment_) && in.value(&quality_sum_) &&
          in.value(&quality_count_) && in.value(&first_frame);

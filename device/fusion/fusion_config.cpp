@@ -139,9 +139,19 @@ void describe(config::Schema& s, FusionConfig& c) {
         .min(0);
     s.section("tsdf", c.tsdf, "the voxel-hashed TSDF volume of each fragment");
     s.field("model_level", c.model_level,
-            "pyramid level the tracking model is raycast at (0 = full resolution, 1 = half: 4x "
-            "fewer rays); finer frame levels associate against it")
+            "pyramid level the tracking model is raycast at for frames tracked by depth alone (0 "
+            "= full resolution, 1 = half: 4x fewer rays); finer frame levels associate against "
+            "it")
         .range(0, 4);
+    s.field("model_level_rgbd", c.model_level_rgbd,
+            "the same for frames tracked with colour (the photometric term)")
+        .range(0, 4);
+    s.field("min_model_width_px", c.min_model_width_px,
+            "the model is cast no coarser than the finest level at least this wide, whatever "
+            "model_level and model_level_rgbd ask (640x480 casts at 320x240, 320x240 at 160x120, "
+            "160x120 at full resolution)",
+            "px")
+        .min(1);
     s.field("raycast_from_last_depth", c.raycast_from_last_depth,
             "model rays march from the depth last fused from the same pose (a truncation in "
             "front of it) instead of from the nearest block");
@@ -154,6 +164,12 @@ void describe(config::Schema& s, FusionConfig& c) {
     s.field("raycast_interval_rgbd", c.raycast_interval_rgbd,
             "the same for frames tracked with colour (the photometric term)", "frames")
         .min(1);
+    s.field("max_integration_hz", c.max_integration_hz,
+            "frames arriving faster are tracked but fused at about this rate (a frame is fused "
+            "when 0.75 / max_integration_hz s have passed since the last one fused: a 60 Hz "
+            "camera fuses every other frame, a 30 Hz one every frame); 0 = fuse every frame",
+            "Hz")
+        .min(0.0);
     s.section("raycast", c.raycast, "model prediction (raycast) for tracking");
     s.section("surface", c.surface, "oriented surface points of a closed fragment");
     s.section("preprocess", c.preprocess, "per-frame filtering, vertex/normal maps, pyramid");

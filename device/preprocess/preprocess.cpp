@@ -4,6 +4,8 @@
 #include <array>
 #include <cmath>
 #include <string>
+#include <utility>
+#include <vector>
 
 #if defined(__x86_64__) && defined(__GNUC__)
 #include <immintrin.h>
@@ -38,14 +40,18 @@ Status PreprocessConfig::validate() const {
 }
 
 DepthImage gateDepth(const DepthImage& depth, const PreprocessConfig& config) {
-    DepthImage out(depth.width(), depth.height(), 0.0f);
-    for (size_t i = 0; i < depth.size(); ++i) {
-        const float d = depth.data()[i];
-        if (std::isfinite(d) && d >= config.min_depth_m && d <= config.max_depth_m) {
-            out.data()[i] = d;
+    const int w = depth.width();
+    std::vector<float> out(depth.size());
+    parallelFor(config.num_threads, depth.height(), [&](int v) {
+        const float* in = depth.data() + static_cast<size_t>(v) * w;
+        float* row = out.data() + static_cast<size_t>(v) * w;
+        for (int u = 0; u < w; ++u) {
+            const float d = in[u];
+            row[u] =
+                std::isfinite(d) && d >= config.min_depth_m && d <= config.max_depth_m ? d : 0.0f;
         }
-    }
-    return out;
+    });
+    return DepthImage(w, depth.height(), std::move(out));
 }
 
 namespace {
@@ -189,11 +195,11 @@ DepthImage bilateralFilter(const DepthImage& depth, const PreprocessConfig& conf
     return out;
 }
 
-DepthImage downsampleDepth(const DepthImage& depth, float sigma_depth_m) {
+DepthImage downsampleDepth(const DepthImage& depth, float sigma_depth_m, int num_threads) {
     const int w = depth.width() / 2, h = depth.height() / 2;
     DepthImage out(w, h, 0.0f);
     const float max_diff = 3.0f * sigma_depth_m;
-    for (int v = 0; v < h; ++v) {
+    parallelFor(num_threads, h, [&](int v) {
         for (int u = 0; u < w; ++u) {
             const float s[4] = {depth(2 * u, 2 * v), depth(2 * u + 1, 2 * v),
                                 depth(2 * u, 2 * v + 1), depth(2 * u + 1, 2 * v + 1)};
@@ -215,7 +221,7 @@ DepthImage downsampleDepth(const DepthImage& depth, float sigma_depth_m) {
             }
             out(u, v) = sum / static_cast<float>(n);
         }
-    }
+    });
     return out;
 }
 
@@ -223,22 +229,37 @@ void computeVertexNormalMaps(const DepthImage& depth, const PinholeCamera& camer
                              float max_depth_jump_m, PointImage* points_C, PointImage* normals_C,
                              int num_threads) {
     const int w = depth.width(), h = depth.height();
-    *points_C = PointImage(w, h, tsdf::invalidPoint());
-    *normals_C = PointImage(w, h, tsdf::invalidPoint());
+    // Every pixel of both maps is written below, rows in parallel: no serial fill first
+    // (Eigen vectors are left uninitialised by their default constructor).
+    std::vector<Eigen::Vector3f> points(depth.size()), normals(depth.size());
+    // The ray factors (u - cx) / fx of camera.unproject, once per column.
+    std::vector<double> ray_x(static_cast<size_t>(w));
+    for (int u = 0; u < w; ++u) ray_x[static_cast<size_t>(u)] = (u - camera.cx) / camera.fx;
     parallelFor(num_threads, h, [&](int v) {
+        const double ray_y = (v - camera.cy) / camera.fy;
+        Eigen::Vector3f* row = points.data() + static_cast<size_t>(v) * w;
         for (int u = 0; u < w; ++u) {
-            const float d = depth(u, v);
-            if (d > 0.0f) (*points_C)(u, v) = camera.unproject(u, v, d).cast<float>();
+            const double d = depth(u, v);
+            row[u] = d > 0.0
+                         ? Eigen::Vector3f(static_cast<float>(ray_x[static_cast<size_t>(u)] * d),
+                                           static_cast<float>(ray_y * d), static_cast<float>(d))
+                         : tsdf::invalidPoint();
         }
     });
+    *points_C = PointImage(w, h, std::move(points));
     parallelFor(num_threads, h, [&](int v) {
+        Eigen::Vector3f* row = normals.data() + static_cast<size_t>(v) * w;
         for (int u = 0; u < w; ++u) {
             Eigen::Vector3f n;
-            if (!tsdf::neighbourNormal(*points_C, depth, u, v, max_depth_jump_m, &n)) continue;
-            if (n.dot((*points_C)(u, v)) > 0.0f) n = -n;  // face the camera
-            (*normals_C)(u, v) = n;
+            if (tsdf::neighbourNormal(*points_C, depth, u, v, max_depth_jump_m, &n)) {
+                if (n.dot((*points_C)(u, v)) > 0.0f) n = -n;  // face the camera
+                row[u] = n;
+            } else {
+                row[u] = tsdf::invalidPoint();
+            }
         }
     });
+    *normals_C = PointImage(w, h, std::move(normals));
 }
 
 Result<FramePyramid> preprocess(const DepthImage& depth, const PinholeCamera& camera,
@@ -265,7 +286,8 @@ Result<FramePyramid> preprocess(const DepthImage& depth, const PinholeCamera& ca
         } else {
             const PyramidLevel& finer = pyramid.levels[static_cast<size_t>(l - 1)];
             level.camera = finer.camera.scaled(0.5);
-            level.depth = downsampleDepth(finer.depth, config.bilateral_sigma_depth_m);
+            level.depth =
+                downsampleDepth(finer.depth, config.bilateral_sigma_depth_m, config.num_threads);
             level.camera.width = level.depth.width();
             level.camera.height = level.depth.height();
         }

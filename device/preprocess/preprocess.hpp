@@ -70,8 +70,9 @@ DepthImage bilateralFilter(const DepthImage& depth, const PreprocessConfig& conf
                            simd::Level simd_level);
 
 /// Half-size depth: mean of the valid pixels of each 2x2 block within 3 sigma_depth of the
-/// block's first valid pixel (KinFu style, never averaging across depth edges).
-DepthImage downsampleDepth(const DepthImage& depth, float sigma_depth_m);
+/// block's first valid pixel (KinFu style, never averaging across depth edges). `num_threads`
+/// workers (0 = TBB default); the result does not depend on it.
+DepthImage downsampleDepth(const DepthImage& depth, float sigma_depth_m, int num_threads = 0);
 
 /// Vertex and normal maps of a depth image. Normals from central differences,
 /// n = normalize((V(u+1,v) - V(u-1,v)) x (V(u,v+1) - V(u,v-1))), flipped to face the camera.

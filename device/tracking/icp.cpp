@@ -394,7 +394,8 @@ LevelSystem buildLevelSystem(const FramePyramid& frame, const std::vector<ModelL
 /// when `ph` is given.
 IcpResult align(const FramePyramid& frame, const std::vector<ModelLevel>& model,
                 const Eigen::Isometry3d& T_M_P, const Eigen::Isometry3d& T_M_C_init,
-                const IcpConfig& config, const PhotometricInput* ph) {
+                const Eigen::Isometry3d& T_M_moved_from, const IcpConfig& config,
+                const PhotometricInput* ph) {
     IcpResult result;
     Eigen::Isometry3d T = T_M_C_init;
     const Eigen::Isometry3d T_P_M = T_M_P.inverse();
@@ -475,7 +476,7 @@ IcpResult align(const FramePyramid& frame, const std::vector<ModelLevel>& model,
         }
     }
 
-    const Eigen::Isometry3d delta = T_M_P.inverse() * T;
+    const Eigen::Isometry3d delta = T_M_moved_from.inverse() * T;
     const double moved = delta.translation().norm();
     const double turned_deg = lie::rotationAngle(delta) * 180.0 / std::numbers::pi;
     if (!lie::isValidPose(T, 1e-4)) {
@@ -501,7 +502,8 @@ IcpResult align(const FramePyramid& frame, const std::vector<ModelLevel>& model,
 
 IcpResult alignFrameToModel(const FramePyramid& frame, const std::vector<ModelLevel>& model,
                             const Eigen::Isometry3d& T_M_P, const Eigen::Isometry3d& T_M_C_init,
-                            const IcpConfig& config, const PhotometricInput* photometric) {
+                            const IcpConfig& config, const PhotometricInput* photometric,
+                            const Eigen::Isometry3d* T_M_previous) {
     PLUMB_CHECK(!frame.levels.empty() && frame.levels.size() == model.size())
         << "frame has " << frame.levels.size() << " levels, model " << model.size();
     const PhotometricInput* ph = nullptr;
@@ -520,7 +522,8 @@ IcpResult alignFrameToModel(const FramePyramid& frame, const std::vector<ModelLe
             ph = photometric;
         }
     }
-    IcpResult result = align(frame, model, T_M_P, T_M_C_init, config, ph);
+    const Eigen::Isometry3d& T_M_moved_from = T_M_previous != nullptr ? *T_M_previous : T_M_P;
+    IcpResult result = align(frame, model, T_M_P, T_M_C_init, T_M_moved_from, config, ph);
     if (ph != nullptr && result.photometric.inlier_fraction < ph->config.min_inlier_fraction) {
         // The image disagrees with itself (exposure jump, blur, moving objects): depth only.
         PhotometricStats stats = result.photometric;
@@ -529,7 +532,7 @@ IcpResult alignFrameToModel(const FramePyramid& frame, const std::vector<ModelLe
         fallback = std::string("photometric term rejected: ") + pct + " of " +
                    std::to_string(stats.num_visible) +
                    " reference points agree (exposure change, blur or motion)";
-        result = align(frame, model, T_M_P, T_M_C_init, config, nullptr);
+        result = align(frame, model, T_M_P, T_M_C_init, T_M_moved_from, config, nullptr);
         result.photometric = stats;
         result.photometric.used = false;
     } else if (photometric != nullptr && photometric->reference != nullptr && ph == nullptr) {

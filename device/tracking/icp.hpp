@@ -34,9 +34,10 @@ struct IcpConfig {
     double min_update_norm = 1e-5;
     /// Failure: fewer inliers than this fraction of the valid frame pixels (finest level).
     double min_inlier_fraction = 0.15;
-    /// Failure: the pose moved further than this from the model pose, metres.
+    /// Failure: the pose moved further than this from the previous camera (the model pose when
+    /// none is given), metres.
     double max_translation_m = 0.10;
-    /// Failure: the pose rotated more than this from the model pose, degrees.
+    /// Failure: the pose rotated more than this from the previous camera, degrees.
     double max_rotation_deg = 10.0;
     /// Eigen-directions of J^T J whose eigenvalue divided by the inlier count is below this are
     /// not updated from the data. Along a constrained translation t it is the mean of (n.t)^2
@@ -150,8 +151,13 @@ struct IcpResult {
 /// constrains. The frame falls back to depth only (PhotometricStats::fallback says why) when the
 /// reference has fewer than min_points textured pixels, or when at the final pose fewer than
 /// min_inlier_fraction of its visible points agree (then the alignment is redone without it).
+///
+/// `T_M_previous` (optional) is the last tracked camera: the implausible-motion tests
+/// (max_translation_m, max_rotation_deg) measure from it, else from T_M_P, which for a model
+/// reused over several frames lies that many frames back.
 IcpResult alignFrameToModel(const FramePyramid& frame, const std::vector<ModelLevel>& model,
                             const Eigen::Isometry3d& T_M_P, const Eigen::Isometry3d& T_M_C_init,
-                            const IcpConfig& config, const PhotometricInput* photometric = nullptr);
+                            const IcpConfig& config, const PhotometricInput* photometric = nullptr,
+                            const Eigen::Isometry3d* T_M_previous = nullptr);
 
 }  // namespace plumb::device

@@ -25,22 +25,27 @@ Image<float> gaussianBlur(const Image<float>& in, float sigma_px, int num_thread
     for (float& w : k) w /= sum;
     const int w = in.width(), h = in.height();
     Image<float> tmp(w, h), out(w, h);
+    // Each output pixel sums k[i] * sample over i = 0 .. 2 radius in that order, the samples
+    // clamped to the image; the loops run over whole rows per tap so that they vectorise.
+    const int lo = std::min(radius, w), hi = std::max(lo, w - radius);  // [lo, hi): no clamping
     parallelFor(num_threads, h, [&](int v) {
-        for (int u = 0; u < w; ++u) {
-            float s = 0.0f;
-            for (int i = -radius; i <= radius; ++i) {
-                s += k[static_cast<size_t>(i + radius)] * in(std::clamp(u + i, 0, w - 1), v);
-            }
-            tmp(u, v) = s;
+        const float* src = &in(0, v);
+        float* dst = &tmp(0, v);
+        for (int u = 0; u < w; ++u) dst[u] = 0.0f;
+        for (int i = -radius; i <= radius; ++i) {
+            const float ki = k[static_cast<size_t>(i + radius)];
+            for (int u = lo; u < hi; ++u) dst[u] += ki * src[u + i];
+            for (int u = 0; u < lo; ++u) dst[u] += ki * src[std::clamp(u + i, 0, w - 1)];
+            for (int u = hi; u < w; ++u) dst[u] += ki * src[std::clamp(u + i, 0, w - 1)];
         }
     });
     parallelFor(num_threads, h, [&](int v) {
-        for (int u = 0; u < w; ++u) {
-            float s = 0.0f;
-            for (int i = -radius; i <= radius; ++i) {
-                s += k[static_cast<size_t>(i + radius)] * tmp(u, std::clamp(v + i, 0, h - 1));
-            }
-            out(u, v) = s;
+        float* dst = &out(0, v);
+        for (int u = 0; u < w; ++u) dst[u] = 0.0f;
+        for (int i = -radius; i <= radius; ++i) {
+            const float ki = k[static_cast<size_t>(i + radius)];
+            const float* src = &tmp(0, std::clamp(v + i, 0, h - 1));
+            for (int u = 0; u < w; ++u) dst[u] += ki * src[u];
         }
     });
     return out;
@@ -192,7 +197,7 @@ std::vector<IntensityLevel> buildIntensityPyramid(const ColourImage& colour,
 
 PhotometricReference selectReference(const FramePyramid& frame,
                                      const std::vector<IntensityLevel>& intensity,
-                                     const PhotometricConfig& config) {
+                                     const PhotometricConfig& config, int num_threads) {
     PLUMB_CHECK(intensity.size() == frame.levels.size())
         << intensity.size() << " intensity levels for " << frame.levels.size() << " depth levels";
     PhotometricReference ref;
@@ -202,16 +207,27 @@ PhotometricReference selectReference(const FramePyramid& frame,
     for (size_t l = 0; l < frame.levels.size(); ++l) {
         const PyramidLevel& depth = frame.levels[l];
         const IntensityLevel& I = intensity[l];
-        std::vector<size_t> selected;
         const int w = depth.depth.width(), h = depth.depth.height();
-        // One pixel border: its gradient is one-sided.
-        for (int v = 1; v + 1 < h; ++v) {
-            for (int u = 1; u + 1 < w; ++u) {
-                if (!tsdf::isValid(depth.points_C(u, v))) continue;
-                const float gu = I.grad_u(u, v), gv = I.grad_v(u, v);
-                if (gu * gu + gv * gv < min_g2) continue;
-                selected.push_back(static_cast<size_t>(v) * w + u);
+        // One pixel border: its gradient is one-sided. Fixed chunks of rows, joined in row
+        // order: raster order whatever the thread count.
+        constexpr int kRowsPerChunk = 16;
+        const int num_chunks = (h + kRowsPerChunk - 1) / kRowsPerChunk;
+        std::vector<std::vector<size_t>> chunks(static_cast<size_t>(num_chunks));
+        parallelFor(num_threads, num_chunks, [&](int c) {
+            std::vector<size_t>& chunk = chunks[static_cast<size_t>(c)];
+            const int v_end = std::min(h - 1, (c + 1) * kRowsPerChunk);
+            for (int v = std::max(1, c * kRowsPerChunk); v < v_end; ++v) {
+                for (int u = 1; u + 1 < w; ++u) {
+                    if (!tsdf::isValid(depth.points_C(u, v))) continue;
+                    const float gu = I.grad_u(u, v), gv = I.grad_v(u, v);
+                    if (gu * gu + gv * gv < min_g2) continue;
+                    chunk.push_back(static_cast<size_t>(v) * w + u);
+                }
             }
+        });
+        std::vector<size_t> selected;
+        for (const std::vector<size_t>& chunk : chunks) {
+            selected.insert(selected.end(), chunk.begin(), chunk.end());
         }
         if (l == 0) ref.num_selected = selected.size();
         // Thin evenly to max_points: every (n / max_points)-th pixel in raster order.

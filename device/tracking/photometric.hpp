@@ -105,10 +105,11 @@ struct PhotometricReference {
 };
 
 /// Selects the reference points of a tracked frame: pixels with a valid depth point and
-/// |grad I| >= min_gradient, at most max_points per level.
+/// |grad I| >= min_gradient, at most max_points per level. `num_threads` workers (0 = TBB
+/// default); the result does not depend on it.
 PhotometricReference selectReference(const FramePyramid& frame,
                                      const std::vector<IntensityLevel>& intensity,
-                                     const PhotometricConfig& config);
+                                     const PhotometricConfig& config, int num_threads = 0);
 
 /// Affine brightness of the current frame against the reference: I_R ~ a I_C + b.
 struct Brightness {

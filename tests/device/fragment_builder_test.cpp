@@ -37,14 +37,14 @@ struct ScanRun {
 /// Feeds frames 0..n-1; `depth_of(k)` gives frame k's depth (default: the room from the
 /// hand-held pose, noisy when `noise`).
 ScanRun run(const FusionConfig& config, int n, bool noise,
-            const std::function<DepthImage(int)>& depth_of = nullptr) {
+            const std::function<DepthImage(int)>& depth_of = nullptr, double rate_hz = 30.0) {
     const testing::Scene room = testing::boxRoom();
     FragmentBuilder builder(camera(), config);
     ScanRun out;
     for (int k = 0; k < n; ++k) {
         Frame frame;
         frame.index = k;
-        frame.timestamp_s = k / 30.0;
+        frame.timestamp_s = rate_hz > 0.0 ? k / rate_hz : 0.0;
         frame.depth = depth_of ? depth_of(k)
                                : room.render(camera(), testing::handheldPose(k),
                                              noise ? static_cast<uint64_t>(k + 1) : 0);
@@ -208,6 +208,45 @@ TEST(FragmentBuilder, BlockBudgetClosesFragmentsWithoutDroppingFrames) {
     const Eigen::Isometry3d err =
         testing::handheldPose(static_cast<int>(last.frames[0].frame_index)).inverse() * last.T_W_F;
     EXPECT_LT(err.translation().norm(), 0.01);
+}
+
+TEST(FragmentBuilder, FramesFasterThanTheIntegrationRateAreTrackedAndEveryOtherOneFused) {
+    // 60 Hz timestamps with max_integration_hz = 30: every frame is tracked and kept in its
+    // fragment, every other one fused (a fragment's first frame always is). Without timestamps,
+    // or at 30 Hz, every frame is fused.
+    const FusionConfig config = fusionConfig();
+    const ScanRun fast = run(config, 60, false, nullptr, 60.0);
+    ASSERT_EQ(fast.reports.size(), 60u);
+    size_t fused = 0, frames = 0;
+    for (const FrameReport& rep : fast.reports) {
+        EXPECT_TRUE(rep.tracked) << rep.frame_index << ": " << rep.message;
+        fused += rep.integrated;
+    }
+    for (const Fragment& f : fast.fragments) frames += f.frames.size();
+    EXPECT_EQ(frames, 60u);
+    EXPECT_GE(fused, 30u);
+    EXPECT_LE(fused, 32u);
+    for (size_t k = 1; k < fast.reports.size(); ++k) {
+        EXPECT_FALSE(fast.reports[k].integrated && fast.reports[k - 1].integrated && k % 50 != 0)
+            << "frames " << k - 1 << " and " << k << " both fused";
+    }
+    double t_err = 0.0, r_err = 0.0;
+    const Fragment& first = fast.fragments.front();
+    driftOf(first, first.frames.size() - 1, &t_err, &r_err);
+    EXPECT_LT(t_err, 0.006);
+    EXPECT_LT(r_err, 0.2 * kDeg);
+
+    for (const double rate : {30.0, 0.0}) {
+        const ScanRun every = run(config, 20, false, nullptr, rate);
+        for (const FrameReport& rep : every.reports) {
+            EXPECT_TRUE(rep.integrated) << rate << " Hz, frame " << rep.frame_index;
+        }
+    }
+    FusionConfig all = config;
+    all.max_integration_hz = 0.0;
+    for (const FrameReport& rep : run(all, 20, false, nullptr, 60.0).reports) {
+        EXPECT_TRUE(rep.integrated) << "frame " << rep.frame_index;
+    }
 }
 
 /// Eigenvalues (ascending) and eigenvectors of the translation block of an information matrix.

@@ -71,11 +71,13 @@ constexpr const char* kUsage =
     "  --intrinsics PRESET  camera preset of the simulated sensor (default primesense,\n"
     "                 640x480; qvga: 320x240, OpenNI2's 60 Hz mode)\n"
     "  --sensor-hz HZ  frame rate of that camera the device must keep up with (default 30,\n"
-    "                 60 for a 320x240 preset): sets the per-frame budget and the fraction\n"
-    "                 of the camera's frames a live device would process\n"
+    "                 60 for a 320x240 preset): sets the per-frame budget, the fraction\n"
+    "                 of the camera's frames a live device would process, and the\n"
+    "                 simulated motion between frames (the hand moves as fast at any rate)\n"
     "  --fragment N   frames per fragment (default 50; the volumes restart every N frames)\n"
-    "  --model-level L  pyramid level the tracking model is raycast at (default: the\n"
-    "                 fusion config's default)\n"
+    "  --model-level L  pyramid level the tracking model is raycast at, with and\n"
+    "                 without colour (default: the fusion config's model_level and\n"
+    "                 model_level_rgbd)\n"
     "  --repeat N     integration passes over the frames for the integration-only figures\n"
     "                 (default 2; the median over all is reported)\n"
     "  --set KEY=VALUE  a fusion setting for the pipeline run, as `plumb fuse --set` takes\n"
@@ -87,7 +89,7 @@ struct BenchOptions {
     int threads = 2;
     int fragment = 50;
     int repeat = 2;
-    int model_level = plumb::device::FusionConfig{}.model_level;
+    int model_level = -1;  // -1: the fusion config's defaults
     std::string scene = "living_room";
     std::string noise = "redwood";
     std::string intrinsics = "primesense";
@@ -155,6 +157,7 @@ std::optional<int> renderFrames(BenchOptions* o, Rendered* out) {
     }
     sc.camera = preset.value();
     if (o->sensor_hz <= 0.0) o->sensor_hz = sc.camera.width <= 320 ? 60.0 : 30.0;
+    sc.trajectory.rate_hz = o->sensor_hz;  // the hand moves as far between frames as at that rate
     if (const plumb::Status s = plumb::sim::parseNoiseMode(o->noise, &sc.noise); !s.isOk()) {
         std::fprintf(stderr, "plumb-bench-fusion: %s\n", s.toString().c_str());
         return 2;
@@ -205,7 +208,7 @@ bool runPipeline(const plumb::PinholeCamera& camera, const plumb::device::Fusion
         run->preprocess_ms.push_back(r->timing.preprocess_ms);
         if (r->timing.track_ms > 0.0) run->track_ms.push_back(r->timing.track_ms);
         if (r->timing.raycast_ms > 0.0) run->raycast_ms.push_back(r->timing.raycast_ms);
-        run->integrate_ms.push_back(r->timing.integrate_ms);
+        if (r->integrated) run->integrate_ms.push_back(r->timing.integrate_ms);
         run->extract_ms.push_back(r->timing.extract_ms);
         run->tracking_failures += r->tracked ? 0 : 1;
         run->photometric_frames += r->icp.photometric.used ? 1 : 0;
@@ -365,11 +368,13 @@ void printReport(const BenchOptions& o, const Rendered& in, const plumb::tsdf::T
         std::printf(
             "with colour (RGB-D tracking, coloured fusion; %zu of %zu frames tracked with the "
             "photometric term, %zu tracking failures): preprocess median %.2f ms, track median "
-            "%.2f ms, integrate median %.2f ms, whole frame median %.2f ms: %+.1f %% against "
-            "depth only\n",
+            "%.2f ms (%zu model raycasts, median %.2f ms), integrate median %.2f ms (%zu frames "
+            "fused), whole frame median %.2f ms: %+.1f %% against depth only\n",
             colour_run.photometric_frames, in.frames.size(), colour_run.tracking_failures,
             median(colour_run.preprocess_ms), median(colour_run.track_ms),
-            median(colour_run.integrate_ms), colour_frame, 100.0 * colour_overhead);
+            colour_run.raycast_ms.size(), median(colour_run.raycast_ms),
+            median(colour_run.integrate_ms), colour_run.integrate_ms.size(), colour_frame,
+            100.0 * colour_overhead);
     } else {
         std::printf("the frames have no colour: no RGB-D figures\n");
     }
@@ -394,14 +399,17 @@ void printReport(const BenchOptions& o, const Rendered& in, const plumb::tsdf::T
         "\"threads\":%d,\"frame_cpu_ms\":%.3f,\"integrate_cpu_ms\":%.3f,"
         "\"open3d_integrate_cpu_ms\":%.3f,\"track_mean_ms\":%.3f,\"raycast_ms\":%.3f,"
         "\"icp_iterations\":%.2f,\"colour_frame_ms\":%.3f,\"colour_preprocess_ms\":%.3f,"
-        "\"colour_track_ms\":%.3f,\"colour_integrate_ms\":%.3f,\"colour_overhead\":%.4f}\n",
+        "\"colour_track_ms\":%.3f,\"colour_integrate_ms\":%.3f,\"colour_overhead\":%.4f,"
+        "\"colour_fused_fraction\":%.3f}\n",
         o.intrinsics.c_str(), camera.width, camera.height, o.sensor_hz, budget_ms,
         median(device_run.frame_ms), device_mean_ms, device_run.cpu_ms, processed_fraction,
         median(colour_run.raycast_ms), colour_run.cpu_ms, integrate, track, frame, o3d.ms, ratio,
         median(depth_run.preprocess_ms), mean(depth_run.frame_ms), in.frames.size(), o.threads,
         depth_run.cpu_ms, ours.cpu_ms, o3d.cpu_ms, mean(depth_run.track_ms),
         median(depth_run.raycast_ms), icp_per_frame, colour_frame, median(colour_run.preprocess_ms),
-        median(colour_run.track_ms), median(colour_run.integrate_ms), colour_overhead);
+        median(colour_run.track_ms), median(colour_run.integrate_ms), colour_overhead,
+        static_cast<double>(colour_run.integrate_ms.size()) /
+            static_cast<double>(std::max<size_t>(1, in.frames.size())));
 }
 
 }  // namespace
@@ -418,7 +426,7 @@ int main(int argc, char** argv) {
 
     plumb::device::FusionConfig config;
     config.frames_per_fragment = o.fragment;
-    config.model_level = o.model_level;
+    if (o.model_level >= 0) config.model_level = config.model_level_rgbd = o.model_level;
     config.tsdf.voxel_size_m = 3.0f / 512.0f;
     config.tsdf.truncation_m = 0.04f;
     config.tsdf.num_threads = o.threads;

@@ -70,7 +70,9 @@ constexpr const char* kUsage =
     "                      segment's first fragment), errors against ground truth\n"
     "  fragments.json      summary: status (complete or interrupted), source, timing,\n"
     "                      per-fragment figures, frames_photometric (tracked RGB-D),\n"
-    "                      frames_depth_only and depth_only_reasons, processed_fraction\n"
+    "                      frames_depth_only and depth_only_reasons, frames_tracked_only\n"
+    "                      (tracked, not fused: a camera faster than\n"
+    "                      fusion.max_integration_hz), processed_fraction\n"
     "                      (frames fused of those read: --frame-step), live (sensor_hz from\n"
     "                      the timestamps, keeps_fraction: the share of the camera's frames a\n"
     "                      live device as fast as this run would process)\n"
@@ -128,7 +130,7 @@ constexpr const char* kCommand = "fuse";
 
 /// The checkpoint of an interrupted run: DIR/resume/fuse_state.bin.
 constexpr uint32_t kCheckpointMagic = 0x46465250u;  // "PRFF"
-constexpr uint32_t kCheckpointVersion = 1;
+constexpr uint32_t kCheckpointVersion = 2;
 constexpr int64_t kMaxCheckpointBytes = int64_t{1} << 34;
 
 struct FuseOptions {
@@ -311,6 +313,8 @@ struct FuseTally {
     std::map<int64_t, std::string> depth_only;
     uint64_t frames_photometric = 0;
     std::map<std::string, uint64_t> depth_only_kinds;
+    /// Frames tracked but not fused (fusion.max_integration_hz).
+    uint64_t frames_tracked_only = 0;
 
     void save(io::StateWriter& w) const;
     bool load(io::StateReader& r);
@@ -333,7 +337,7 @@ void FuseTally::save(io::StateWriter& w) const {
     w.array(nlohmann::json::to_cbor(fragment_list));
     for (const std::vector<double>* v : {&ates, &drifts_m, &drifts_deg, &medians}) w.array(*v);
     for (uint64_t n : {positions, read, kept, frames, lost, relocalised, segments_started, budget,
-                       frames_unconstrained, frames_photometric}) {
+                       frames_unconstrained, frames_photometric, frames_tracked_only}) {
         w.value(n);
     }
     w.value(process_s);
@@ -385,8 +389,9 @@ bool FuseTally::load(io::StateReader& r) {
     for (std::vector<double>* v : {&ates, &drifts_m, &drifts_deg, &medians}) {
         if (!r.array(v)) return false;
     }
-    for (uint64_t* c : {&positions, &read, &kept, &frames, &lost, &relocalised, &segments_started,
-                        &budget, &frames_unconstrained, &frames_photometric}) {
+    for (uint64_t* c :
+         {&positions, &read, &kept, &frames, &lost, &relocalised, &segments_started, &budget,
+          &frames_unconstrained, &frames_photometric, &frames_tracked_only}) {
         if (!r.value(c)) return false;
     }
     if (!r.value(&process_s) || !loadStamp(r, &first_stamp) || !loadStamp(r, &last_stamp)) {
@@ -420,7 +425,10 @@ class FuseRun {
     /// `gt_surface_W`: the true surface, to measure fragments against (nullptr: none).
     FuseRun(const FuseOptions& o, const PinholeCamera& camera, const device::FusionConfig& cfg,
             const PointCloud* gt_surface_W)
-        : o_(o), builder_(camera, cfg), gt_surface_W_(gt_surface_W) {}
+        : o_(o),
+          max_integration_hz_(cfg.max_integration_hz),
+          builder_(camera, cfg),
+          gt_surface_W_(gt_surface_W) {}
 
     /// Tracks and fuses the frames of `source` until it ends (true; the last fragment written)
     /// or `stop` returns true at a frame boundary (false). Fails for unusable input or a file
@@ -453,6 +461,7 @@ class FuseRun {
     std::filesystem::path checkpointPath() const { return o_.out / "resume" / "fuse_state.bin"; }
 
     const FuseOptions& o_;
+    double max_integration_hz_;  ///< fusion.max_integration_hz, for the summary
     device::FragmentBuilder builder_;
     const PointCloud* gt_surface_W_;
     FuseTally t_;
@@ -542,6 +551,7 @@ void FuseRun::noteReport(const device::FrameReport& report, const Frame& frame) 
         t_.unconstrained[report.frame_index] = report.icp.num_degenerate_directions;
     }
     if (report.tracked && report.icp.photometric.used) ++t_.frames_photometric;
+    if (report.tracked_only) ++t_.frames_tracked_only;
     if (report.tracked && !report.icp.photometric.fallback.empty()) {
         const std::string& why = report.icp.photometric.fallback;
         t_.depth_only[report.frame_index] = why;
@@ -631,6 +641,7 @@ std::pair<nlohmann::json, std::string> FuseRun::summary(
     summary["frames_tracking_failed"] = t_.lost;
     summary["frames_unconstrained"] = t_.frames_unconstrained;
     summary["frames_photometric"] = t_.frames_photometric;
+    summary["frames_tracked_only"] = t_.frames_tracked_only;
     uint64_t frames_depth_only = 0;
     for (const auto& [kind, n] : t_.depth_only_kinds) {
         summary["depth_only_reasons"][kind] = n;
@@ -703,6 +714,12 @@ std::pair<nlohmann::json, std::string> FuseRun::summary(
         if (!kinds.empty()) kinds += ")";
         gt_text += fmt::format("; colour: {} frames tracked RGB-D, {} by depth only{}",
                                t_.frames_photometric, frames_depth_only, kinds);
+    }
+    if (t_.frames_tracked_only > 0) {
+        gt_text += fmt::format(
+            "; {} frames tracked but not fused (fused at most about {} times a second: "
+            "fusion.max_integration_hz)",
+            t_.frames_tracked_only, max_integration_hz_);
     }
     std::string text =
         fmt::format("{} frames -> {} fragments in {}, {:.1f} ms/frame{}{}", t_.frames,
