@@ -148,8 +148,8 @@ void describe(config::Schema& s, FusionConfig& c) {
         .range(0, 4);
     s.field("min_model_width_px", c.min_model_width_px,
             "the model is cast no coarser than the finest level at least this wide, whatever "
-            "model_level and model_level_rgbd ask (640x480 casts at 320x240, 320x240 at 160x120, "
-            "160x120 at full resolution)",
+            "model_level and model_level_rgbd ask (640x480 casts at 320x240, 320x240 at full "
+            "resolution)",
             "px")
         .min(1);
     s.field("raycast_from_last_depth", c.raycast_from_last_depth,

@@ -717,9 +717,9 @@ std::pair<nlohmann::json, std::string> FuseRun::summary(
     }
     if (t_.frames_tracked_only > 0) {
         gt_text += fmt::format(
-            "; {} frames tracked but not fused (fused at most about {} times a second: "
+            "; {} frame{} tracked but not fused (fused at most about {} times a second: "
             "fusion.max_integration_hz)",
-            t_.frames_tracked_only, max_integration_hz_);
+            t_.frames_tracked_only, t_.frames_tracked_only == 1 ? "" : "s", max_integration_hz_);
     }
     std::string text =
         fmt::format("{} frames -> {} fragments in {}, {:.1f} ms/frame{}{}", t_.frames,
