@@ -43,11 +43,13 @@ set(ENV{PKG_CONFIG_LIBDIR}
 set(ENV{PKG_CONFIG_SYSROOT_DIR} "${AARCH64_TARGET_ROOT}")
 set(ENV{PKG_CONFIG_PATH} "")
 
-# Headers of the target root after the compiler's own; shared libraries' dependencies resolved
-# in the target root at link time.
+# Headers of the target root after the compiler's own, its multiarch directory first (OpenSSL's
+# opensslconf.h and configuration.h live in usr/include/aarch64-linux-gnu); shared libraries'
+# dependencies resolved in the target root at link time.
 set(_lib "${AARCH64_TARGET_ROOT}/usr/lib/aarch64-linux-gnu")
-set(CMAKE_C_STANDARD_INCLUDE_DIRECTORIES "${AARCH64_TARGET_ROOT}/usr/include")
-set(CMAKE_CXX_STANDARD_INCLUDE_DIRECTORIES "${AARCH64_TARGET_ROOT}/usr/include")
+set(_include "${AARCH64_TARGET_ROOT}/usr/include/aarch64-linux-gnu;${AARCH64_TARGET_ROOT}/usr/include")
+set(CMAKE_C_STANDARD_INCLUDE_DIRECTORIES "${_include}")
+set(CMAKE_CXX_STANDARD_INCLUDE_DIRECTORIES "${_include}")
 foreach(kind EXE SHARED MODULE)
     set(CMAKE_${kind}_LINKER_FLAGS_INIT
         "-L${_lib} -Wl,-rpath-link,${_lib} -Wl,-rpath-link,${AARCH64_TARGET_ROOT}/lib/aarch64-linux-gnu")
