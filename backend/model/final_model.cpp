@@ -24,6 +24,8 @@ Status FinalModelConfig::validate() const {
                         truncation_m, 2.0 * voxel_size_m));
     if (!(max_depth_m > 0.0)) return invalidArgument("final_model.max_depth_m must be positive");
     if (frame_stride < 1) return invalidArgument("final_model.frame_stride must be >= 1");
+    if (allocation_stride_px < 1 || allocation_stride_px > 8)
+        return invalidArgument("final_model.allocation_stride_px must be in [1, 8]");
     if (splat_radius_px < 0 || splat_radius_px > 8)
         return invalidArgument("final_model.splat_radius_px must be in [0, 8]");
     return Status::ok();
@@ -39,6 +41,9 @@ void describe(config::Schema& s, FinalModelConfig& c) {
             "integrate every k-th frame (1 = all); raw frames in between are skipped unread where "
             "the source allows (datasets, the simulator)")
         .min(1);
+    s.field("allocation_stride_px", c.allocation_stride_px,
+            "pixel stride of block allocation (1 = every pixel)", "px")
+        .range(1, 8);
     s.field("min_weight", c.min_weight, "voxels observed fewer times are not meshed").min(0.0);
     s.field("splat_radius_px", c.splat_radius_px,
             "splat radius when rendering fragment points into synthetic depth frames", "px")
@@ -109,6 +114,7 @@ tsdf::TsdfConfig volumeConfig(const FinalModelConfig& config) {
     c.voxel_size_m = static_cast<float>(config.voxel_size_m);
     c.truncation_m = static_cast<float>(config.truncation_m);
     c.max_depth_m = static_cast<float>(config.max_depth_m);
+    c.allocation_stride_px = config.allocation_stride_px;
     c.num_threads = config.num_threads;
     return c;
 }

@@ -42,6 +42,10 @@ struct FinalModelConfig {
     /// without being decoded or rendered where the source allows (FrameSource::skip). Larger
     /// strides trade reconstruction error for time; the default keeps every frame.
     int frame_stride = 1;
+    /// Pixel stride of block allocation. The final volume's blocks are 8 cm wide, where a pixel
+    /// spans 2 to 8 mm at 1 to 4 m: every fourth pixel still samples each block the surface
+    /// passes through, and the allocation walk costs a quarter of every pixel's.
+    int allocation_stride_px = 4;
     /// Voxels observed fewer times are not meshed.
     double min_weight = 1.0;
     /// Splat radius (pixels) when rendering fragment points into synthetic depth frames.

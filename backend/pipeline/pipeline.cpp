@@ -19,6 +19,7 @@
 #include "backend/report/report_html.hpp"
 #include "backend/report/stage_timer.hpp"
 #include "common/core/logging.hpp"
+#include "common/core/parallel.hpp"
 #include "common/core/progress.hpp"
 #include "common/io/ply.hpp"
 #include "common/io/text_file.hpp"
@@ -32,6 +33,10 @@ namespace fs = std::filesystem;
 void describe(config::Schema& s, LayoutStageConfig& c) {
     s.section("planes", c.planes, "per-fragment planes: supervoxels, T-linkage, graph cuts");
     s.section("estimate", c.estimate, "dominant planes, base plane, walls, weak Manhattan");
+    s.field("num_threads", c.num_threads,
+            "fragments whose planes are extracted side by side (0 = all cores); results do not "
+            "depend on it")
+        .min(0);
 }
 
 void describe(config::Schema& s, PipelineConfig& c) {
@@ -126,6 +131,7 @@ nlohmann::json edgeSummary(const registration::RegistrationOutcome& outcome) {
             {"rejected_edges", rejected},
             {"loop_pairs_tried", s.loop_pairs_tried},
             {"loop_pairs_skipped", s.loop_pairs_skipped},
+            {"ransac_runs", s.ransac_runs},
             {"ransac_failed", s.ransac_failed},
             {"overlap_rejected", s.overlap_rejected},
             {"rotation_rejected", s.rotation_rejected},
@@ -144,41 +150,50 @@ Result<std::vector<registration::PreparedFragment>> prepareAll(
     const std::vector<Fragment>& fragments, const registration::PrepareConfig& config,
     bool show_progress) {
     std::vector<registration::PreparedFragment> prepared(fragments.size());
+    std::vector<Status> status(fragments.size());
     Progress progress("preparing fragments", fragments.size(), progressOptions(show_progress));
-    for (size_t i = 0; i < fragments.size(); ++i) {
+    // Fragments side by side (each also parallel inside; results do not depend on either).
+    parallelFor(config.num_threads, fragments.size(), [&](size_t i) {
         Result<registration::PreparedFragment> p =
             registration::prepareFragment(fragments[i], config);
-        if (!p.isOk()) return prefixed(p.status(), fmt::format("preparing fragment {}", i));
-        prepared[i] = std::move(*p);
+        if (p.isOk()) {
+            prepared[i] = std::move(*p);
+        } else {
+            status[i] = prefixed(p.status(), fmt::format("preparing fragment {}", i));
+        }
         progress.advance();
-    }
+    });
     progress.finish();
+    for (const Status& s : status) PLUMB_RETURN_IF_ERROR(s);
     return prepared;
 }
 
 /// Step 3 (§3.2): every fragment's planes (supervoxels, T-linkage, graph cuts).
-Result<std::vector<layout::FragmentPlanes>> extractAllPlanes(
-    const std::vector<Fragment>& fragments, const layout::FragmentPlaneConfig& config,
-    bool show_progress) {
+Result<std::vector<layout::FragmentPlanes>> extractAllPlanes(const std::vector<Fragment>& fragments,
+                                                             const LayoutStageConfig& config,
+                                                             bool show_progress) {
     std::vector<layout::FragmentPlanes> planes(fragments.size());
+    std::vector<Status> status(fragments.size());
     Progress progress("extracting fragment planes", fragments.size(),
                       progressOptions(show_progress));
-    for (size_t i = 0; i < fragments.size(); ++i) {
+    parallelFor(config.num_threads, fragments.size(), [&](size_t i) {
         if (fragments[i].points_F.empty()) {
             // A fragment closed by lost tracking may hold no surface: it has no planes, and the
             // layout is estimated from the others.
             log::warn("fragment {} has no points; it contributes no planes to the layout",
                       fragments[i].id);
             planes[i].fragment_id = fragments[i].id;
-            progress.advance();
-            continue;
+        } else if (Result<layout::FragmentPlanes> p =
+                       layout::extractFragmentPlanes(fragments[i], config.planes);
+                   p.isOk()) {
+            planes[i] = std::move(*p);
+        } else {
+            status[i] = prefixed(p.status(), fmt::format("planes of fragment {}", i));
         }
-        Result<layout::FragmentPlanes> p = layout::extractFragmentPlanes(fragments[i], config);
-        if (!p.isOk()) return prefixed(p.status(), fmt::format("planes of fragment {}", i));
-        planes[i] = std::move(*p);
         progress.advance();
-    }
+    });
     progress.finish();
+    for (const Status& s : status) PLUMB_RETURN_IF_ERROR(s);
     return planes;
 }
 
@@ -486,7 +501,7 @@ Result<PipelineResult> runPipeline(const PipelineInput& input, const PipelineCon
     {
         auto scope = timer.scope("per-fragment planes (supervoxels, T-linkage, graph cuts)");
         Result<std::vector<layout::FragmentPlanes>> p =
-            extractAllPlanes(fragments, config.layout.planes, show_progress);
+            extractAllPlanes(fragments, config.layout, show_progress);
         if (!p.isOk()) return p.status();
         planes = std::move(*p);
     }

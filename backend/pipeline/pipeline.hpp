@@ -49,6 +49,9 @@ namespace plumb::backend {
 struct LayoutStageConfig {
     layout::FragmentPlaneConfig planes;
     layout::LayoutConfig estimate;
+    /// Fragments whose planes are extracted side by side (0 = all cores). Each fragment's
+    /// extraction is serial and independent of the others: results do not depend on it.
+    int num_threads = 0;
 };
 void describe(config::Schema& s, LayoutStageConfig& c);
 

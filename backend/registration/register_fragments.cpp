@@ -50,6 +50,9 @@ void describe(config::Schema& s, RegistrationConfig& c) {
     s.field("loop_icp_iterations", c.loop_icp_iterations,
             "coarse ICP iterations when verifying a RANSAC loop candidate")
         .min(1);
+    s.field("ransac_only_when_unguided", c.ransac_only_when_unguided,
+            "within a tracking segment, FPFH + RANSAC runs only when no odometry-guided start "
+            "passes the overlap test in agreement with the odometry");
     s.field("candidate_drift_sigmas", c.candidate_drift_sigmas,
             "offline, pairs of one tracking segment are registered only when min_overlap of the "
             "smaller fragment lies within tau + this many deviations of the drift prior of the "
@@ -232,29 +235,24 @@ bool withinWindow(const Eigen::Vector3d& c, const Eigen::Isometry3d& T,
            (T * c - T_odo * c).cwiseAbs().maxCoeff() <= g.radius_m + g.bin_m;
 }
 
-/// Loop-closure candidate (s, t). Starting alignments: FPFH + RANSAC's and, for a pair of one
-/// tracking segment (`T_odo` set), the odometry-guided search's vote peaks. Each is refined by
-/// coarse ICP. Within a segment a candidate must agree with the odometry (turned by at most
-/// max_loop_rotation_deviation_deg, moved by at most guided.max_offset_sigmas deviations of the
-/// drift prior) and they are ranked by overlap times the prior; across segments by overlap. The
-/// best goes on to the overlap test and the multi-scale refinement.
+/// Loop-closure candidate (s, t). Starting alignments: for a pair of one tracking segment
+/// (`T_odo` set), the odometry-guided search's vote peaks, and FPFH + RANSAC's (only when no
+/// guided start passes, with c.ransac_only_when_unguided; before them otherwise, and alone across
+/// segments). Each is refined by coarse ICP. Within a segment a candidate must agree with the
+/// odometry (turned by at most max_loop_rotation_deviation_deg, moved by at most
+/// guided.max_offset_sigmas deviations of the drift prior) and they are ranked by overlap times
+/// the prior; across segments by overlap. The best goes on to the overlap test and the
+/// multi-scale refinement. `ransac_ran` (optional) is set when FPFH + RANSAC ran.
 LoopOutcome loopEdge(const FragmentIndex& s, const FragmentIndex& t, const RegistrationConfig& c,
-                     const std::optional<Eigen::Isometry3d>& T_odo, PoseGraphEdge* out) {
+                     const std::optional<Eigen::Isometry3d>& T_odo, PoseGraphEdge* out,
+                     bool* ransac_ran = nullptr) {
     struct Start {
         Eigen::Isometry3d T;
         const char* method;
         bool guided;
     };
-    std::vector<Start> starts;
     const Eigen::Vector3d centroid = centroidOf(t);
     const double sigma = odometryPriorSigma(c.guided, t.id > s.id ? t.id - s.id : s.id - t.id);
-    const PairResult ransac = ransacFeatureMatching(s, t, c.ransac, pairSeed(c.seed, s.id, t.id));
-    if (ransac.success) starts.push_back({ransac.T_source_target, "FPFH + RANSAC", false});
-    if (T_odo && c.guided.enabled) {
-        for (const GuidedCandidate& g : guidedCandidates(s, t, *T_odo, sigma, c.guided)) {
-            starts.push_back({g.T_source_target, "odometry-guided search", true});
-        }
-    }
     struct Verified {
         PairResult eval;
         const char* method = "";
@@ -264,7 +262,7 @@ LoopOutcome loopEdge(const FragmentIndex& s, const FragmentIndex& t, const Regis
         LoopOutcome outcome = LoopOutcome::kAccepted;  ///< kTurned / kMoved when it disagrees
     };
     std::optional<Verified> best, first;
-    for (const Start& start : starts) {
+    auto verify = [&](const Start& start) {
         Eigen::Isometry3d T = start.T;
         // A start turned from the odometry by more than twice the allowed deviation is not one
         // ICP turns back: it is verified where it is, and the odometry check rejects it.
@@ -279,7 +277,7 @@ LoopOutcome loopEdge(const FragmentIndex& s, const FragmentIndex& t, const Regis
         }
         // A guided start that ICP slid out of the search window (along a wall, most often) is
         // no longer what the votes found.
-        if (start.guided && !withinWindow(centroid, T, *T_odo, c.guided)) continue;
+        if (start.guided && !withinWindow(centroid, T, *T_odo, c.guided)) return;
         Verified v{evaluateAlignment(s, t, T, tauOf(c), c.icp.num_threads),
                    start.method,
                    start.guided,
@@ -307,8 +305,21 @@ LoopOutcome loopEdge(const FragmentIndex& s, const FragmentIndex& t, const Regis
             v.score *= std::exp(-0.5 * moved_m * moved_m / (sigma * sigma));
         }
         if (!first) first = v;
-        if (v.disagreement.empty() && (!best || v.score > best->score)) best = v;
+        if (v.disagreement.empty() && (!best || v.score > best->score)) best = std::move(v);
+    };
+    auto verifyRansac = [&]() {
+        if (ransac_ran != nullptr) *ransac_ran = true;
+        const PairResult r = ransacFeatureMatching(s, t, c.ransac, pairSeed(c.seed, s.id, t.id));
+        if (r.success) verify({r.T_source_target, "FPFH + RANSAC", false});
+    };
+    const bool guided = T_odo && c.guided.enabled;
+    const bool ransac_first = !guided || !c.ransac_only_when_unguided;
+    if (ransac_first) verifyRansac();
+    if (guided) {
+        for (const GuidedCandidate& g : guidedCandidates(s, t, *T_odo, sigma, c.guided))
+            verify({g.T_source_target, "odometry-guided search", true});
     }
+    if (!ransac_first && !(best && best->eval.overlap >= c.min_overlap)) verifyRansac();
     if (!first) return LoopOutcome::kRansacFailed;  // no start, or every guided start slid away
     PoseGraphEdge& e = *out;
     e.source = s.id;
@@ -554,6 +565,7 @@ PoseGraph buildPoseGraphWith(const std::vector<Fragment>& fragments,
         candidatePairs(fragments, idx, config, &skipped);
     std::vector<std::optional<PoseGraphEdge>> edges(pairs.size());
     std::vector<int> outcome(pairs.size(), 0);  // 0 odo ok, 1 odo icp failed, 2.. loop outcomes
+    std::vector<char> ransac_ran(pairs.size(), 0);
     detail::parallelFor(config.num_threads, pairs.size(), [&](size_t k) {
         const auto [i, j] = pairs[k];
         if (j == i + 1) {
@@ -562,9 +574,11 @@ PoseGraph buildPoseGraphWith(const std::vector<Fragment>& fragments,
             outcome[k] = failed ? 1 : 0;
         } else {
             PoseGraphEdge e;
-            const LoopOutcome o =
-                loopEdge(idx[i], idx[j], inner, odometryBetween(fragments[i], fragments[j]), &e);
+            bool ran = false;
+            const LoopOutcome o = loopEdge(idx[i], idx[j], inner,
+                                           odometryBetween(fragments[i], fragments[j]), &e, &ran);
             outcome[k] = 2 + static_cast<int>(o);
+            ransac_ran[k] = ran ? 1 : 0;
             if (o != LoopOutcome::kRansacFailed) edges[k] = std::move(e);
         }
         report(progress);
@@ -574,6 +588,7 @@ PoseGraph buildPoseGraphWith(const std::vector<Fragment>& fragments,
     PairStats stats;
     stats.loop_pairs_skipped = skipped;
     for (size_t k = 0; k < pairs.size(); ++k) {
+        stats.ransac_runs += ransac_ran[k];
         switch (outcome[k]) {
             case 0:
                 ++stats.odometry_pairs;
@@ -743,15 +758,19 @@ Status LiveRegistrar::addFragment(Fragment fragment) {
                   [](const auto& a, const auto& b) { return a.second < b.second; });
         std::vector<std::optional<PoseGraphEdge>> loops(scored.size());
         std::vector<LoopOutcome> outcomes(scored.size(), LoopOutcome::kRansacFailed);
+        std::vector<char> ransac_ran(scored.size(), 0);
         detail::parallelFor(config_.num_threads, scored.size(), [&](size_t c) {
             PoseGraphEdge e;
             const uint32_t j = scored[c].second;
-            outcomes[c] =
-                loopEdge(*index_[j], *index, inner, odometryBetween(fragments_[j], fragment), &e);
+            bool ran = false;
+            outcomes[c] = loopEdge(*index_[j], *index, inner,
+                                   odometryBetween(fragments_[j], fragment), &e, &ran);
+            ransac_ran[c] = ran ? 1 : 0;
             if (outcomes[c] != LoopOutcome::kRansacFailed) loops[c] = std::move(e);
         });
         for (size_t c = 0; c < scored.size(); ++c) {
             ++stats_.loop_pairs_tried;
+            stats_.ransac_runs += ransac_ran[c];
             if (outcomes[c] == LoopOutcome::kRansacFailed) ++stats_.ransac_failed;
             if (outcomes[c] == LoopOutcome::kRejected) ++stats_.overlap_rejected;
             if (outcomes[c] == LoopOutcome::kTurned) ++stats_.rotation_rejected;

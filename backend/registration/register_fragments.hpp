@@ -79,6 +79,11 @@ struct RegistrationConfig {
     double max_loop_rotation_deviation_deg = 30.0;
     /// ICP iterations at the coarsest level when verifying a RANSAC loop candidate.
     int loop_icp_iterations = 30;
+    /// Within a tracking segment the odometry-guided starts are verified first, and FPFH +
+    /// RANSAC (the feature matching is most of a pair's cost) runs only when none of them passes
+    /// the overlap test in agreement with the odometry. Off: RANSAC's start is verified beside
+    /// the guided ones for every pair. Pairs of different segments always use RANSAC.
+    bool ransac_only_when_unguided = true;
     /// Offline, a non-consecutive pair of one tracking segment is registered only when, at the
     /// odometry poses, at least min_overlap of the smaller fragment lies within
     /// τ + candidate_drift_sigmas × σ of the other, σ the drift prior's deviation for the pair
@@ -122,6 +127,9 @@ struct PairStats {
     int loop_pairs_tried = 0;
     int loop_pairs_skipped = 0;  ///< could not overlap at the odometry (candidate_drift_sigmas)
     int ransac_failed = 0;
+    /// Loop pairs whose FPFH + RANSAC ran (the others were settled by the odometry-guided
+    /// search: RegistrationConfig::ransac_only_when_unguided).
+    int ransac_runs = 0;
     int overlap_rejected = 0;
     int rotation_rejected = 0;     ///< turned too far from the odometry (max_loop_rotation_...)
     int translation_rejected = 0;  ///< moved too far from the odometry (guided.max_offset_...)

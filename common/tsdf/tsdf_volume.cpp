@@ -12,6 +12,7 @@
 #include <string>
 
 #include "common/core/parallel.hpp"
+#include "common/core/simd.hpp"
 #include "common/geometry/lie.hpp"
 
 namespace plumb::tsdf {
@@ -21,6 +22,12 @@ namespace {
 using Float4 = float __attribute__((vector_size(16)));
 using Int4 = int32_t __attribute__((vector_size(16)));
 using UInt4 = uint32_t __attribute__((vector_size(16)));
+#if defined(__x86_64__) && defined(__GNUC__)
+#define PLUMB_TSDF_AVX2 1
+/// Eight lanes, for the AVX2 variant only (used inside target("avx2") functions).
+using Float8 = float __attribute__((vector_size(32)));
+using Int8 = int32_t __attribute__((vector_size(32)));
+#endif
 
 /// What one integration pass needs per voxel row, in the camera frame.
 struct RowIntegrator {
@@ -35,7 +42,8 @@ struct RowIntegrator {
     /// has its centre at p[j] + k dx, §2.3: the projective distance sdf = D(u) - z, truncated to
     /// min(1, sdf / mu), skipped below -mu, running average with unit weight saturating at
     /// max_w. The rows' groups of 4 lanes go through each step together, so their long
-    /// dependency chains (a division, the depth lookup, another division) overlap. No branch.
+    /// dependency chains (a division, the depth lookup, another division) overlap. One branch:
+    /// rows with no lane to update are neither averaged nor written back.
     /// With `colours` (the rows' voxel colours) lanes that pass and lie within the colour band
     /// also average the pixel's colour (§7b.2); the TSDF values are the same either way.
     template <int kRows>
@@ -68,23 +76,31 @@ struct RowIntegrator {
             d[g] = Float4{depth[pixel[0]], depth[pixel[1]], depth[pixel[2]], depth[pixel[3]]};
             d[g] = in[g] ? d[g] : zero;
         }
+        Int4 ok[kGroups];
+        Int4 any = {0, 0, 0, 0};
+        for (int g = 0; g < kGroups; ++g) {
+            ok[g] = in[g] & (d[g] >= min_d) & (d[g] <= max_d) & (d[g] - pz[g] >= -mu);
+            any |= ok[g];
+        }
+        // Rows wholly behind the surface, outside the image or without depth are left untouched
+        // (not even written back: most voxels of a block the band crosses are such).
+        if ((any[0] | any[1] | any[2] | any[3]) == 0) return;
         Float4 vox[2 * kGroups];  // {t0, w0, t1, w1}, {t2, w2, t3, w3}, ... in memory order
         std::memcpy(vox, row, sizeof(vox));
         for (int g = 0; g < kGroups; ++g) {
             const Float4 sdf = d[g] - pz[g];  // + in front of the surface
-            const Int4 ok = in[g] & (d[g] >= min_d) & (d[g] <= max_d) & (sdf >= -mu);
             const Float4 f_raw = sdf * inv_mu;
             const Float4 f = f_raw < 1.0f ? f_raw : 1.0f;
             const Float4 tsdf = __builtin_shuffle(vox[2 * g], vox[2 * g + 1], Int4{0, 2, 4, 6});
             const Float4 w = __builtin_shuffle(vox[2 * g], vox[2 * g + 1], Int4{1, 3, 5, 7});
             const Float4 w1 = w + 1.0f;
-            const Float4 new_tsdf = ok ? (w * tsdf + f) / w1 : tsdf;
-            const Float4 new_w = ok ? (max_w < w1 ? Float4{max_w, max_w, max_w, max_w} : w1) : w;
+            const Float4 new_tsdf = ok[g] ? (w * tsdf + f) / w1 : tsdf;
+            const Float4 new_w = ok[g] ? (max_w < w1 ? Float4{max_w, max_w, max_w, max_w} : w1) : w;
             vox[2 * g] = __builtin_shuffle(new_tsdf, new_w, Int4{0, 4, 1, 5});
             vox[2 * g + 1] = __builtin_shuffle(new_tsdf, new_w, Int4{2, 6, 3, 7});
             if (colours != nullptr) {
                 const Float4 abs_sdf = sdf < 0.0f ? -sdf : sdf;
-                const Int4 near = ok & (abs_sdf <= colour_band_m);
+                const Int4 near = ok[g] & (abs_sdf <= colour_band_m);
                 if ((near[0] | near[1] | near[2] | near[3]) != 0) {
                     blendColours(near, pixels[g], &colours[4 * g]);
                 }
@@ -92,6 +108,77 @@ struct RowIntegrator {
         }
         std::memcpy(static_cast<void*>(row), vox, sizeof(vox));
     }
+
+#ifdef PLUMB_TSDF_AVX2
+    /// fuseRows<2> with a row of 8 voxels in one 8-lane vector, for CPUs with AVX2 (no FMA): the
+    /// same operations lane by lane and in the same order, so the same voxels and colours bit for
+    /// bit (common/core/simd.hpp); the colours go through the same four-lane blend.
+    __attribute__((target("avx2"))) void fuseTwoRowsAvx2(Voxel* row, const Eigen::Vector3f* p,
+                                                         const Eigen::Vector3f& dx,
+                                                         VoxelColour* colours) const {
+        constexpr int kRows = 2;
+        const Float8 lanes = {0.0f, 1.0f, 2.0f, 3.0f, 4.0f, 5.0f, 6.0f, 7.0f};
+        const Float8 zero = {};
+        Float8 pz[kRows], d[kRows];
+        Int8 ok[kRows], pixels[kRows];
+        Int8 any = {};
+        for (int g = 0; g < kRows; ++g) {
+            const Eigen::Vector3f& o = p[g];
+            const Float8 px = o.x() + lanes * dx.x();
+            const Float8 py = o.y() + lanes * dx.y();
+            pz[g] = o.z() + lanes * dx.z();
+            const Float8 inv_z = 1.0f / pz[g];
+            const Float8 uf = fx * px * inv_z + cx + 0.5f;
+            const Float8 vf = fy * py * inv_z + cy + 0.5f;
+            const Int8 in = (pz[g] > 0.0f) & (uf >= 0.0f) & (vf >= 0.0f) &
+                            (uf < static_cast<float>(width)) & (vf < static_cast<float>(height));
+            const Float8 u =
+                __builtin_convertvector(__builtin_convertvector(in ? uf : zero, Int8), Float8);
+            const Float8 v =
+                __builtin_convertvector(__builtin_convertvector(in ? vf : zero, Int8), Float8);
+            const Int8 pixel = __builtin_convertvector(v * static_cast<float>(width) + u, Int8);
+            pixels[g] = pixel;
+            d[g] = Float8{depth[pixel[0]], depth[pixel[1]], depth[pixel[2]], depth[pixel[3]],
+                          depth[pixel[4]], depth[pixel[5]], depth[pixel[6]], depth[pixel[7]]};
+            d[g] = in ? d[g] : zero;
+            ok[g] = in & (d[g] >= min_d) & (d[g] <= max_d) & (d[g] - pz[g] >= -mu);
+            any |= ok[g];
+        }
+        bool touched = false;
+        for (int k = 0; k < 8; ++k) touched = touched || any[k] != 0;
+        if (!touched) return;
+        Float8 vox[2 * kRows];  // {t0, w0, .., t3, w3}, {t4, w4, .., t7, w7} per row
+        std::memcpy(vox, row, sizeof(vox));
+        for (int g = 0; g < kRows; ++g) {
+            const Float8 sdf = d[g] - pz[g];
+            const Float8 f_raw = sdf * inv_mu;
+            const Float8 f = f_raw < 1.0f ? f_raw : 1.0f;
+            const Float8 tsdf =
+                __builtin_shuffle(vox[2 * g], vox[2 * g + 1], Int8{0, 2, 4, 6, 8, 10, 12, 14});
+            const Float8 w =
+                __builtin_shuffle(vox[2 * g], vox[2 * g + 1], Int8{1, 3, 5, 7, 9, 11, 13, 15});
+            const Float8 w1 = w + 1.0f;
+            const Float8 new_tsdf = ok[g] ? (w * tsdf + f) / w1 : tsdf;
+            const Float8 cap = {max_w, max_w, max_w, max_w, max_w, max_w, max_w, max_w};
+            const Float8 new_w = ok[g] ? (max_w < w1 ? cap : w1) : w;
+            vox[2 * g] = __builtin_shuffle(new_tsdf, new_w, Int8{0, 8, 1, 9, 2, 10, 3, 11});
+            vox[2 * g + 1] = __builtin_shuffle(new_tsdf, new_w, Int8{4, 12, 5, 13, 6, 14, 7, 15});
+            if (colours != nullptr) {
+                const Float8 abs_sdf = sdf < 0.0f ? -sdf : sdf;
+                const Int8 near = ok[g] & (abs_sdf <= colour_band_m);
+                for (int half = 0; half < 2; ++half) {
+                    const int b = 4 * half;
+                    const Int4 near4 = {near[b], near[b + 1], near[b + 2], near[b + 3]};
+                    if ((near4[0] | near4[1] | near4[2] | near4[3]) == 0) continue;
+                    const Int4 pixels4 = {pixels[g][b], pixels[g][b + 1], pixels[g][b + 2],
+                                          pixels[g][b + 3]};
+                    blendColours(near4, pixels4, &colours[8 * g + b]);
+                }
+            }
+        }
+        std::memcpy(static_cast<void*>(row), vox, sizeof(vox));
+    }
+#endif
 
     /// C <- (W C + c) / (W + 1) per channel, W saturating at max_w, for the four voxel colours
     /// v[0..3] whose lane in `near` is set, from the colour pixels `pixels` (valid indices in
@@ -425,6 +512,7 @@ Result<IntegrationStats> TsdfVolume::integrate(const DepthImage& depth, const Pi
     fuse.colour = colour != nullptr ? colour->data() : nullptr;
     fuse.colour_band_m = config_.colour_band * config_.truncation_m;
     static_assert(kBlockSide == 8, "rows are fused 8 voxels at a time");
+    [[maybe_unused]] const bool avx2 = simd::best() == simd::Level::kAvx2;
 
     parallelFor(config_.num_threads, static_cast<int>(indices.size()), [&](int i) {
         const int32_t index = indices[static_cast<size_t>(i)];
@@ -447,8 +535,15 @@ Result<IntegrationStats> TsdfVolume::integrate(const DepthImage& depth, const Pi
                     p[j] =
                         base + static_cast<float>(z) * step_z + static_cast<float>(y + j) * step_y;
                 }
-                f.fuseRows<kRows>(voxels + z * 64 + y * 8, p, step_x,
-                                  colours != nullptr ? colours + z * 64 + y * 8 : nullptr);
+                Voxel* rows = voxels + z * 64 + y * 8;
+                VoxelColour* row_colours = colours != nullptr ? colours + z * 64 + y * 8 : nullptr;
+#ifdef PLUMB_TSDF_AVX2
+                if (avx2) {
+                    f.fuseTwoRowsAvx2(rows, p, step_x, row_colours);
+                    continue;
+                }
+#endif
+                f.fuseRows<kRows>(rows, p, step_x, row_colours);
             }
         }
     });

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <map>
 #include <optional>
 #include <random>
@@ -13,6 +14,7 @@
 #include <vector>
 
 #include "common/camera/pinhole.hpp"
+#include "common/core/simd.hpp"
 #include "common/geometry/lie.hpp"
 #include "common/tsdf/raycast.hpp"
 #include "common/tsdf/surface.hpp"
@@ -750,6 +752,60 @@ TEST(TsdfVolume, ResultsDoNotDependOnThreadCount) {
     EXPECT_EQ(voxels[0], voxels[2]);
     EXPECT_EQ(surface_sizes[0], surface_sizes[1]);
     EXPECT_EQ(surface_sizes[0], surface_sizes[2]);
+}
+
+TEST(TsdfVolume, TheAvx2KernelFusesTheSameVoxelsAndColoursAsThePortableOne) {
+    // A noisy sphere in front of a plane, random colours, weights that saturate (max_weight 3
+    // over 6 frames): every branch of the update. Where the CPU has no AVX2 both volumes run the
+    // portable kernel and the comparison holds trivially.
+    const PinholeCamera cam = smallCamera();
+    const Sphere sphere{Eigen::Vector3d(0.05, 0.0, 0.9), 0.25};
+    const Plane plane{Eigen::Vector3d(0, 0, -1), 1.3};
+    TsdfConfig config = testConfig();
+    config.max_weight = 3.0f;
+    TsdfVolume wide(config), portable(config);
+    std::mt19937 rng(7);
+    std::normal_distribution<float> noise(0.0f, 0.004f);
+    std::uniform_int_distribution<int> level(0, 255);
+    for (int k = 0; k < 6; ++k) {
+        const Eigen::Isometry3d T_W_C = jitter(k);
+        DepthImage depth = render(cam, T_W_C, [&](auto o, auto r) {
+            const std::optional<double> s = hitSphere(sphere, o, r);
+            return s ? s : hitPlane(plane, o, r);
+        });
+        ColourImage colour(cam.width, cam.height);
+        for (int v = 0; v < cam.height; ++v) {
+            for (int u = 0; u < cam.width; ++u) {
+                if (depth(u, v) > 0.0f) depth(u, v) += noise(rng);
+                colour(u, v) = {static_cast<uint8_t>(level(rng)), static_cast<uint8_t>(level(rng)),
+                                static_cast<uint8_t>(level(rng))};
+            }
+        }
+        ASSERT_TRUE(wide.integrate(depth, cam, T_W_C, &colour).isOk());
+        const simd::ScopedLevel scalar(simd::Level::kPortable);
+        ASSERT_TRUE(portable.integrate(depth, cam, T_W_C, &colour).isOk());
+    }
+    ASSERT_EQ(wide.numBlocks(), portable.numBlocks());
+    size_t observed = 0, saturated = 0, coloured = 0;
+    for (size_t b = 0; b < wide.numBlocks(); ++b) {
+        const auto index = static_cast<int32_t>(b);
+        const Voxel* a = wide.blockVoxels(index);
+        const Voxel* p = portable.blockVoxels(index);
+        const VoxelColour* ca = wide.blockColours(index);
+        const VoxelColour* cp = portable.blockColours(index);
+        for (int i = 0; i < kBlockVoxels; ++i) {
+            ASSERT_EQ(a[i].tsdf, p[i].tsdf) << "block " << b << " voxel " << i;
+            ASSERT_EQ(a[i].weight, p[i].weight) << "block " << b << " voxel " << i;
+            ASSERT_EQ(std::memcmp(&ca[i], &cp[i], sizeof(VoxelColour)), 0)
+                << "block " << b << " voxel " << i;
+            observed += a[i].weight > 0.0f ? 1 : 0;
+            saturated += a[i].weight == config.max_weight ? 1 : 0;
+            coloured += ca[i].weight > 0 ? 1 : 0;
+        }
+    }
+    EXPECT_GT(observed, 10000u);
+    EXPECT_GT(saturated, 1000u);
+    EXPECT_GT(coloured, 1000u);
 }
 
 TEST(TsdfVolume, RejectsMismatchedImageAndBadPose) {

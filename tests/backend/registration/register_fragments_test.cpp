@@ -14,6 +14,7 @@
 #include <fstream>
 #include <functional>
 #include <future>
+#include <map>
 #include <random>
 #include <set>
 #include <sstream>
@@ -288,6 +289,43 @@ TEST(Registration, CandidatesAreThePairsThatCanOverlapAtMostAFewPerFragment) {
     for (size_t j = 0; j < n; ++j) EXPECT_LE(per_target[j], 1) << "fragment " << j;
     EXPECT_LE(stats.loop_pairs_tried, static_cast<int>(n));
     EXPECT_EQ(stats.loop_pairs_tried + stats.loop_pairs_skipped, loop_pairs);
+}
+
+TEST(Registration, RansacRunsOnlyWhereTheGuidedSearchFindsNoLoop) {
+    // With RANSAC verified beside the guided starts for every pair, and with it run only where
+    // no guided start passes: the same loops are kept, each within 1 cm and 0.5 degrees of the
+    // other's transform, and RANSAC runs for fewer pairs.
+    RegistrationConfig both = config();
+    both.ransac_only_when_unguided = false;
+    PairStats both_stats, stats;
+    Result<PoseGraph> reference =
+        buildPoseGraph(scan().fragments, prepared(), both, nullptr, &both_stats);
+    Result<PoseGraph> guided =
+        buildPoseGraph(scan().fragments, prepared(), config(), nullptr, &stats);
+    ASSERT_TRUE(reference.isOk() && guided.isOk());
+    EXPECT_EQ(both_stats.ransac_runs, both_stats.loop_pairs_tried);
+    EXPECT_EQ(stats.loop_pairs_tried, both_stats.loop_pairs_tried);
+    EXPECT_LT(stats.ransac_runs, stats.loop_pairs_tried);
+    EXPECT_GE(stats.ransac_runs, stats.loop_pairs_tried - stats.loops_accepted);
+    std::map<std::pair<uint32_t, uint32_t>, Eigen::Isometry3d> kept;
+    for (const PoseGraphEdge& e : reference->edges)
+        if (e.kind == PoseGraphEdge::Kind::kLoop && e.kept)
+            kept[{e.source, e.target}] = e.T_source_target;
+    size_t same = 0;
+    for (const PoseGraphEdge& e : guided->edges) {
+        if (e.kind != PoseGraphEdge::Kind::kLoop || !e.kept) continue;
+        const auto it = kept.find({e.source, e.target});
+        ASSERT_NE(it, kept.end()) << "loop " << e.source << "-" << e.target << " is new";
+        const Eigen::Isometry3d d = it->second.inverse() * e.T_source_target;
+        EXPECT_LT(d.translation().norm(), 0.01) << e.source << "-" << e.target;
+        EXPECT_LT(lie::rotationAngle(d), 0.5 * std::numbers::pi / 180)
+            << e.source << "-" << e.target;
+        ++same;
+    }
+    EXPECT_EQ(same, kept.size());
+    EXPECT_GT(same, 3u);
+    std::printf("loop pairs %d, RANSAC ran for %d (all: %d), loops kept %zu\n",
+                stats.loop_pairs_tried, stats.ransac_runs, both_stats.ransac_runs, same);
 }
 
 TEST(Registration, OfflineOutputsAreDeterministicAcrossRunsAndThreads) {
