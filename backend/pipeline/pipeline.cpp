@@ -136,6 +136,8 @@ nlohmann::json edgeSummary(const registration::RegistrationOutcome& outcome) {
             {"overlap_rejected", s.overlap_rejected},
             {"rotation_rejected", s.rotation_rejected},
             {"translation_rejected", s.translation_rejected},
+            {"refinement_realigned", outcome.refinement_realigned},
+            {"refinement_settled", outcome.refinement_settled},
             {"pose_graph_iterations", outcome.first.iterations + outcome.refined.iterations},
             {"line_process_mu", outcome.refined_ran ? outcome.refined.mu : outcome.first.mu},
             {"seconds",

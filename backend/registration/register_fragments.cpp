@@ -10,6 +10,7 @@
 #include <numbers>
 #include <optional>
 #include <string>
+#include <tuple>
 #include <utility>
 
 #include "backend/registration/cloud_ops.hpp"
@@ -72,6 +73,14 @@ void describe(config::Schema& s, RegistrationConfig& c) {
             "where fragments carry it (false: fragment-to-fragment ICP and Choi's information)");
     s.field("refinement_pass", c.refinement_pass,
             "re-align surviving edges by ICP from the optimised poses and optimise again");
+    s.field("refinement_settled_m", c.refinement_settled_m,
+            "the refinement pass leaves an edge as registered when the optimised poses agree "
+            "with its transform within this and refinement_settled_deg (0 = re-align every edge)",
+            "m")
+        .min(0.0);
+    s.field("refinement_settled_deg", c.refinement_settled_deg,
+            "rotation part of refinement_settled_m (0 = re-align every edge)", "deg")
+        .min(0.0);
     s.field("seed", c.seed, "seed of the RANSAC generators");
     s.field("num_threads", c.num_threads, "worker threads, 0 = all; results do not depend on it")
         .min(0);
@@ -412,17 +421,34 @@ std::vector<FragmentIndex> buildIndices(const std::vector<Fragment>& fragments,
     return idx;
 }
 
-void refineWithIndex(PoseGraph& graph, const std::vector<const FragmentIndex*>& idx,
-                     const RegistrationConfig& c, const ProgressCallback& progress) {
+/// True when the poses of `graph` place e's target where e's transform does, within the
+/// refinement pass's settled tolerances.
+bool settled(const PoseGraph& graph, const PoseGraphEdge& e, const RegistrationConfig& c) {
+    if (!(c.refinement_settled_m > 0.0 && c.refinement_settled_deg > 0.0)) return false;
+    const Eigen::Isometry3d now = graph.T_W_F[e.source].inverse() * graph.T_W_F[e.target];
+    const Eigen::Isometry3d delta = e.T_source_target.inverse() * now;
+    return delta.translation().norm() <= c.refinement_settled_m &&
+           turnedDeg(e.T_source_target, now) <= c.refinement_settled_deg;
+}
+
+/// The refinement pass; returns how many edges it re-aligned and how many it left settled.
+std::pair<int, int> refineWithIndex(PoseGraph& graph, const std::vector<const FragmentIndex*>& idx,
+                                    const RegistrationConfig& c, const ProgressCallback& progress) {
     const RegistrationConfig inner = innerConfig(c);
     std::vector<size_t> todo;
+    int num_settled = 0;
     for (size_t k = 0; k < graph.edges.size(); ++k) {
         // An edge with the tracker's information keeps the tracked transform: ICP would slide
         // it along what the tracker says the geometry leaves free.
-        const PoseGraphEdge& e = graph.edges[k];
-        if (e.kept && e.information_source != PoseGraphEdge::Information::kTracker) {
-            todo.push_back(k);
+        PoseGraphEdge& e = graph.edges[k];
+        if (!e.kept || e.information_source == PoseGraphEdge::Information::kTracker) continue;
+        if (settled(graph, e, c)) {
+            e.line_process = 1.0;
+            ++num_settled;
+            report(progress);
+            continue;
         }
+        todo.push_back(k);
     }
     detail::parallelFor(c.num_threads, todo.size(), [&](size_t n) {
         PoseGraphEdge& e = graph.edges[todo[n]];
@@ -444,6 +470,7 @@ void refineWithIndex(PoseGraph& graph, const std::vector<const FragmentIndex*>& 
         e.line_process = 1.0;
         report(progress);
     });
+    return {static_cast<int>(todo.size()), num_settled};
 }
 
 Result<RegistrationOutcome> finishGraph(PoseGraph graph,
@@ -458,7 +485,8 @@ Result<RegistrationOutcome> finishGraph(PoseGraph graph,
     out.first = *first;
     out.optimise_seconds = watch.lap();
     if (c.refinement_pass) {
-        refineWithIndex(graph, idx, c, progress);
+        std::tie(out.refinement_realigned, out.refinement_settled) =
+            refineWithIndex(graph, idx, c, progress);
         out.refinement_seconds = watch.lap();
         Result<posegraph::PoseGraphReport> second =
             posegraph::optimisePoseGraph(graph, c.pose_graph);

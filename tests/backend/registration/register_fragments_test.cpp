@@ -9,6 +9,7 @@
 #include <tbb/global_control.h>
 #include <Eigen/Eigenvalues>
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -18,6 +19,7 @@
 #include <random>
 #include <set>
 #include <sstream>
+#include <vector>
 
 #include "backend/registration/register_fragments.hpp"
 #include "backend/report/registration_outputs.hpp"
@@ -326,6 +328,58 @@ TEST(Registration, RansacRunsOnlyWhereTheGuidedSearchFindsNoLoop) {
     EXPECT_GT(same, 3u);
     std::printf("loop pairs %d, RANSAC ran for %d (all: %d), loops kept %zu\n",
                 stats.loop_pairs_tried, stats.ransac_runs, both_stats.ransac_runs, same);
+}
+
+TEST(Registration, TheRefinementPassRealignsOnlyTheEdgesTheOptimisationMoved) {
+    // After the first optimisation, the refinement pass with the settled tolerances against
+    // re-aligning every edge: a settled edge is left exactly as registered, because re-aligning
+    // it would return its own alignment (median change below 1 mm); every other edge is
+    // re-aligned exactly as when all are.
+    Result<PoseGraph> built = buildPoseGraph(scan().fragments, prepared(), config(), nullptr);
+    ASSERT_TRUE(built.isOk()) << built.status().toString();
+    PoseGraph optimised = built.value();
+    ASSERT_TRUE(posegraph::optimisePoseGraph(optimised, config().pose_graph).isOk());
+    RegistrationConfig every = config();
+    every.refinement_settled_m = 0.0;
+    PoseGraph some_refined = optimised, all_refined = optimised;
+    ASSERT_TRUE(refineEdges(some_refined, scan().fragments, prepared(), config(), {}).isOk());
+    ASSERT_TRUE(refineEdges(all_refined, scan().fragments, prepared(), every, {}).isOk());
+    ASSERT_EQ(some_refined.edges.size(), optimised.edges.size());
+    const RegistrationConfig c = config();
+    int settled = 0, realigned = 0;
+    std::vector<double> change_m;
+    for (size_t k = 0; k < optimised.edges.size(); ++k) {
+        const PoseGraphEdge& before = optimised.edges[k];
+        if (!before.kept || before.information_source == PoseGraphEdge::Information::kTracker)
+            continue;
+        const Eigen::Isometry3d now =
+            optimised.T_W_F[before.source].inverse() * optimised.T_W_F[before.target];
+        const Eigen::Isometry3d off = before.T_source_target.inverse() * now;
+        const bool is_settled =
+            off.translation().norm() <= c.refinement_settled_m &&
+            lie::rotationAngle(off) * 180.0 / std::numbers::pi <= c.refinement_settled_deg;
+        const PoseGraphEdge& some = some_refined.edges[k];
+        const PoseGraphEdge& all = all_refined.edges[k];
+        EXPECT_EQ(some.line_process, 1.0);
+        if (is_settled) {
+            ++settled;
+            EXPECT_TRUE(some.T_source_target.isApprox(before.T_source_target, 0.0))
+                << before.source << "-" << before.target;
+            change_m.push_back(
+                (before.T_source_target.inverse() * all.T_source_target).translation().norm());
+        } else {
+            ++realigned;
+            EXPECT_TRUE(some.T_source_target.isApprox(all.T_source_target, 0.0))
+                << before.source << "-" << before.target;
+            EXPECT_EQ(some.kept, all.kept);
+        }
+    }
+    ASSERT_GT(settled, 3);
+    std::nth_element(change_m.begin(), change_m.begin() + change_m.size() / 2, change_m.end());
+    EXPECT_LT(change_m[change_m.size() / 2], 0.001);
+    std::printf(
+        "refinement: %d edges settled (median change if re-aligned %.2f mm), %d re-aligned\n",
+        settled, 1000.0 * change_m[change_m.size() / 2], realigned);
 }
 
 TEST(Registration, OfflineOutputsAreDeterministicAcrossRunsAndThreads) {
