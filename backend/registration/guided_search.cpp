@@ -62,8 +62,9 @@ std::vector<GuidedCandidate> guidedCandidates(const FragmentIndex& source,
     if (src.empty() || tgt.empty() || !src.hasNormals() || !tgt.hasNormals()) return {};
     if (!(config.radius_m > 0.0) || !(config.bin_m > 0.0) || config.max_peaks < 1) return {};
 
-    // Source points sorted by cell of edge radius: a target point's partners within the search
-    // box lie in the 27 cells around it.
+    // Source points sorted by cell of edge radius, positions and normals copied in that order: a
+    // target point's partners within the search box lie in the 27 cells around it, and the three
+    // cells along z of each (x, y) column are one contiguous run of keys.
     const float radius = static_cast<float>(config.radius_m);
     const float inv_cell = 1.0f / radius;
     std::vector<std::pair<int64_t, uint32_t>> cells(src.size());
@@ -71,6 +72,13 @@ std::vector<GuidedCandidate> guidedCandidates(const FragmentIndex& source,
         cells[i] = {cellKey(cellOf(src.points[i], inv_cell)), static_cast<uint32_t>(i)};
     }
     std::sort(cells.begin(), cells.end());
+    std::vector<int64_t> keys(cells.size());
+    std::vector<Eigen::Vector3f> points(cells.size()), normals(cells.size());
+    for (size_t k = 0; k < cells.size(); ++k) {
+        keys[k] = cells[k].first;
+        points[k] = src.points[cells[k].second];
+        normals[k] = src.normals[cells[k].second];
+    }
 
     // Vote grid over offsets d in [-h, h]^3 bins (at most 201 per axis: a wider window gets
     // coarser bins rather than gigabytes of votes).
@@ -83,6 +91,7 @@ std::vector<GuidedCandidate> guidedCandidates(const FragmentIndex& source,
                    static_cast<size_t>(m) +
                static_cast<size_t>(x);
     };
+    // Every vote adds 1: the counts are exact whatever the order the pairs are visited in.
     std::vector<float> votes(static_cast<size_t>(m) * m * m, 0.0f);
     const float cos_max =
         static_cast<float>(std::cos(config.max_normal_angle_deg * std::numbers::pi / 180.0));
@@ -93,20 +102,18 @@ std::vector<GuidedCandidate> guidedCandidates(const FragmentIndex& source,
         const Eigen::Vector3f q = R * tgt.points[j] + t;
         const Eigen::Vector3f nq = R * tgt.normals[j];
         const Eigen::Vector3i c = cellOf(q, inv_cell);
-        for (int dz = -1; dz <= 1; ++dz) {
-            for (int dy = -1; dy <= 1; ++dy) {
-                for (int dx = -1; dx <= 1; ++dx) {
-                    const int64_t key = cellKey(c + Eigen::Vector3i(dx, dy, dz));
-                    auto it = std::lower_bound(cells.begin(), cells.end(),
-                                               std::make_pair(key, uint32_t{0}));
-                    for (; it != cells.end() && it->first == key; ++it) {
-                        const uint32_t i = it->second;
-                        if (src.normals[i].dot(nq) < cos_max) continue;
-                        const Eigen::Vector3f d = (src.points[i] - q) * inv_bin;
-                        const Eigen::Vector3i b = d.array().round().cast<int>();
-                        if (b.cwiseAbs().maxCoeff() > h) continue;
-                        votes[at(b.x() + h, b.y() + h, b.z() + h)] += 1.0f;
-                    }
+        for (int dy = -1; dy <= 1; ++dy) {
+            for (int dx = -1; dx <= 1; ++dx) {
+                const int64_t first = cellKey(c + Eigen::Vector3i(dx, dy, -1));
+                const int64_t last = cellKey(c + Eigen::Vector3i(dx, dy, 1));
+                for (size_t k = static_cast<size_t>(
+                         std::lower_bound(keys.begin(), keys.end(), first) - keys.begin());
+                     k < keys.size() && keys[k] <= last; ++k) {
+                    if (normals[k].dot(nq) < cos_max) continue;
+                    const Eigen::Vector3f d = (points[k] - q) * inv_bin;
+                    const Eigen::Vector3i b = d.array().round().cast<int>();
+                    if (b.cwiseAbs().maxCoeff() > h) continue;
+                    votes[at(b.x() + h, b.y() + h, b.z() + h)] += 1.0f;
                 }
             }
         }

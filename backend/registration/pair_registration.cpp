@@ -49,6 +49,11 @@ void describe(config::Schema& s, IcpConfig& c) {
     s.field("colour_gradient_max_nn", c.colour_gradient_max_nn,
             "coloured ICP: at most this many neighbours in the intensity gradient fit", "points")
         .min(3);
+    s.field("max_target_points", c.max_target_points,
+            "at most this many target points take part at a level of the multi-scale ICP "
+            "(evenly strided; the source keeps all of its points); 0 = every point",
+            "points")
+        .min(0);
     s.field("num_threads", c.num_threads, "worker threads, 0 = all; results do not depend on it")
         .min(0);
 }
@@ -235,6 +240,43 @@ PairResult icpPointToPlane(const IndexedCloud& source, const PointCloud& target,
     return out;
 }
 
+namespace {
+
+/// A level's target points for ICP: the cloud itself, or every k-th point (and intensity) with
+/// the smallest k that leaves at most max_points (> 0).
+class StridedTarget {
+  public:
+    StridedTarget(const PointCloud& cloud, const std::vector<float>* intensity, int max_points)
+        : cloud_(&cloud), intensity_(intensity) {
+        const size_t n = cloud.size();
+        if (max_points <= 0 || n <= static_cast<size_t>(max_points)) return;
+        const size_t cap = static_cast<size_t>(max_points);
+        const size_t stride = (n + cap - 1) / cap;
+        strided_ = true;
+        strided_cloud_.points.reserve(n / stride + 1);
+        for (size_t i = 0; i < n; i += stride) {
+            strided_cloud_.points.push_back(cloud.points[i]);
+            if (intensity != nullptr) strided_intensity_.push_back((*intensity)[i]);
+        }
+    }
+    const PointCloud& cloud() const { return strided_ ? strided_cloud_ : *cloud_; }
+    /// Empty when there is no intensity.
+    const std::vector<float>& intensity() const {
+        static const std::vector<float> kNone;
+        if (intensity_ == nullptr) return kNone;
+        return strided_ ? strided_intensity_ : *intensity_;
+    }
+
+  private:
+    const PointCloud* cloud_;
+    const std::vector<float>* intensity_;
+    bool strided_ = false;
+    PointCloud strided_cloud_;
+    std::vector<float> strided_intensity_;
+};
+
+}  // namespace
+
 PairResult multiScaleIcp(const FragmentIndex& source, const FragmentIndex& target,
                          const Eigen::Isometry3d& init, const IcpConfig& config) {
     PairResult r;
@@ -247,16 +289,18 @@ PairResult multiScaleIcp(const FragmentIndex& source, const FragmentIndex& targe
         const double max_distance_m = config.distance_factor * config.voxel_sizes_m[l];
         const bool coloured =
             config.colour && l < source.level_colours.size() && l < target.level_colours.size();
+        const StridedTarget strided(target.levels[l].cloud(),
+                                    coloured ? &target.level_colours[l].intensity : nullptr,
+                                    config.max_target_points);
         PairResult step =
-            coloured
-                ? icpColoured(source.levels[l], source.level_colours[l].intensity,
-                              source.level_colours[l].gradient, target.levels[l].cloud(),
-                              target.level_colours[l].intensity, r.T_source_target, max_distance_m,
-                              iters, config.relative_change, config.lambda_geometric,
-                              config.coloured_min_normal_spread, config.num_threads)
-                : icpPointToPlane(source.levels[l], target.levels[l].cloud(), r.T_source_target,
-                                  max_distance_m, iters, config.relative_change,
-                                  config.min_normal_spread, config.num_threads);
+            coloured ? icpColoured(source.levels[l], source.level_colours[l].intensity,
+                                   source.level_colours[l].gradient, strided.cloud(),
+                                   strided.intensity(), r.T_source_target, max_distance_m, iters,
+                                   config.relative_change, config.lambda_geometric,
+                                   config.coloured_min_normal_spread, config.num_threads)
+                     : icpPointToPlane(source.levels[l], strided.cloud(), r.T_source_target,
+                                       max_distance_m, iters, config.relative_change,
+                                       config.min_normal_spread, config.num_threads);
         total_iterations += step.iterations;
         if (!step.success) {
             step.reason += " (level " + std::to_string(l) + ")";

@@ -59,6 +59,12 @@ struct IcpConfig {
     double colour_gradient_radius_factor = 2.8;
     /// At most this many neighbours in the gradient fit (Open3D: 30).
     int colour_gradient_max_nn = 30;
+    /// At most this many target points take part at a level of the multi-scale ICP (every k-th,
+    /// k the smallest stride that fits); the source, whose points are the correspondences'
+    /// partners, keeps all of its. A 50-frame fragment has some 50 000 points at 1.25 cm: ten
+    /// thousand of them pin a pair as well as all (nine scans within 2 %, BENCHMARKS.md) at a
+    /// fraction of the nearest-neighbour searches. 0 = every point.
+    int max_target_points = 10000;
     /// Worker threads (0 = all); results do not depend on it.
     int num_threads = 0;
 };

@@ -228,6 +228,41 @@ TEST(ColouredIcp, CorridorSlideIsRecoveredByColourAlone) {
                 (start * p.truth.inverse()).translation().z(), 1e-3);
 }
 
+TEST(ColouredIcp, AQuarterOfTheTargetPointsAlignsAsWellAsAll) {
+    // icp.max_target_points: with a quarter of the finest level's target points (every fourth),
+    // coloured ICP still recovers the corridor pose, within a millimetre and 0.05 degrees of what
+    // all the points give; point-to-plane within a millimetre across the corridor (along it,
+    // the slide nothing observes, plain Gauss-Newton follows the normals' noise either way).
+    IcpConfig icp;
+    const CorridorPair p = makeCorridorPair(true, true, icp);
+    const size_t finest = p.ib.levels.back().size();
+    ASSERT_GT(finest, 1000u);
+    const Eigen::Isometry3d start = corridorStart(p.truth);
+    for (const bool colour : {true, false}) {
+        icp.colour = colour;
+        icp.max_target_points = 0;
+        const PairResult all = multiScaleIcp(p.ia, p.ib, start, icp);
+        icp.max_target_points = static_cast<int>(finest / 4);
+        const PairResult some = multiScaleIcp(p.ia, p.ib, start, icp);
+        ASSERT_TRUE(all.success && some.success) << all.reason << some.reason;
+        // The cap applied: the finest level matched no more target points than it allows.
+        EXPECT_GT(all.num_correspondences, icp.max_target_points);
+        EXPECT_LE(some.num_correspondences, icp.max_target_points);
+        // Difference in the corridor's frame (z along the corridor), as errorOf.
+        const Eigen::Isometry3d d = some.T_source_target * all.T_source_target.inverse();
+        const double across = d.translation().head<2>().norm();
+        EXPECT_LT(across, 0.001);
+        EXPECT_LT(lie::rotationAngle(d), 0.05 * kDeg);
+        if (colour) {
+            EXPECT_LT(d.translation().norm(), 0.001);
+            EXPECT_LT(errorOf(some, p.truth).translation().norm(), 0.001);
+        }
+        std::printf("%s: %d of %zu target points, difference %.3f mm (%.3f across) %.4f deg\n",
+                    colour ? "coloured" : "point-to-plane", some.num_correspondences, finest,
+                    1e3 * d.translation().norm(), 1e3 * across, lie::rotationAngle(d) / kDeg);
+    }
+}
+
 #ifdef PLUMB_HAVE_OPEN3D
 std::shared_ptr<open3d::geometry::PointCloud> toOpen3d(const PointCloud& cloud) {
     auto out = std::make_shared<open3d::geometry::PointCloud>();
@@ -340,6 +375,7 @@ TEST(ColouredIcp, WithoutColourOnBothSidesItIsPointToPlane) {
         for (const double spread : {0.0, 0.005}) {
             IcpConfig icp;  // colour on
             icp.min_normal_spread = spread;
+            icp.max_target_points = 0;  // the oracle below uses every target point
             const PairResult r = multiScaleIcp(p.ia, p.ib, start, icp);
             const PairResult oracle = pointToPlaneChain(p.ia, p.ib, start, icp);
             ASSERT_TRUE(r.success) << r.reason;
@@ -358,6 +394,7 @@ TEST(ColouredIcp, WithoutColourOnBothSidesItIsPointToPlane) {
     // Colour switched off: no colour levels are built, and the answer is point-to-plane's.
     IcpConfig off;
     off.colour = false;
+    off.max_target_points = 0;
     const CorridorPair p = makeCorridorPair(true, true, off);
     EXPECT_TRUE(p.ia.level_colours.empty());
     const Eigen::Isometry3d start = corridorStart(p.truth);
