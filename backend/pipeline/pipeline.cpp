@@ -8,6 +8,7 @@
 #include <ctime>
 #include <fstream>
 #include <limits>
+#include <memory>
 #include <numbers>
 #include <sstream>
 
@@ -225,17 +226,21 @@ struct Plan {
     fs::path dir;
 };
 
+/// "full and baseline": the plans' names, for the stage table.
+std::string planNames(const std::vector<Plan>& plans) {
+    std::string names;
+    for (const Plan& plan : plans) names += (names.empty() ? "" : " and ") + plan.name;
+    return names;
+}
+
 /// The final mesh of every plan, in order, from one pass (finalMeshes), timed as one stage.
 Result<std::vector<TriangleMesh>> planMeshes(const PipelineInput& input,
                                              const std::vector<Plan>& plans,
                                              const FinalModelConfig& config, bool show_progress,
                                              StageTimer& timer, bool* from_raw) {
     std::vector<std::vector<Eigen::Isometry3d>> poses;
-    std::string names;
-    for (const Plan& plan : plans) {
-        poses.push_back(*plan.T);
-        names += (names.empty() ? "" : " and ") + plan.name;
-    }
+    for (const Plan& plan : plans) poses.push_back(*plan.T);
+    const std::string names = planNames(plans);
     auto scope = timer.scope("final model (" + names + ")");
     Result<std::vector<TriangleMesh>> meshes =
         finalMeshes(input, poses, config, names, show_progress, from_raw);
@@ -266,7 +271,8 @@ Status writeVariantFiles(const fs::path& dir, const std::vector<Fragment>& fragm
 /// the input's ground truth (v->evaluation).
 Status outputAndEvaluate(const fs::path& dir, const PipelineInput& input,
                          const registration::RegistrationOutcome& outcome,
-                         const std::optional<Layout>& full_layout, VariantResult* v) {
+                         const std::optional<Layout>& full_layout,
+                         const eval::ClosestPoints* gt_points, VariantResult* v) {
     const posegraph::PoseGraph graph = withPoses(outcome.graph, v->T_W_F);
     PLUMB_RETURN_IF_ERROR(writeVariantFiles(dir, input.fragments, graph,
                                             outcome.refined_ran ? outcome.refined : outcome.first,
@@ -276,7 +282,7 @@ Status outputAndEvaluate(const fs::path& dir, const PipelineInput& input,
     v->trajectory = *trajectory;
     Result<VariantEvaluation> ev =
         evaluateVariant(v->name, *trajectory, v->mesh, v->layout, input.ground_truth, full_layout,
-                        EvaluationConfig{});
+                        EvaluationConfig{}, gt_points);
     if (!ev.isOk()) return prefixed(ev.status(), "evaluating " + v->name);
     v->evaluation = std::move(*ev);
     return Status::ok();
@@ -451,13 +457,58 @@ void addMainVariantFigures(const VariantResult& v, const PipelineInput& input,
                            const std::optional<Layout>& full_layout, ReportFigures* figures) {
     figures->model_views = renderModelViews(v.mesh, v.layout ? v.layout : full_layout);
     if (input.ground_truth.points.empty()) return;
+    // The evaluation measured every vertex already; the map draws those errors.
     Result<ReconErrorMap> map =
-        reconErrorMap(v.mesh, v.evaluation.T_gt_est, input.ground_truth.points, full_layout);
+        v.evaluation.vertex_errors_m.empty()
+            ? reconErrorMap(v.mesh, v.evaluation.T_gt_est, input.ground_truth.points, full_layout)
+            : reconErrorMap(v.mesh, v.evaluation.vertex_errors_m, full_layout);
     if (map.isOk()) {
         figures->recon_error_svg = std::move(map->svg);
     } else {
         figures->recon_error_note = map.status().message();
     }
+}
+
+/// Every plan's files and evaluation, side by side (each is parallel inside; one variant's
+/// serial writing overlaps the other's searches), against one ground-truth tree built for all.
+/// `variants` receives them in plan order; the report's figures of the first go into `figures`.
+Status outputAndEvaluateAll(const PipelineInput& input, const std::vector<Plan>& plans,
+                            const registration::RegistrationOutcome& outcome,
+                            const std::optional<Layout>& full_layout,
+                            std::vector<TriangleMesh> meshes, std::vector<VariantResult>* variants,
+                            ReportFigures* figures) {
+    std::shared_ptr<const eval::ClosestPoints> gt_points;
+    if (!input.ground_truth.points.empty()) {
+        Result<std::shared_ptr<const eval::ClosestPoints>> built =
+            eval::ClosestPoints::build(input.ground_truth.points);
+        if (!built.isOk()) return prefixed(built.status(), "the ground-truth surface");
+        gt_points = std::move(*built);
+    }
+    for (const Plan& plan : plans) {
+        std::error_code ec;
+        fs::create_directories(plan.dir, ec);
+        if (ec)
+            return ioError(fmt::format("{}: cannot create: {}", plan.dir.string(), ec.message()));
+    }
+    std::vector<Status> status(plans.size(), Status::ok());
+    std::vector<std::string> top_views(plans.size());
+    parallelFor(0, plans.size(), [&](size_t p) {
+        VariantResult& v = (*variants)[p];
+        v.name = plans[p].name;
+        v.T_W_F = *plans[p].T;
+        v.layout = *plans[p].layout;
+        v.mesh = std::move(meshes[p]);
+        status[p] =
+            outputAndEvaluate(plans[p].dir, input, outcome, full_layout, gt_points.get(), &v);
+        if (!status[p].isOk()) return;
+        top_views[p] = topViewSvg(v.mesh, full_layout, topViewTrajectory(v));
+        if (p == 0) addMainVariantFigures(v, input, full_layout, figures);
+    });
+    for (size_t p = 0; p < plans.size(); ++p) {
+        PLUMB_RETURN_IF_ERROR(status[p]);
+        figures->top_views[plans[p].name] = std::move(top_views[p]);
+    }
+    return Status::ok();
 }
 
 }  // namespace
@@ -570,21 +621,14 @@ Result<PipelineResult> runPipeline(const PipelineInput& input, const PipelineCon
         planMeshes(input, plans, config.final_model, show_progress, timer, &from_raw);
     if (!meshes.isOk()) return meshes.status();
     PLUMB_RETURN_IF_ERROR(stop("the final model"));
-    for (size_t p = 0; p < plans.size(); ++p) {
-        const Plan& plan = plans[p];
-        fs::create_directories(plan.dir, ec);
-        if (ec)
-            return ioError(fmt::format("{}: cannot create: {}", plan.dir.string(), ec.message()));
-        VariantResult v;
-        v.name = plan.name;
-        v.T_W_F = *plan.T;
-        v.layout = *plan.layout;
-        v.mesh = std::move((*meshes)[p]);
-        auto scope = timer.scope("outputs and evaluation (" + plan.name + ")");
-        PLUMB_RETURN_IF_ERROR(outputAndEvaluate(plan.dir, input, outcome, full_layout, &v));
-        variants_json[plan.name] = toJson(v.evaluation);
-        figures.top_views[plan.name] = topViewSvg(v.mesh, full_layout, topViewTrajectory(v));
-        if (p == 0) addMainVariantFigures(v, input, full_layout, &figures);
+    std::vector<VariantResult> variants(plans.size());
+    {
+        auto scope = timer.scope("outputs and evaluation (" + planNames(plans) + ")");
+        PLUMB_RETURN_IF_ERROR(outputAndEvaluateAll(input, plans, outcome, full_layout,
+                                                   std::move(*meshes), &variants, &figures));
+    }
+    for (VariantResult& v : variants) {
+        variants_json[v.name] = toJson(v.evaluation);
         result.variants.push_back(std::move(v));
     }
 

@@ -6,6 +6,7 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <memory>
 #include <numbers>
 
 #include "common/io/ply.hpp"
@@ -83,7 +84,8 @@ Result<VariantEvaluation> evaluateVariant(const std::string& name, const io::Tra
                                           const std::optional<Layout>& layout,
                                           const GroundTruth& ground_truth,
                                           const std::optional<Layout>& reference_layout,
-                                          const EvaluationConfig& config) {
+                                          const EvaluationConfig& config,
+                                          const eval::ClosestPoints* ground_truth_points) {
     VariantEvaluation ev;
     ev.name = name;
     bool aligned = false;
@@ -107,8 +109,16 @@ Result<VariantEvaluation> evaluateVariant(const std::string& name, const io::Tra
         mapped.reserve(mesh.vertices.size());
         const Eigen::Isometry3f T = ev.T_gt_est.cast<float>();
         for (const auto& v : mesh.vertices) mapped.push_back(T * v);
-        Result<eval::ReconMetrics> r =
-            eval::evaluateReconstruction(mapped, ground_truth.points, config.recon);
+        std::shared_ptr<const eval::ClosestPoints> own;
+        if (ground_truth_points == nullptr) {
+            Result<std::shared_ptr<const eval::ClosestPoints>> built =
+                eval::ClosestPoints::build(ground_truth.points);
+            if (!built.isOk()) return built.status();
+            own = std::move(*built);
+            ground_truth_points = own.get();
+        }
+        Result<eval::ReconMetrics> r = eval::evaluateReconstruction(
+            mapped, *ground_truth_points, config.recon, &ev.vertex_errors_m);
         if (!r.isOk()) return r.status();
         ev.recon = std::move(*r);
     } else if (ground_truth.points.empty()) {

@@ -87,17 +87,23 @@ struct VariantEvaluation {
     double mean_wall_rms_m = 0.0;
     double max_wall_angle_error_deg = 0.0;
     std::vector<std::string> notes;  ///< what could not be measured and why
+    /// Each mesh vertex's distance to the closest ground-truth point after the ATE alignment
+    /// (the reconstruction error's distances, in vertex order; empty when not measured).
+    std::vector<double> vertex_errors_m;
 };
 
 /// Evaluates one variant. `layout` is the variant's estimated layout (none for the baseline);
 /// `reference_layout` supplies the reference walls when the ground truth has no layout (give the
 /// full method's estimate). Only unusable inputs fail; missing ground truth becomes a note.
+/// `ground_truth_points`, when given, is the tree of ground_truth.points built once by the caller
+/// for every variant (else it is built here).
 Result<VariantEvaluation> evaluateVariant(const std::string& name, const io::Trajectory& trajectory,
                                           const TriangleMesh& mesh,
                                           const std::optional<Layout>& layout,
                                           const GroundTruth& ground_truth,
                                           const std::optional<Layout>& reference_layout,
-                                          const EvaluationConfig& config = {});
+                                          const EvaluationConfig& config = {},
+                                          const eval::ClosestPoints* ground_truth_points = nullptr);
 
 /// metrics.json form of an evaluation (metres and degrees; keys end in _m, _deg).
 nlohmann::json toJson(const VariantEvaluation& evaluation);

@@ -702,6 +702,16 @@ ReconErrorMap reconErrorMap(const std::vector<Eigen::Vector3f>& points_W,
     return map;
 }
 
+namespace {
+
+/// Every stride-th vertex, so that at most `max_points` are drawn.
+size_t vertexStride(const TriangleMesh& mesh, size_t max_points) {
+    const size_t cap = std::max<size_t>(1, max_points);
+    return std::max<size_t>(1, (mesh.vertices.size() + cap - 1) / cap);
+}
+
+}  // namespace
+
 Result<ReconErrorMap> reconErrorMap(const TriangleMesh& mesh, const Eigen::Isometry3d& T_gt_est,
                                     const std::vector<Eigen::Vector3f>& gt_points_gt,
                                     const std::optional<Layout>& layout, int size_px,
@@ -709,9 +719,7 @@ Result<ReconErrorMap> reconErrorMap(const TriangleMesh& mesh, const Eigen::Isome
     if (mesh.vertices.empty()) return invalidArgument("reconstruction-error map: empty mesh");
     if (gt_points_gt.empty())
         return invalidArgument("reconstruction-error map: no ground-truth surface points");
-    const size_t stride =
-        std::max<size_t>(1, (mesh.vertices.size() + std::max<size_t>(1, max_points) - 1) /
-                                std::max<size_t>(1, max_points));
+    const size_t stride = vertexStride(mesh, max_points);
     std::vector<Eigen::Vector3f> points_W, points_gt;
     const Eigen::Isometry3f T = T_gt_est.cast<float>();
     for (size_t i = 0; i < mesh.vertices.size(); i += stride) {
@@ -721,6 +729,24 @@ Result<ReconErrorMap> reconErrorMap(const TriangleMesh& mesh, const Eigen::Isome
     Result<std::vector<double>> d = eval::closestPointDistances(points_gt, gt_points_gt);
     if (!d.isOk()) return d.status();
     return reconErrorMap(points_W, *d, layout, size_px);
+}
+
+Result<ReconErrorMap> reconErrorMap(const TriangleMesh& mesh,
+                                    const std::vector<double>& vertex_errors_m,
+                                    const std::optional<Layout>& layout, int size_px,
+                                    size_t max_points) {
+    if (mesh.vertices.empty()) return invalidArgument("reconstruction-error map: empty mesh");
+    if (vertex_errors_m.size() != mesh.vertices.size())
+        return invalidArgument(fmt::format("reconstruction-error map: {} errors for {} vertices",
+                                           vertex_errors_m.size(), mesh.vertices.size()));
+    const size_t stride = vertexStride(mesh, max_points);
+    std::vector<Eigen::Vector3f> points_W;
+    std::vector<double> errors_m;
+    for (size_t i = 0; i < mesh.vertices.size(); i += stride) {
+        points_W.push_back(mesh.vertices[i]);
+        errors_m.push_back(vertex_errors_m[i]);
+    }
+    return reconErrorMap(points_W, errors_m, layout, size_px);
 }
 
 std::string renderReportHtml(const nlohmann::json& metrics, const ReportFigures& figures) {

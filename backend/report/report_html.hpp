@@ -109,6 +109,14 @@ Result<ReconErrorMap> reconErrorMap(const TriangleMesh& mesh, const Eigen::Isome
                                     const std::optional<Layout>& layout, int size_px = 460,
                                     size_t max_points = 400'000);
 
+/// The same map from errors already measured: `vertex_errors_m` holds one error per mesh vertex
+/// (VariantEvaluation::vertex_errors_m); the same vertices as above are drawn. Errors: an empty
+/// mesh, or not one error per vertex.
+Result<ReconErrorMap> reconErrorMap(const TriangleMesh& mesh,
+                                    const std::vector<double>& vertex_errors_m,
+                                    const std::optional<Layout>& layout, int size_px = 460,
+                                    size_t max_points = 400'000);
+
 struct ReportFigures {
     std::string floorplan_svg;                     ///< the layout stage's floor plan, if any
     std::map<std::string, std::string> top_views;  ///< variant name -> SVG

@@ -40,21 +40,39 @@ double fractionWithin(const std::vector<double>& distances, double threshold) {
 
 }  // namespace
 
+ClosestPoints::ClosestPoints(const std::vector<Eigen::Vector3f>& reference)
+    : points_(&reference), tree_(std::make_unique<const PointKdTree<float>>(reference)) {}
+
+ClosestPoints::~ClosestPoints() = default;
+
+Result<std::shared_ptr<const ClosestPoints>> ClosestPoints::build(
+    const std::vector<Eigen::Vector3f>& reference) {
+    if (reference.empty()) return invalidArgument("the reference point set is empty");
+    PLUMB_RETURN_IF_ERROR(checkFinite(reference, "reference"));
+    return std::shared_ptr<const ClosestPoints>(new ClosestPoints(reference));
+}
+
+Result<std::vector<double>> ClosestPoints::distances(const std::vector<Eigen::Vector3f>& queries,
+                                                     int num_threads) const {
+    PLUMB_RETURN_IF_ERROR(checkFinite(queries, "query"));
+    std::vector<double> distances(queries.size(), 0.0);
+    parallelFor(num_threads, queries.size(), [&](size_t i) {
+        uint32_t index = 0;
+        float dist_sq = 0.0f;
+        tree_->index().knnSearch(queries[i].data(), 1, &index, &dist_sq);
+        distances[i] = std::sqrt(static_cast<double>(dist_sq));
+    });
+    return distances;
+}
+
 Result<std::vector<double>> closestPointDistances(const std::vector<Eigen::Vector3f>& queries,
                                                   const std::vector<Eigen::Vector3f>& reference,
                                                   int num_threads) {
     if (reference.empty()) return invalidArgument("the reference point set is empty");
     PLUMB_RETURN_IF_ERROR(checkFinite(queries, "query"));
-    PLUMB_RETURN_IF_ERROR(checkFinite(reference, "reference"));
-    const PointKdTree<float> tree(reference);
-    std::vector<double> distances(queries.size(), 0.0);
-    parallelFor(num_threads, queries.size(), [&](size_t i) {
-        uint32_t index = 0;
-        float dist_sq = 0.0f;
-        tree.index().knnSearch(queries[i].data(), 1, &index, &dist_sq);
-        distances[i] = std::sqrt(static_cast<double>(dist_sq));
-    });
-    return distances;
+    Result<std::shared_ptr<const ClosestPoints>> index = ClosestPoints::build(reference);
+    if (!index.isOk()) return index.status();
+    return (*index)->distances(queries, num_threads);
 }
 
 DistanceStats summarize(const std::vector<double>& distances_m) {
@@ -134,23 +152,34 @@ Result<ReconMetrics> evaluateReconstruction(const std::vector<Eigen::Vector3f>& 
                                             const ReconMetricsConfig& config) {
     if (reconstructed.empty()) return invalidArgument("the reconstruction has no points");
     if (ground_truth.empty()) return invalidArgument("the ground truth has no points");
+    Result<std::shared_ptr<const ClosestPoints>> index = ClosestPoints::build(ground_truth);
+    if (!index.isOk()) return index.status();
+    return evaluateReconstruction(reconstructed, **index, config);
+}
+
+Result<ReconMetrics> evaluateReconstruction(const std::vector<Eigen::Vector3f>& reconstructed,
+                                            const ClosestPoints& ground_truth,
+                                            const ReconMetricsConfig& config,
+                                            std::vector<double>* to_ground_truth_m) {
+    if (reconstructed.empty()) return invalidArgument("the reconstruction has no points");
     if (!(config.completeness_threshold_m > 0.0) ||
         !std::isfinite(config.completeness_threshold_m)) {
         return invalidArgument(fmt::format("threshold must be a positive distance, got {} m",
                                            config.completeness_threshold_m));
     }
-    auto to_gt = closestPointDistances(reconstructed, ground_truth, config.num_threads);
+    auto to_gt = ground_truth.distances(reconstructed, config.num_threads);
     if (!to_gt.isOk()) return to_gt.status();
-    auto to_recon = closestPointDistances(ground_truth, reconstructed, config.num_threads);
+    auto to_recon = closestPointDistances(ground_truth.points(), reconstructed, config.num_threads);
     if (!to_recon.isOk()) return to_recon.status();
     ReconMetrics m;
     m.num_reconstructed = reconstructed.size();
-    m.num_ground_truth = ground_truth.size();
+    m.num_ground_truth = ground_truth.points().size();
     m.threshold_m = config.completeness_threshold_m;
     m.accuracy = summarize(*to_gt);
     m.completeness_distances = summarize(*to_recon);
     m.accuracy_fraction = fractionWithin(*to_gt, config.completeness_threshold_m);
     m.completeness = fractionWithin(*to_recon, config.completeness_threshold_m);
+    if (to_ground_truth_m != nullptr) *to_ground_truth_m = std::move(*to_gt);
     return m;
 }
 

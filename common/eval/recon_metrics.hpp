@@ -15,9 +15,15 @@
 
 #include <Eigen/Core>
 #include <cstddef>
+#include <memory>
 #include <vector>
 
 #include "common/core/status.hpp"
+
+namespace plumb {
+template <typename Scalar>
+class PointKdTree;
+}  // namespace plumb
 
 namespace plumb::eval {
 
@@ -53,6 +59,31 @@ struct ReconMetrics {
     double completeness = 0.0;       ///< share of GT points within threshold_m of a recon point
 };
 
+/// A reference point set with its k-d tree, built once and then queried by any number of
+/// callers, concurrently if they like (a run's ground truth, shared by every variant evaluated
+/// against it and by the report's error map). It keeps the points' buffer, not a copy: the
+/// vector must outlive it and must not change.
+class ClosestPoints {
+  public:
+    /// kInvalidArgument when `reference` is empty or holds a point that is not finite.
+    static Result<std::shared_ptr<const ClosestPoints>> build(
+        const std::vector<Eigen::Vector3f>& reference);
+    ~ClosestPoints();
+    ClosestPoints(const ClosestPoints&) = delete;
+    ClosestPoints& operator=(const ClosestPoints&) = delete;
+
+    /// Distance from every query point to its closest reference point, metres, in query order
+    /// (exact, k = 1). kInvalidArgument when a query is not finite.
+    Result<std::vector<double>> distances(const std::vector<Eigen::Vector3f>& queries,
+                                          int num_threads = 0) const;
+    const std::vector<Eigen::Vector3f>& points() const { return *points_; }
+
+  private:
+    explicit ClosestPoints(const std::vector<Eigen::Vector3f>& reference);
+    const std::vector<Eigen::Vector3f>* points_;
+    std::unique_ptr<const PointKdTree<float>> tree_;
+};
+
 /// Distance from every query point to its closest reference point, metres, in query order.
 /// kInvalidArgument when the reference is empty or a point is not finite.
 Result<std::vector<double>> closestPointDistances(const std::vector<Eigen::Vector3f>& queries,
@@ -78,5 +109,13 @@ Result<std::vector<Eigen::Vector3f>> sampleMeshSurface(
 Result<ReconMetrics> evaluateReconstruction(const std::vector<Eigen::Vector3f>& reconstructed,
                                             const std::vector<Eigen::Vector3f>& ground_truth,
                                             const ReconMetricsConfig& config = {});
+
+/// As above against a ground truth whose tree is already built. With `to_ground_truth_m`, it
+/// also receives each reconstructed point's distance to the ground truth (the accuracy's
+/// distances, in point order).
+Result<ReconMetrics> evaluateReconstruction(const std::vector<Eigen::Vector3f>& reconstructed,
+                                            const ClosestPoints& ground_truth,
+                                            const ReconMetricsConfig& config = {},
+                                            std::vector<double>* to_ground_truth_m = nullptr);
 
 }  // namespace plumb::eval

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
+#include <limits>
 #include <random>
 
 #include "common/eval/recon_metrics.hpp"
@@ -107,6 +108,35 @@ TEST(ReconMetrics, MatchesBruteForceAndIgnoresThreadCount) {
     EXPECT_EQ(m1.accuracy.mean_m, m2.accuracy.mean_m);
     EXPECT_EQ(m1.accuracy.median_m, m2.accuracy.median_m);
     EXPECT_EQ(m1.completeness, m2.completeness);
+}
+
+TEST(ReconMetrics, AGroundTruthTreeBuiltOnceServesEveryEvaluationAlike) {
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+    std::vector<Eigen::Vector3f> gt(2000), first(1500), second(900);
+    for (auto& p : gt) p = {u(rng), u(rng), 0.2f * u(rng)};
+    for (auto& p : first) p = {u(rng), u(rng), 0.3f * u(rng)};
+    for (auto& p : second) p = {0.5f * u(rng), u(rng), 0.1f * u(rng)};
+    const auto shared = eval::ClosestPoints::build(gt);
+    ASSERT_TRUE(shared.isOk());
+    for (const auto* recon : {&first, &second}) {
+        std::vector<double> to_gt;
+        const auto m = eval::evaluateReconstruction(*recon, **shared, {}, &to_gt).value();
+        const auto alone = eval::evaluateReconstruction(*recon, gt).value();
+        EXPECT_EQ(m.accuracy.mean_m, alone.accuracy.mean_m);  // bit-identical
+        EXPECT_EQ(m.accuracy.max_m, alone.accuracy.max_m);
+        EXPECT_EQ(m.completeness_distances.mean_m, alone.completeness_distances.mean_m);
+        EXPECT_EQ(m.completeness, alone.completeness);
+        EXPECT_EQ(m.num_ground_truth, gt.size());
+        // Each point's own distance comes back, the same the plain search gives.
+        EXPECT_EQ(to_gt, eval::closestPointDistances(*recon, gt).value());
+        EXPECT_EQ(eval::summarize(to_gt).mean_m, m.accuracy.mean_m);
+    }
+    EXPECT_EQ(eval::ClosestPoints::build({}).status().code(), StatusCode::kInvalidArgument);
+    std::vector<Eigen::Vector3f> nan = gt;
+    nan[7].x() = std::numeric_limits<float>::quiet_NaN();
+    EXPECT_EQ(eval::ClosestPoints::build(nan).status().code(), StatusCode::kInvalidArgument);
+    EXPECT_EQ((*shared)->distances(nan).status().code(), StatusCode::kInvalidArgument);
 }
 
 TEST(ReconMetrics, SummaryStatisticsAreExact) {

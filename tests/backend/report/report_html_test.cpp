@@ -9,6 +9,7 @@
 
 #include "backend/report/png_encode.hpp"
 #include "backend/report/report_html.hpp"
+#include "common/eval/recon_metrics.hpp"
 #include "drivers/dataset/depth_png.hpp"
 
 namespace plumb::backend {
@@ -314,6 +315,26 @@ TEST(ReconErrorMap, ColoursFollowTheErrorOfADisplacedPart) {
     EXPECT_EQ(shifted->image.at(static_cast<int>(shifted->pixel({3.0, 1.5, 0.0}).x()),
                                 static_cast<int>(shifted->pixel({3.0, 1.5, 0.0}).y())),
               Color3u8(255, 0, 48));
+}
+
+TEST(ReconErrorMap, ErrorsMeasuredByTheEvaluationDrawTheSameMap) {
+    const Layout layout = roomLayout();
+    TriangleMesh model = room(100);
+    for (size_t i = 0; i < 101 * 101; ++i)
+        if (model.vertices[i].x() < 2.f) model.vertices[i].z() += 0.02f;
+    const std::vector<Eigen::Vector3f> gt = room(300).vertices;
+    const std::vector<double> errors = eval::closestPointDistances(model.vertices, gt).value();
+    // Few points allowed: both pick the same strided vertices.
+    for (size_t max_points : {size_t{400'000}, size_t{5'000}}) {
+        const Result<ReconErrorMap> searched =
+            reconErrorMap(model, Eigen::Isometry3d::Identity(), gt, layout, 460, max_points);
+        const Result<ReconErrorMap> given = reconErrorMap(model, errors, layout, 460, max_points);
+        ASSERT_TRUE(searched.isOk() && given.isOk());
+        EXPECT_EQ(given->points_drawn, searched->points_drawn);
+        EXPECT_EQ(given->svg, searched->svg);
+    }
+    EXPECT_FALSE(reconErrorMap(model, std::vector<double>(3, 0.0), layout).isOk());
+    EXPECT_FALSE(reconErrorMap(TriangleMesh{}, std::vector<double>{}, layout).isOk());
 }
 
 TEST(ReconErrorMap, NeedsGroundTruthAndTheReportSaysWhy) {
