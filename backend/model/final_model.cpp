@@ -9,6 +9,7 @@
 #include <limits>
 #include <unordered_map>
 
+#include "common/core/parallel.hpp"
 #include "common/tsdf/surface.hpp"
 #include "common/tsdf/tsdf_volume.hpp"
 
@@ -24,6 +25,8 @@ Status FinalModelConfig::validate() const {
                         truncation_m, 2.0 * voxel_size_m));
     if (!(max_depth_m > 0.0)) return invalidArgument("final_model.max_depth_m must be positive");
     if (frame_stride < 1) return invalidArgument("final_model.frame_stride must be >= 1");
+    if (surface_frame_stride < 1)
+        return invalidArgument("final_model.surface_frame_stride must be >= 1");
     if (allocation_stride_px < 1 || allocation_stride_px > 8)
         return invalidArgument("final_model.allocation_stride_px must be in [1, 8]");
     if (splat_radius_px < 0 || splat_radius_px > 8)
@@ -40,6 +43,10 @@ void describe(config::Schema& s, FinalModelConfig& c) {
     s.field("frame_stride", c.frame_stride,
             "integrate every k-th frame (1 = all); raw frames in between are skipped unread where "
             "the source allows (datasets, the simulator)")
+        .min(1);
+    s.field("surface_frame_stride", c.surface_frame_stride,
+            "fragment surfaces only: every k-th tracked frame of each fragment (its first "
+            "included) is rendered and integrated")
         .min(1);
     s.field("allocation_stride_px", c.allocation_stride_px,
             "pixel stride of block allocation (1 = every pixel)", "px")
@@ -78,24 +85,52 @@ DepthImage renderPointsToDepth(const PointCloud& points_F, const PinholeCamera& 
     if (colour != nullptr)
         *colour = with_colour ? ColourImage(camera.width, camera.height) : ColourImage();
     const Eigen::Isometry3f T_C_F = T_F_C.inverse().cast<float>();
+    const Eigen::Matrix3f R_C_F = T_C_F.linear();
     const Eigen::Vector3f centre_F = T_F_C.translation().cast<float>();
     const bool have_normals = points_F.normals.size() == points_F.points.size();
     const int r = splat_radius_px;
+    const auto fx = static_cast<float>(camera.fx), fy = static_cast<float>(camera.fy);
+    const auto cx = static_cast<float>(camera.cx), cy = static_cast<float>(camera.cy);
     for (size_t k = 0; k < points_F.points.size(); ++k) {
         const Eigen::Vector3f& p_F = points_F.points[k];
         if (have_normals && points_F.normals[k].dot(centre_F - p_F) <= 0.0f) continue;  // back face
         const Eigen::Vector3f p_C = T_C_F * p_F;
         if (p_C.z() <= 0.0f) continue;
-        const Eigen::Vector2d uv = camera.project(p_C.cast<double>());
-        const int u0 = static_cast<int>(std::lround(uv.x()));
-        const int v0 = static_cast<int>(std::lround(uv.y()));
-        for (int v = v0 - r; v <= v0 + r; ++v) {
-            if (v < 0 || v >= camera.height) continue;
-            for (int u = u0 - r; u <= u0 + r; ++u) {
-                if (u < 0 || u >= camera.width) continue;
+        const float u_f = fx * p_C.x() / p_C.z() + cx;
+        const float v_f = fy * p_C.y() / p_C.z() + cy;
+        if (!(u_f > -r - 1.0f && u_f < camera.width + r && v_f > -r - 1.0f &&
+              v_f < camera.height + r))
+            continue;
+        const int u0 = static_cast<int>(std::floor(u_f + 0.5f));
+        const int v0 = static_cast<int>(std::floor(v_f + 0.5f));
+        // Tangent-plane splat: pixel (u, v) gets the depth where its ray meets the point's plane,
+        // n . (z ray(u, v)) = n . p, so that a slanted surface's splats do not stand out of it
+        // towards the camera. The inverse depth on a plane is affine in (u, v); over a splat a
+        // few pixels wide the depth is taken to first order about the centre pixel, and kept
+        // within kMaxSlope splat widths of the point's own depth (rays grazing the plane).
+        constexpr float kMaxSlope = 4.0f;
+        float z0 = p_C.z(), dz_du = 0.0f, dz_dv = 0.0f;
+        const float max_step = kMaxSlope * static_cast<float>(r + 1) * p_C.z() / fx;
+        if (have_normals && r > 0) {
+            const Eigen::Vector3f n_C = R_C_F * points_F.normals[k];
+            const float n_dot_p = n_C.dot(p_C);  // < 0: the point faces the camera
+            const float ray_x = (static_cast<float>(u0) - cx) / fx;
+            const float ray_y = (static_cast<float>(v0) - cy) / fy;
+            const float w0 = (n_C.x() * ray_x + n_C.y() * ray_y + n_C.z()) / n_dot_p;  // 1 / z
+            if (w0 > 0.0f && std::abs(1.0f / w0 - p_C.z()) <= max_step) {
+                z0 = 1.0f / w0;
+                dz_du = -z0 * z0 * n_C.x() / (fx * n_dot_p);
+                dz_dv = -z0 * z0 * n_C.y() / (fy * n_dot_p);
+            }
+        }
+        for (int v = std::max(v0 - r, 0); v <= std::min(v0 + r, camera.height - 1); ++v) {
+            for (int u = std::max(u0 - r, 0); u <= std::min(u0 + r, camera.width - 1); ++u) {
+                const float planar =
+                    z0 + dz_du * static_cast<float>(u - u0) + dz_dv * static_cast<float>(v - v0);
+                const float z = std::abs(planar - p_C.z()) <= max_step ? planar : p_C.z();
                 float& d = depth(u, v);
-                if (d == 0.0f || p_C.z() < d) {
-                    d = p_C.z();
+                if (d == 0.0f || z < d) {
+                    d = z;
                     if (with_colour) {
                         const Color3u8& c = points_F.colors[k];
                         (*colour)(u, v) = {c.x(), c.y(), c.z()};
@@ -148,9 +183,9 @@ Status checkVariants(const std::vector<Fragment>& fragments,
 
 std::vector<FinalModel> finishAll(const std::vector<tsdf::TsdfVolume>& volumes,
                                   const FinalModelConfig& config, size_t frames, bool raw) {
-    std::vector<FinalModel> models;
-    for (const tsdf::TsdfVolume& volume : volumes)
-        models.push_back(finish(volume, config, frames, raw));
+    std::vector<FinalModel> models(volumes.size());
+    parallelFor(config.num_threads, volumes.size(),
+                [&](size_t v) { models[v] = finish(volumes[v], config, frames, raw); });
     return models;
 }
 
@@ -161,18 +196,34 @@ std::vector<tsdf::TsdfVolume> volumesFor(size_t variants, const FinalModelConfig
     return volumes;
 }
 
-/// Integrates one frame of fragment `fragment` (at T_F_C in it) into every variant's volume, one
-/// after the other (each integration is parallel; two side by side were slower on two cores).
+/// Integrates one frame of fragment `fragment` (at T_F_C in it) into every variant's volume, the
+/// volumes side by side: each integration is parallel inside, and while one allocates its new
+/// blocks (a serial step) the other's voxels keep the second core busy.
 Status integrateAll(std::vector<tsdf::TsdfVolume>& volumes, const DepthImage& depth,
                     const PinholeCamera& camera,
                     const std::vector<std::vector<Eigen::Isometry3d>>& T_W_F, size_t fragment,
-                    const Eigen::Isometry3d& T_F_C, const ColourImage* colour) {
-    for (size_t v = 0; v < volumes.size(); ++v) {
+                    const Eigen::Isometry3d& T_F_C, const ColourImage* colour, int num_threads) {
+    std::vector<Status> status(volumes.size(), Status::ok());
+    parallelFor(num_threads, volumes.size(), [&](size_t v) {
         Result<tsdf::IntegrationStats> stats =
             volumes[v].integrate(depth, camera, T_W_F[v][fragment] * T_F_C, colour);
-        if (!stats.isOk()) return stats.status();
-    }
+        if (!stats.isOk()) status[v] = stats.status();
+    });
+    for (const Status& s : status) PLUMB_RETURN_IF_ERROR(s);
     return Status::ok();
+}
+
+/// The frames of `fragment` whose views of its surface are integrated: tracked, on the global
+/// frame_stride, and every surface_frame_stride-th of those (the first included).
+std::vector<const FragmentFrame*> surfaceViews(const Fragment& fragment,
+                                               const FinalModelConfig& config) {
+    std::vector<const FragmentFrame*> views;
+    size_t tracked = 0;
+    for (const FragmentFrame& f : fragment.frames) {
+        if (!f.tracking_ok || f.frame_index % config.frame_stride != 0) continue;
+        if (tracked++ % static_cast<size_t>(config.surface_frame_stride) == 0) views.push_back(&f);
+    }
+    return views;
 }
 
 }  // namespace
@@ -227,7 +278,7 @@ Result<std::vector<FinalModel>> integrateRawFrames(
                             frame->colour.height() == frame->depth.height();
         const auto& [fragment, T_F_C] = it->second;
         const Status s = integrateAll(volumes, frame->depth, source.camera(), T_W_F, fragment,
-                                      T_F_C, colour ? &frame->colour : nullptr);
+                                      T_F_C, colour ? &frame->colour : nullptr, config.num_threads);
         if (!s.isOk()) return s;
         ++integrated;
     }
@@ -248,15 +299,19 @@ Result<std::vector<FinalModel>> fuseFragmentSurfaces(
     size_t integrated = 0;
     for (size_t i = 0; i < fragments.size(); ++i) {
         const Fragment& fragment = fragments[i];
-        for (size_t k = 0; k < fragment.frames.size(); ++k) {
-            const FragmentFrame& f = fragment.frames[k];
-            if (!f.tracking_ok || f.frame_index % config.frame_stride != 0) continue;
-            ColourImage colour;
-            const DepthImage depth = renderPointsToDepth(fragment.points_F, camera, f.T_F_C,
-                                                         config.splat_radius_px, &colour);
-            const Status s = integrateAll(volumes, depth, camera, T_W_F, i, f.T_F_C,
-                                          colour.empty() ? nullptr : &colour);
-            if (!s.isOk()) return s;
+        const std::vector<const FragmentFrame*> views = surfaceViews(fragment, config);
+        // A fragment's synthetic frames are rendered side by side (each render is serial), then
+        // integrated in order.
+        std::vector<DepthImage> depth(views.size());
+        std::vector<ColourImage> colour(views.size());
+        parallelFor(config.num_threads, views.size(), [&](size_t k) {
+            depth[k] = renderPointsToDepth(fragment.points_F, camera, views[k]->T_F_C,
+                                           config.splat_radius_px, &colour[k]);
+        });
+        for (size_t k = 0; k < views.size(); ++k) {
+            PLUMB_RETURN_IF_ERROR(integrateAll(volumes, depth[k], camera, T_W_F, i, views[k]->T_F_C,
+                                               colour[k].empty() ? nullptr : &colour[k],
+                                               config.num_threads));
             ++integrated;
         }
         report(progress);

@@ -42,6 +42,11 @@ struct FinalModelConfig {
     /// without being decoded or rendered where the source allows (FrameSource::skip). Larger
     /// strides trade reconstruction error for time; the default keeps every frame.
     int frame_stride = 1;
+    /// Fragment surfaces only: every k-th tracked frame of each fragment (its first included)
+    /// is rendered and integrated. The synthetic frames of one fragment are views of one
+    /// surface, not independent measurements, so most of them repeat each other: 4 loses no
+    /// accuracy against 1 on the simulated scans (BENCHMARKS.md) at a quarter of the work.
+    int surface_frame_stride = 4;
     /// Pixel stride of block allocation. The final volume's blocks are 8 cm wide, where a pixel
     /// spans 2 to 8 mm at 1 to 4 m: every fourth pixel still samples each block the surface
     /// passes through, and the allocation walk costs a quarter of every pixel's.
@@ -63,9 +68,12 @@ io::Trajectory frameTrajectory(const std::vector<Fragment>& fragments,
                                const std::vector<Eigen::Isometry3d>& T_W_F);
 
 /// Renders `points_F` (oriented, in frame F) as seen by `camera` at T_F_C: nearest depth per pixel
-/// over a (2r+1)^2 splat, points facing away from the camera skipped. 0 = no data. With `colour`
-/// and a coloured cloud, *colour receives the nearest point's colour per pixel (else it is left
-/// empty).
+/// over a (2r+1)^2 splat, points facing away from the camera skipped. 0 = no data. An oriented
+/// point's splat lies in its tangent plane (each pixel's depth is where its ray meets the plane,
+/// within 4 splat widths of the point's depth), so slanted surfaces come out where they are
+/// rather than as steps towards the camera; points without normals splat at their own depth.
+/// With `colour` and a coloured cloud, *colour receives the nearest point's colour per pixel
+/// (else it is left empty).
 DepthImage renderPointsToDepth(const PointCloud& points_F, const PinholeCamera& camera,
                                const Eigen::Isometry3d& T_F_C, int splat_radius_px,
                                ColourImage* colour = nullptr);
