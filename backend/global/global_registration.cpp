@@ -362,16 +362,97 @@ struct Correspondences {
     std::vector<PairMatches> pairs;                // kept pairs, in (a, b) order
 };
 
+/// Where a fragment's points lie at its current pose, coarsely: the world cells (edge at least
+/// the correspondence distance) holding its points, sorted, each with its points; and every cell
+/// within one cell of those. A point of another fragment closer than the correspondence distance
+/// to one of these points lies in a `near` cell: points elsewhere need no search.
+struct Occupancy {
+    using Cell = std::array<int32_t, 3>;
+    struct Occupied {
+        Cell cell;
+        uint32_t begin = 0;  ///< its points: order[begin, end)
+        uint32_t end = 0;
+    };
+    std::vector<Occupied> cells;  ///< sorted by cell
+    std::vector<uint32_t> order;  ///< point indices by cell, then index
+    std::vector<Cell> near;       ///< occupied cells and their 26 neighbours, sorted
+};
+
+/// Cells of 25 cm, or the correspondence distance when that is larger.
+double occupancyCell(const GlobalConfig& config) {
+    return std::max(0.25, config.frag_max_distance_m);
+}
+
+Occupancy occupancyOf(const GlobalCloud& cloud, const Eigen::Isometry3d& T_W_F, double cell_m) {
+    std::vector<std::pair<Occupancy::Cell, uint32_t>> keyed;
+    keyed.reserve(cloud.size());
+    const double inv = 1.0 / cell_m;
+    for (size_t k = 0; k < cloud.size(); ++k) {
+        const Eigen::Vector3d c = (T_W_F * cloud.points()[k]) * inv;
+        keyed.push_back(
+            {{static_cast<int32_t>(std::floor(c.x())), static_cast<int32_t>(std::floor(c.y())),
+              static_cast<int32_t>(std::floor(c.z()))},
+             static_cast<uint32_t>(k)});
+    }
+    std::sort(keyed.begin(), keyed.end());
+    Occupancy o;
+    o.order.reserve(keyed.size());
+    for (size_t i = 0; i < keyed.size(); ++i) {
+        if (i == 0 || keyed[i].first != keyed[i - 1].first)
+            o.cells.push_back({keyed[i].first, static_cast<uint32_t>(i), 0});
+        o.order.push_back(keyed[i].second);
+        o.cells.back().end = static_cast<uint32_t>(i + 1);
+    }
+    for (const Occupancy::Occupied& occupied : o.cells) {
+        const Occupancy::Cell& c = occupied.cell;
+        for (int dx = -1; dx <= 1; ++dx)
+            for (int dy = -1; dy <= 1; ++dy)
+                for (int dz = -1; dz <= 1; ++dz)
+                    o.near.push_back({c[0] + dx, c[1] + dy, c[2] + dz});
+    }
+    std::sort(o.near.begin(), o.near.end());
+    o.near.erase(std::unique(o.near.begin(), o.near.end()), o.near.end());
+    return o;
+}
+
+/// Calls visit(cell) for every cell of `from` that is near `to`, in cell order.
+template <typename Visit>
+void forCellsNear(const Occupancy& from, const Occupancy& to, const Visit& visit) {
+    auto it = to.near.begin();
+    for (const Occupancy::Occupied& occupied : from.cells) {
+        it = std::lower_bound(it, to.near.end(), occupied.cell);
+        if (it == to.near.end()) return;
+        if (*it == occupied.cell) visit(occupied);
+    }
+}
+
+/// How many points of `from` lie in `to`'s near cells: an upper bound on the points of `from`
+/// that can find a correspondence in `to`.
+size_t pointsNear(const Occupancy& from, const Occupancy& to) {
+    size_t count = 0;
+    forCellsNear(from, to, [&](const Occupancy::Occupied& c) { count += c.end - c.begin; });
+    return count;
+}
+
+/// Correspondences from -> to: each point of `from` with its nearest point of `to` within
+/// frag_max_distance_m and frag_max_normal_angle_deg, in point order. Only points in cells near
+/// `to` (the occupancies) are searched for: the others have no point of `to` that close.
 void matchDirection(const GlobalCloud& from, const GlobalCloud& to,
                     const Eigen::Isometry3d& T_W_from, const Eigen::Isometry3d& T_W_to,
+                    const Occupancy& from_cells, const Occupancy& to_cells,
                     const GlobalConfig& config, std::vector<FragMatch>* out) {
     out->clear();
     if (from.size() == 0 || to.size() == 0) return;
+    std::vector<char> near(from.size(), 0);
+    forCellsNear(from_cells, to_cells, [&](const Occupancy::Occupied& c) {
+        for (uint32_t i = c.begin; i < c.end; ++i) near[from_cells.order[i]] = 1;
+    });
     const Eigen::Isometry3d T_to_from = T_W_to.inverse() * T_W_from;
     const Eigen::Matrix3d R = T_to_from.linear();
     const double max_sq = config.frag_max_distance_m * config.frag_max_distance_m;
     const double cos_gate = std::cos(config.frag_max_normal_angle_deg * kDegToRad);
     for (size_t k = 0; k < from.size(); ++k) {
+        if (!near[k]) continue;
         const Eigen::Vector3d query = T_to_from * from.points()[k];
         uint32_t idx = 0;
         double d_sq = 0.0;
@@ -379,6 +460,18 @@ void matchDirection(const GlobalCloud& from, const GlobalCloud& to,
         if ((R * from.normals()[k]).dot(to.normals()[idx]) < cos_gate) continue;
         out->push_back({static_cast<uint32_t>(k), idx});
     }
+}
+
+/// False only when pair (a, b) cannot pass the overlap test of `establish` at these poses: the
+/// smaller fragment has fewer points near the other than min_overlap asks (and none at all when
+/// min_overlap is 0). Exact: no pair that would be kept is dropped.
+bool mayOverlap(const std::vector<Occupancy>& occupancy, const std::vector<GlobalCloud>& clouds,
+                uint32_t a, uint32_t b, double min_overlap) {
+    const bool a_smaller = clouds[a].size() <= clouds[b].size();
+    const uint32_t small = a_smaller ? a : b;
+    const size_t near = pointsNear(occupancy[small], occupancy[a_smaller ? b : a]);
+    return near > 0 &&
+           static_cast<double>(near) / static_cast<double>(clouds[small].size()) >= min_overlap;
 }
 
 Correspondences establish(const std::vector<GlobalCloud>& clouds,
@@ -399,7 +492,12 @@ Correspondences establish(const std::vector<GlobalCloud>& clouds,
             }
         });
     }
-    // C_ij: candidate pairs = the priors' pairs plus pairs whose bounding spheres meet.
+    // C_ij: candidate pairs = the priors' pairs plus pairs whose bounding spheres meet and whose
+    // occupied cells leave room for the overlap test.
+    std::vector<Occupancy> occupancy(n);
+    parallelFor(config.num_threads, n, [&](size_t i) {
+        occupancy[i] = occupancyOf(clouds[i], T_W_F[i], occupancyCell(config));
+    });
     std::map<std::pair<uint32_t, uint32_t>, bool> candidates;  // value: from a prior
     for (const PairPrior& p : priors) {
         candidates[{std::min(p.i, p.j), std::max(p.i, p.j)}] = true;
@@ -425,6 +523,9 @@ Correspondences establish(const std::vector<GlobalCloud>& clouds,
                     radius[a] + radius[b] + config.frag_max_distance_m) {
                     continue;
                 }
+                if (candidates.count({a, b}) == 0 &&
+                    !mayOverlap(occupancy, clouds, a, b, config.min_overlap))
+                    continue;  // it would be searched for nothing and dropped below
                 candidates.emplace(std::make_pair(a, b), false);
             }
         }
@@ -440,8 +541,10 @@ Correspondences establish(const std::vector<GlobalCloud>& clouds,
     }
     parallelFor(config.num_threads, all.size(), [&](size_t k) {
         PairMatches& pm = all[k];
-        matchDirection(clouds[pm.a], clouds[pm.b], T_W_F[pm.a], T_W_F[pm.b], config, &pm.a_to_b);
-        matchDirection(clouds[pm.b], clouds[pm.a], T_W_F[pm.b], T_W_F[pm.a], config, &pm.b_to_a);
+        matchDirection(clouds[pm.a], clouds[pm.b], T_W_F[pm.a], T_W_F[pm.b], occupancy[pm.a],
+                       occupancy[pm.b], config, &pm.a_to_b);
+        matchDirection(clouds[pm.b], clouds[pm.a], T_W_F[pm.b], T_W_F[pm.a], occupancy[pm.b],
+                       occupancy[pm.a], config, &pm.b_to_a);
     });
     for (PairMatches& pm : all) {
         if (pm.a_to_b.empty() && pm.b_to_a.empty()) continue;
