@@ -300,19 +300,23 @@ Result<std::vector<FinalModel>> fuseFragmentSurfaces(
     for (size_t i = 0; i < fragments.size(); ++i) {
         const Fragment& fragment = fragments[i];
         const std::vector<const FragmentFrame*> views = surfaceViews(fragment, config);
-        // A fragment's synthetic frames are rendered side by side (each render is serial), then
-        // integrated in order.
-        std::vector<DepthImage> depth(views.size());
-        std::vector<ColourImage> colour(views.size());
-        parallelFor(config.num_threads, views.size(), [&](size_t k) {
-            depth[k] = renderPointsToDepth(fragment.points_F, camera, views[k]->T_F_C,
-                                           config.splat_radius_px, &colour[k]);
-        });
-        for (size_t k = 0; k < views.size(); ++k) {
-            PLUMB_RETURN_IF_ERROR(integrateAll(volumes, depth[k], camera, T_W_F, i, views[k]->T_F_C,
-                                               colour[k].empty() ? nullptr : &colour[k],
-                                               config.num_threads));
-            ++integrated;
+        // A fragment's synthetic frames are rendered side by side (each render is serial), up to
+        // kBatch at a time (about 2 MB each at 640x480), then integrated in order.
+        constexpr size_t kBatch = 16;
+        std::vector<DepthImage> depth(std::min(views.size(), kBatch));
+        std::vector<ColourImage> colour(depth.size());
+        for (size_t first = 0; first < views.size(); first += kBatch) {
+            const size_t count = std::min(kBatch, views.size() - first);
+            parallelFor(config.num_threads, count, [&](size_t k) {
+                depth[k] = renderPointsToDepth(fragment.points_F, camera, views[first + k]->T_F_C,
+                                               config.splat_radius_px, &colour[k]);
+            });
+            for (size_t k = 0; k < count; ++k) {
+                PLUMB_RETURN_IF_ERROR(
+                    integrateAll(volumes, depth[k], camera, T_W_F, i, views[first + k]->T_F_C,
+                                 colour[k].empty() ? nullptr : &colour[k], config.num_threads));
+                ++integrated;
+            }
         }
         report(progress);
     }
