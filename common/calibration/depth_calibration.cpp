@@ -4,7 +4,10 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
+#include <optional>
 #include <utility>
 #include <vector>
 
@@ -18,6 +21,70 @@ Result<DepthCalibration> DepthCalibration::load(const std::filesystem::path& pat
 
 DepthCalibration::DepthCalibration(DistortionTable table, std::string source)
     : table_(std::move(table)), source_(std::move(source)) {}
+
+namespace {
+
+/// The piece of A.3's factor that holds depth z: -1 below the first bin centre (the factor is
+/// the first bin's), 4 from the last one on (the last bin's), else k for z in [2k + 1, 2k + 3),
+/// where the factor is linear between bins k and k + 1.
+int pieceOf(double z) {
+    constexpr int kLast = DistortionTable::kBins - 1;
+    if (z < DistortionTable::binCentreM(0)) return -1;
+    if (z >= DistortionTable::binCentreM(kLast)) return kLast;
+    return static_cast<int>((z - 1.0) / 2.0);
+}
+
+/// The root of d = measured * f(d) with f extended linearly from one piece, f(d) = alpha + beta d
+/// there: d = measured * alpha / (1 - measured * beta). nullopt when 1 - measured * beta <= 0
+/// (the factor is then no contraction, and the closed form does not apply).
+std::optional<double> rootOnPiece(const std::array<float, 5>& f, int piece, double measured) {
+    constexpr int kLast = DistortionTable::kBins - 1;
+    double alpha = 0.0, beta = 0.0;
+    if (piece < 0 || piece >= kLast) {
+        alpha = f[static_cast<size_t>(std::clamp(piece, 0, kLast))];
+    } else {
+        beta = (double{f[piece + 1]} - double{f[piece]}) / 2.0;
+        alpha = double{f[piece]} - beta * DistortionTable::binCentreM(piece);
+    }
+    const double denominator = 1.0 - measured * beta;
+    if (!(denominator > 0.0)) return std::nullopt;
+    return measured * alpha / denominator;
+}
+
+/// The fixed point d = measured * f(d) in closed form, f piecewise linear in depth (A.3) with
+/// every factor > 0; nullopt where measured * f'(d) >= 1. While measured * f'(d) < 1,
+/// measured * f(d) - d falls with d, so a root outside the piece it was solved on says on which
+/// side the fixed point lies: start on the measured depth's piece and step towards it.
+std::optional<double> closedFormDepth(const std::array<float, 5>& f, double measured) {
+    int piece = pieceOf(measured);
+    for (int step = 0; step <= DistortionTable::kBins; ++step) {
+        const std::optional<double> d = rootOnPiece(f, piece, measured);
+        if (!d) return std::nullopt;
+        const int holder = pieceOf(*d);
+        if (holder == piece) return d;
+        piece += holder > piece ? 1 : -1;
+    }
+    return std::nullopt;
+}
+
+}  // namespace
+
+double DepthCalibration::undistortDepth(int cell_x, int cell_y, double measured) const {
+    double z = measured;
+    for (int i = 0; i < kMaxIterations; ++i) {
+        const double next = measured * static_cast<double>(table_.cellFactor(cell_x, cell_y, z));
+        const bool converged = std::abs(next - z) < kTolerance;
+        z = next;
+        if (converged || z <= 0.0) return z;
+    }
+    // Where the factor is steep (a few cells beyond 7 m on the Redwood table) the iteration
+    // contracts slowly: the closed form on the factor's linear pieces finishes it.
+    const std::array<float, 5>& f = table_.cell(cell_x, cell_y);
+    if (std::all_of(f.begin(), f.end(), [](float x) { return x > 0.0F; })) {
+        if (const std::optional<double> d = closedFormDepth(f, measured)) return *d;
+    }
+    return z;
+}
 
 DepthImage DepthCalibration::undistort(DepthImage depth) const {
     const int w = depth.width();
@@ -36,15 +103,7 @@ DepthImage DepthCalibration::undistort(DepthImage depth) const {
                     depth(u, v) = 0.0F;  // invalid stays invalid, NaN included
                     continue;
                 }
-                double z = measured;
-                for (int i = 0; i < kMaxIterations; ++i) {
-                    const double next =
-                        measured * static_cast<double>(table_.cellFactor(cell_x[u], cell_y, z));
-                    const bool converged = std::abs(next - z) < kTolerance;
-                    z = next;
-                    if (converged || z <= 0.0) break;
-                }
-                depth(u, v) = static_cast<float>(z);
+                depth(u, v) = static_cast<float>(undistortDepth(cell_x[u], cell_y, measured));
             }
         }
     });

@@ -39,11 +39,16 @@ class DepthCalibration {
     const std::string& source() const { return source_; }
 
     /// Fixed-point iterations of undistort(): at most kMaxIterations, stopping when a step moves
-    /// the depth by less than kTolerance metres.
+    /// the depth by less than kTolerance metres. Where they have not converged by then (a steep
+    /// factor contracts slowly), the fixed point is solved in closed form on the factor's
+    /// piece that holds it (f is linear in depth between bin centres).
     static constexpr int kMaxIterations = 8;
     static constexpr double kTolerance = 1e-6;
 
   private:
+    /// undistort() of one pixel: measured depth > 0 in cell (cell_x, cell_y).
+    double undistortDepth(int cell_x, int cell_y, double measured) const;
+
     DistortionTable table_;
     std::string source_;
 };

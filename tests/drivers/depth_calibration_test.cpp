@@ -68,6 +68,37 @@ TEST(DepthCalibration, UndistortingTheSimulatedSensorGivesBackTheTrueDepth) {
     }
 }
 
+TEST(DepthCalibration, UndistortionSolvesTheSensorModelExactlyAtEveryDepth) {
+    PLUMB_REQUIRE_SHARED_DATA(path, "redwood-noise/dist-model.txt");
+    auto table = DistortionTable::load(path);
+    auto calibration = DepthCalibration::load(path);
+    ASSERT_TRUE(table.isOk() && calibration.isOk());
+    // Row v holds the true depth 0.2 + 11.8 v / 479 m (every piece of the factor, and beyond
+    // both end bins); the last rows the bin centres themselves, where the pieces meet.
+    const double centres[] = {1.0, 3.0, 5.0, 7.0, 9.0};
+    auto trueDepth = [&](int v) {
+        return v >= 470 ? centres[(v - 470) % 5] : 0.2 + 11.8 * v / 469;
+    };
+    DepthImage measured(640, 480);
+    for (int v = 0; v < 480; ++v) {
+        for (int u = 0; u < 640; ++u) {
+            const float f = table->factor(u - u % 2, v - v % 2, trueDepth(v));
+            measured(u, v) = f > 0.0F ? static_cast<float>(trueDepth(v) / f) : 0.0F;
+        }
+    }
+    const DepthImage undistorted = calibration->undistort(measured);
+    double worst = 0.0;
+    for (int v = 0; v < 480; ++v) {
+        for (int u = 0; u < 640; ++u) {
+            if (measured(u, v) <= 0.0F) continue;
+            const double d = trueDepth(v);
+            worst = std::max(worst, std::abs(double{undistorted(u, v)} - d) / d);
+        }
+    }
+    std::printf("0.2-12 m: undistorted depth within %.2g of the true depth (relative)\n", worst);
+    EXPECT_LT(worst, 5e-7);  // float rounding of the measured depth and of the factor
+}
+
 TEST(DepthCalibration, ScalesAnyImageSizeToTheTableGrid) {
     PLUMB_REQUIRE_SHARED_DATA(path, "redwood-noise/dist-model.txt");
     auto table = DistortionTable::load(path);
