@@ -131,49 +131,67 @@ class Fitter {
         return segments;
     }
 
+    /// The robust plane of one segment: the weighted PCA plane, Huber weights at huber_sigmas
+    /// robust sigmas, the plane again (three passes). `ok` false when the block normals spread
+    /// too far from it (a curved surface, not a bent plane).
+    struct SegmentFit {
+        Eigen::Vector3d n = Eigen::Vector3d::Zero();  ///< unit, towards the camera
+        double d = 0.0;                               ///< n . q = d on the plane
+        std::vector<double> sigma, residual, weight;  ///< per block, residuals in sigmas
+        double cost = 0.0, wsum = 0.0;  ///< sum of weighted squared residuals, of weights
+        bool ok = false;
+    };
+    SegmentFit fitSegment(const CorrectedFrame& f, const std::vector<size_t>& seg) const {
+        SegmentFit s;
+        const size_t m = seg.size();
+        s.sigma.resize(m);
+        s.weight.assign(m, 1.0);
+        s.residual.resize(m);
+        for (size_t j = 0; j < m; ++j) {
+            const double z = f.q[seg[j]].z();
+            s.sigma[j] = config_.noise_per_m2 * z * z;
+        }
+        for (int pass = 0; pass < 3; ++pass) {
+            fitPlane(f, seg, s.sigma, s.weight, &s.n, &s.d);
+            for (size_t j = 0; j < m; ++j) {
+                s.residual[j] = (s.n.dot(f.q[seg[j]]) - s.d) / s.sigma[j];
+            }
+            std::vector<double> a(m);
+            for (size_t j = 0; j < m; ++j) a[j] = std::abs(s.residual[j]);
+            std::nth_element(a.begin(), a.begin() + static_cast<long>(m / 2), a.end());
+            const double scale = std::max(1.4826 * a[m / 2], 1e-3);
+            const double k = config_.huber_sigmas * scale;
+            for (size_t j = 0; j < m; ++j) {
+                const double e = std::abs(s.residual[j]);
+                s.weight[j] = e <= k ? 1.0 : k / e;
+            }
+        }
+        double min_cos = 1.0;
+        for (size_t j : seg) min_cos = std::min(min_cos, std::abs(f.normal[j].dot(s.n)));
+        if (degrees(std::acos(std::clamp(min_cos, -1.0, 1.0))) > config_.max_segment_spread_deg) {
+            return s;
+        }
+        for (size_t j = 0; j < m; ++j) {
+            s.cost += s.weight[j] * s.residual[j] * s.residual[j];
+            s.wsum += s.weight[j];
+        }
+        s.ok = true;
+        return s;
+    }
+
     /// Adds the segments of one frame to its system (Eq. 2, the planes eliminated).
     void accumulate(const std::vector<Block>& blocks, const CorrectedFrame& f,
                     const std::vector<std::vector<size_t>>& segments, bool gate_rms,
                     FrameSystem* sys) const {
-        std::vector<double> sigma, residual, weight;
         for (const std::vector<size_t>& seg : segments) {
             const size_t m = seg.size();
-            sigma.resize(m);
-            weight.resize(m);
-            residual.resize(m);
-            for (size_t j = 0; j < m; ++j) {
-                const double z = f.q[seg[j]].z();
-                sigma[j] = config_.noise_per_m2 * z * z;
-                weight[j] = 1.0;
-            }
-            // Plane by weighted PCA, then Huber weights, then the plane again.
-            Eigen::Vector3d n;
-            double d = 0.0;
-            for (int pass = 0; pass < 3; ++pass) {
-                fitPlane(f, seg, sigma, weight, &n, &d);
-                for (size_t j = 0; j < m; ++j) residual[j] = (n.dot(f.q[seg[j]]) - d) / sigma[j];
-                std::vector<double> a(m);
-                for (size_t j = 0; j < m; ++j) a[j] = std::abs(residual[j]);
-                std::nth_element(a.begin(), a.begin() + static_cast<long>(m / 2), a.end());
-                const double scale = std::max(1.4826 * a[m / 2], 1e-3);
-                const double k = config_.huber_sigmas * scale;
-                for (size_t j = 0; j < m; ++j) {
-                    const double e = std::abs(residual[j]);
-                    weight[j] = e <= k ? 1.0 : k / e;
-                }
-            }
-            // Segments whose normals spread too far are curved surfaces, not bent planes.
-            double min_cos = 1.0;
-            for (size_t j : seg) min_cos = std::min(min_cos, std::abs(f.normal[j].dot(n)));
-            if (degrees(std::acos(std::clamp(min_cos, -1.0, 1.0))) >
-                config_.max_segment_spread_deg) {
-                continue;
-            }
-            double cost = 0.0, wsum = 0.0;
-            for (size_t j = 0; j < m; ++j) {
-                cost += weight[j] * residual[j] * residual[j];
-                wsum += weight[j];
-            }
+            const SegmentFit fit = fitSegment(f, seg);
+            if (!fit.ok) continue;
+            const Eigen::Vector3d& n = fit.n;
+            const double d = fit.d;
+            const std::vector<double>& sigma = fit.sigma;
+            const std::vector<double>& weight = fit.weight;
+            const double cost = fit.cost, wsum = fit.wsum;
             if (gate_rms && std::sqrt(cost / wsum) > config_.max_segment_rms_sigmas) continue;
             sys->cost += cost;
             sys->weight += wsum;
@@ -543,6 +561,29 @@ Result<PlanarEstimate> PlanarDistortionEstimator::estimate(const Observer& obser
             100.0 * all->split_disagreement, 100.0 * config_.max_split_disagreement));
     }
     return all;
+}
+
+std::vector<std::vector<SegmentPlane>> PlanarDistortionEstimator::framePlanes(
+    const PlanarDistortion& model) const {
+    std::vector<std::vector<SegmentPlane>> out(frames_.size());
+    const Fitter fitter(config_, columns_, rows_);
+    plumb::parallelFor(config_.num_threads, static_cast<int>(frames_.size()), [&](int k) {
+        const CorrectedFrame f = fitter.correct(frames_[static_cast<size_t>(k)], model);
+        for (const std::vector<size_t>& seg : fitter.segment(f)) {
+            const auto fit = fitter.fitSegment(f, seg);
+            const double rms = fit.ok ? std::sqrt(fit.cost / fit.wsum) : 0.0;
+            if (!fit.ok || rms > config_.max_segment_rms_sigmas) continue;
+            SegmentPlane plane;
+            plane.normal = fit.n;
+            plane.distance = fit.d;
+            for (size_t i : seg) plane.mean_depth += f.q[i].z();
+            plane.mean_depth /= static_cast<double>(seg.size());
+            plane.blocks = seg.size();
+            plane.rms_sigmas = rms;
+            out[static_cast<size_t>(k)].push_back(plane);
+        }
+    });
+    return out;
 }
 
 Result<PlanarEstimate> PlanarDistortionEstimator::fit(size_t begin, size_t end,

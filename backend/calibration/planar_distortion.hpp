@@ -54,6 +54,8 @@
 #include <functional>
 #include <vector>
 
+#include <Eigen/Core>
+
 #include "common/calibration/distortion_table.hpp"
 #include "common/camera/pinhole.hpp"
 #include "common/config/schema.hpp"
@@ -163,6 +165,15 @@ struct PlanarEstimate {
     double split_disagreement = 0.0;
 };
 
+/// One planar segment of one frame, in the camera frame of the depth corrected by a model.
+struct SegmentPlane {
+    Eigen::Vector3d normal = Eigen::Vector3d::Zero();  ///< unit, towards the camera
+    double distance = 0.0;    ///< normal . P = distance for points P of the plane (< 0)
+    double mean_depth = 0.0;  ///< mean depth of its blocks, metres
+    size_t blocks = 0;
+    double rms_sigmas = 0.0;  ///< robust residual RMS, in sensor noise sigmas
+};
+
 /// Collects the block grids of raw depth frames of one camera and fits Eq. 1 to them.
 /// Not thread-safe; estimate() is const.
 class PlanarDistortionEstimator {
@@ -179,6 +190,11 @@ class PlanarDistortionEstimator {
     /// the check of its two halves. kFailedPrecondition when no frame holds a planar segment or
     /// the halves disagree (the message says by how much).
     Result<PlanarEstimate> estimate(const Observer& observer = {}) const;
+
+    /// The planar segments of every frame kept, its depth corrected by `model`: segments grown
+    /// and planes fitted as in estimate()'s iterations, those that pass its tests (normal
+    /// spread, residual RMS) only. In frame order.
+    std::vector<std::vector<SegmentPlane>> framePlanes(const PlanarDistortion& model) const;
 
     struct Block {
         float x, y, z;  ///< mean raw point in the camera frame, metres (z = 0: not used)

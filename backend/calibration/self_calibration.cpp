@@ -236,6 +236,9 @@ void describe(config::Schema& s, SelfCalibrationConfig& c) {
         .lessThan(2.0);
     s.section("planar", c.planar,
               "the first stage: the bend from each frame's planes, without poses");
+    s.section("right_angles", c.right_angles,
+              "after each planar stage: the offset of the disparity that keeps planes planes, from "
+              "the right angles between each frame's planes");
     s.section("tsdf", c.tsdf, "the model: TSDF fused from the undistorted frames");
     s.section("raycast", c.raycast, "the model's depth at each frame's pose");
     s.field("num_threads", c.num_threads,
@@ -263,6 +266,7 @@ Status validate(const SelfCalibrationConfig& c) {
     if (!(c.change_tolerance > 0.0)) return bad("change_tolerance must be positive");
     if (!(c.relaxation >= 1.0 && c.relaxation < 2.0)) return bad("relaxation not in [1, 2)");
     if (Status s = validate(c.planar); !s.isOk()) return s;
+    if (Status s = validate(c.right_angles); !s.isOk()) return s;
     if (c.num_threads < 0) return bad("num_threads must be >= 0");
     return c.tsdf.validate();
 }

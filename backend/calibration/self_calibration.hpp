@@ -54,6 +54,7 @@
 #include <vector>
 
 #include "backend/calibration/planar_distortion.hpp"
+#include "backend/calibration/right_angles.hpp"
 #include "common/calibration/distortion_table.hpp"
 #include "common/camera/pinhole.hpp"
 #include "common/config/schema.hpp"
@@ -116,6 +117,9 @@ struct SelfCalibrationConfig {
     /// alternation starts from its table; `--self-calibrate` makes its first reconstruction with
     /// it and learns the bend left after the refined table with it again.
     PlanarDistortionConfig planar;
+    /// After each planar stage: the part of the distortion that keeps planes planes, from the
+    /// right angles between each frame's planes (right_angles.hpp).
+    RightAngleConfig right_angles;
     /// The model: TSDF fused from the undistorted frames at their poses.
     tsdf::TsdfConfig tsdf = defaultTsdf();
     /// The model's depth at each frame's pose.

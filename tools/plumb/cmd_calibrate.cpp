@@ -236,7 +236,8 @@ int runPlanarOnly(FrameSource& source, const CalibrateArgs& a,
                   const calibration::SelfCalibrationConfig& cfg,
                   const std::optional<DistortionTable>& initial,
                   const std::optional<DistortionTable>& reference) {
-    Result<PlanarStage> planar = learnPlanarTable(source, cfg.planar, planarPrinter(a.quiet));
+    Result<PlanarStage> planar =
+        learnPlanarTable(source, cfg.planar, cfg.right_angles, planarPrinter(a.quiet));
     if (!planar.isOk()) return failure(kCommand, planar.status());
     if (initial) planar->table = composeTables(*initial, planar->table);
     if (Status s = planar->table.save(a.out); !s.isOk()) return failure(kCommand, s);

@@ -330,8 +330,8 @@ Result<backend::PipelineResult> reconstructOnce(FrameSource& source, const std::
     return result;
 }
 
-/// The accuracy figures of a run's main variant, for the self-calibration's before/after.
-/// What the planar stage learned: its iterations and the planes' residual before and after.
+/// What the planar stage learned: its iterations and the planes' residual before and after, and
+/// the right angles' offset when that step ran.
 nlohmann::json planarFigures(const PlanarStage& p) {
     nlohmann::json iterations = nlohmann::json::array();
     for (const calibration::PlanarIteration& it : p.estimate.iterations) {
@@ -340,11 +340,26 @@ nlohmann::json planarFigures(const PlanarStage& p) {
                               {"residual_sigmas", it.rms_sigmas},
                               {"max_change", it.max_change}});
     }
-    return {{"frames", p.estimate.frames},
-            {"iterations", iterations},
-            {"split_disagreement", p.estimate.split_disagreement}};
+    nlohmann::json out = {{"frames", p.estimate.frames},
+                          {"iterations", iterations},
+                          {"split_disagreement", p.estimate.split_disagreement}};
+    if (p.right_angles) {
+        const calibration::RightAngleEstimate& r = *p.right_angles;
+        const calibration::DisparityOffset& d = r.delta;
+        out["right_angles"] = {{"disparity_offset_1m_per_m", {d.near.x(), d.near.y(), d.near.z()}},
+                               {"disparity_offset_3m_per_m", {d.far.x(), d.far.y(), d.far.z()}},
+                               {"perpendicular_pairs", r.perpendicular},
+                               {"parallel_pairs", r.parallel},
+                               {"frames", r.frames},
+                               {"residual_before_deg", r.rms_before_deg},
+                               {"residual_after_deg", r.rms_after_deg}};
+    } else if (!p.right_angles_skipped.empty()) {
+        out["right_angles"] = {{"skipped", p.right_angles_skipped}};
+    }
+    return out;
 }
 
+/// The accuracy figures of a run's main variant, for the self-calibration's before/after.
 nlohmann::json mainFigures(const backend::PipelineResult& r) {
     nlohmann::json out = nlohmann::json::object();
     const nlohmann::json& variants = r.metrics.value("variants", nlohmann::json::object());
@@ -366,8 +381,9 @@ Result<PlanarStage> planarStage(const std::string& uri, const Options& o,
     raw_options.colour = false;
     Result<std::unique_ptr<FrameSource>> source = openFrameSource(uri, raw_options);
     if (!source.isOk()) return source.status();
-    Result<PlanarStage> planar =
-        learnPlanarTable(**source, sc.estimate.planar, [](const calibration::PlanarIteration& it) {
+    Result<PlanarStage> planar = learnPlanarTable(
+        **source, sc.estimate.planar, sc.estimate.right_angles,
+        [](const calibration::PlanarIteration& it) {
             log::info(
                 "self-calibration, planes, iteration {}: {} planar segments ({} blocks), "
                 "residual {:.2f} noise sigmas, largest change {:.5f}",

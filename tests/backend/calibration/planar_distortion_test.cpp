@@ -18,8 +18,7 @@
 #include "backend/calibration/planar_distortion.hpp"
 #include "backend/calibration/self_calibration.hpp"
 #include "common/camera/pinhole.hpp"
-#include "drivers/sim/noise.hpp"
-#include "drivers/sim/sim_source.hpp"
+#include "tests/backend/calibration/simulated_depth.hpp"
 #include "tests/testing/shared_data.hpp"
 
 namespace plumb::calibration {
@@ -30,24 +29,7 @@ using Table = DistortionTable;
 /// Every `step`-th of `frames` frames of a simulated living_room scan at 640x480: raw depth.
 std::vector<DepthImage> simulate(const std::string& noise_mode, const std::string& table_path,
                                  size_t frames, size_t step, PinholeCamera* camera) {
-    sim::SimConfig config;
-    config.scene = "living_room";
-    config.camera = cameraPreset("primesense").value();
-    config.trajectory.num_frames = frames;
-    config.noise_model_path = table_path;
-    EXPECT_TRUE(sim::parseNoiseMode(noise_mode, &config.noise).isOk());
-    auto source = sim::SimSource::create(config);
-    EXPECT_TRUE(source.isOk()) << source.status().toString();
-    std::vector<DepthImage> depth;
-    if (!source.isOk()) return depth;
-    *camera = (*source)->camera();
-    for (size_t k = 0; k < frames; ++k) {
-        Result<Frame> f = (*source)->next();
-        EXPECT_TRUE(f.isOk()) << f.status().toString();
-        if (!f.isOk()) break;
-        if (k % step == 0) depth.push_back(std::move(f->depth));
-    }
-    return depth;
+    return testing::simulateLivingRoom(noise_mode, table_path, frames, step, camera);
 }
 
 /// The table whose inverse factors are, per bin, the least-squares polynomial of degree 4 in
