@@ -92,6 +92,9 @@ void describe(config::Schema& s, RightAngleConfig& c) {
     s.field("enabled", c.enabled,
             "after each planar stage, remove the disparity offset that the angles between each "
             "frame's planes show (walls perpendicular to the floor and to each other)");
+    s.field("first_pass", c.first_pass,
+            "also after --self-calibrate's first planar stage, of the raw depth (off: only after "
+            "the last one)");
     s.field("max_off_deg", c.max_off_deg,
             "two planes of one frame within this of perpendicular (or parallel) are taken to be "
             "exactly so",
@@ -111,7 +114,7 @@ void describe(config::Schema& s, RightAngleConfig& c) {
     s.field("huber_deg", c.huber_deg, "Huber threshold on a pair's angle residual", "degrees")
         .positive();
     s.field("iterations", c.iterations, "Gauss-Newton iterations").min(1);
-    s.field("min_pairs", c.min_pairs, "fewer pairs than this: no estimate").min(1);
+    s.field("min_pairs", c.min_pairs, "fewer perpendicular pairs than this: no estimate").min(1);
     s.field("min_observation", c.min_observation,
             "smallest over largest eigenvalue of the normal equations below this: no estimate")
         .range(0.0, 1.0);
@@ -139,11 +142,14 @@ Result<RightAngleEstimate> estimateRightAngles(const std::vector<std::vector<Seg
     RightAngleEstimate out;
     const std::vector<PlanePair> pairs = collectPairs(frames, config, &out.frames);
     for (const PlanePair& p : pairs) ++(p.parallel ? out.parallel : out.perpendicular);
-    if (pairs.size() < static_cast<size_t>(config.min_pairs)) {
+    // Perpendicular pairs carry the estimate; parallel ones (at different distances) only add
+    // to it: a scan of parallel planes alone (one wall and the furniture in front of it) may
+    // hold no true one among them.
+    if (out.perpendicular < static_cast<size_t>(config.min_pairs)) {
         return failedPrecondition(fmt::format(
-            "right angles: {} pairs of perpendicular or parallel planes in {} frames (at least "
-            "{}); the views hold too few walls meeting the floor or each other",
-            pairs.size(), frames.size(), config.min_pairs));
+            "right angles: {} pairs of perpendicular planes in {} frames (at least {}); the "
+            "views hold too few walls meeting the floor or each other",
+            out.perpendicular, frames.size(), config.min_pairs));
     }
     const double huber = config.huber_deg * kDeg;
     out.rms_before_deg = rmsDegrees(pairs, Params::Zero(), huber);

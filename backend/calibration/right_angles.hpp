@@ -47,8 +47,11 @@
 namespace plumb::calibration {
 
 struct RightAngleConfig {
-    /// Whether the self-calibration's planar stages remove the offset the right angles show.
+    /// Whether the self-calibration's planar stages remove the offset the right angles show ...
     bool enabled = false;
+    /// ... also `plumb reconstruct --self-calibrate`'s first one, of the raw depth (off: only
+    /// the last, after the table refined at poses, and `plumb calibrate --planar-only`'s).
+    bool first_pass = false;
     /// Two planes of one frame within this of perpendicular (or of parallel) are taken to be
     /// exactly so; degrees. The bend of Eq. 1 moves angles by tenths of a degree.
     double max_off_deg = 3.0;
@@ -68,9 +71,9 @@ struct RightAngleConfig {
     double huber_deg = 0.1;
     /// Gauss-Newton iterations.
     int iterations = 10;
-    /// At least this many pairs, and each direction of delta observed by them (the smallest
-    /// eigenvalue of the normal equations at least min_observation of the largest), or the
-    /// estimate fails.
+    /// At least this many perpendicular pairs, and each direction of delta observed by all the
+    /// pairs (the smallest eigenvalue of the normal equations at least min_observation of the
+    /// largest), or the estimate fails.
     int min_pairs = 30;
     double min_observation = 0.01;
 };

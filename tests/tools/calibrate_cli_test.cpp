@@ -67,6 +67,18 @@ TEST(PlumbCalibrateCli, PlanarOnlyLearnsTheBendWithoutPoses) {
     ASSERT_TRUE(learnt.isOk()) << learnt.status().toString();
     // The bend at 3 m: per cents between the image's centre and its corners.
     EXPECT_GT(std::abs(learnt->cell(0, 0)[1] - learnt->cell(40, 40)[1]), 0.005);
+
+    // With the right angles asked for: at this resolution no frame holds a wall and the floor
+    // as planes large enough, so the step says so and the planar table stands, byte for byte.
+    const fs::path with_angles = dir / "with_angles.txt";
+    const ProcessRun angles = plumbCalibrate(
+        dir, {"sim:living_room", "--intrinsics", "ci", "--frames", "600", "--planar-only", "--set",
+              "right_angles.enabled=true", "--out", with_angles.string()});
+    ASSERT_EQ(angles.exit_code, 0) << angles.err;
+    EXPECT_NE(angles.err.find("right angles: 0 pairs of perpendicular planes"), std::string::npos)
+        << angles.err;
+    EXPECT_NE(angles.err.find("the planar table is kept"), std::string::npos) << angles.err;
+    EXPECT_EQ(testing::slurp(with_angles), testing::slurp(table));
 }
 
 TEST(PlumbCalibrateCli, PlanarOnlyRefusesAScanWhosePlanesDoNotDetermineTheBend) {

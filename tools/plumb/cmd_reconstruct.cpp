@@ -381,9 +381,10 @@ Result<PlanarStage> planarStage(const std::string& uri, const Options& o,
     raw_options.colour = false;
     Result<std::unique_ptr<FrameSource>> source = openFrameSource(uri, raw_options);
     if (!source.isOk()) return source.status();
+    calibration::RightAngleConfig right_angles = sc.estimate.right_angles;
+    if (undistort == "none" && !right_angles.first_pass) right_angles.enabled = false;
     Result<PlanarStage> planar = learnPlanarTable(
-        **source, sc.estimate.planar, sc.estimate.right_angles,
-        [](const calibration::PlanarIteration& it) {
+        **source, sc.estimate.planar, right_angles, [](const calibration::PlanarIteration& it) {
             log::info(
                 "self-calibration, planes, iteration {}: {} planar segments ({} blocks), "
                 "residual {:.2f} noise sigmas, largest change {:.5f}",

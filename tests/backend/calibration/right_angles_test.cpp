@@ -135,7 +135,17 @@ TEST(RightAngles, BadInputGetsSpecificErrors) {
     const auto none = estimateRightAngles({}, RightAngleConfig{});
     ASSERT_FALSE(none.isOk());
     EXPECT_EQ(none.status().code(), StatusCode::kFailedPrecondition);
-    EXPECT_NE(none.status().message().find("pairs"), std::string::npos);
+    EXPECT_NE(none.status().message().find("perpendicular"), std::string::npos);
+    // Parallel planes alone (at different distances) do not make an estimate.
+    SegmentPlane floor, table;
+    floor.normal = table.normal = Eigen::Vector3d(0.0, -1.0, 0.0);
+    floor.distance = -1.4;
+    table.distance = -0.7;
+    floor.blocks = table.blocks = 500;
+    const std::vector<std::vector<SegmentPlane>> parallel(100, {floor, table});
+    const auto only_parallel = estimateRightAngles(parallel, RightAngleConfig{});
+    ASSERT_FALSE(only_parallel.isOk());
+    EXPECT_EQ(only_parallel.status().code(), StatusCode::kFailedPrecondition);
     RightAngleConfig bad;
     bad.max_off_deg = 60.0;
     EXPECT_EQ(estimateRightAngles({}, bad).status().code(), StatusCode::kInvalidArgument);
