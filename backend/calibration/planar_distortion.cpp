@@ -571,8 +571,9 @@ std::vector<std::vector<SegmentPlane>> PlanarDistortionEstimator::framePlanes(
         const CorrectedFrame f = fitter.correct(frames_[static_cast<size_t>(k)], model);
         for (const std::vector<size_t>& seg : fitter.segment(f)) {
             const auto fit = fitter.fitSegment(f, seg);
-            const double rms = fit.ok ? std::sqrt(fit.cost / fit.wsum) : 0.0;
-            if (!fit.ok || rms > config_.max_segment_rms_sigmas) continue;
+            if (!fit.ok) continue;
+            const double rms = std::sqrt(fit.cost / fit.wsum);
+            if (rms > config_.max_segment_rms_sigmas) continue;
             SegmentPlane plane;
             plane.normal = fit.n;
             plane.distance = fit.d;

@@ -39,11 +39,6 @@ Result<PlanarStage> learnPlanarTable(
     const calibration::RightAngleConfig& right_angles,
     const std::function<void(const calibration::PlanarIteration&)>& observer = {});
 
-/// The right-angle step of learnPlanarTable on an estimator already fitted to `stage->estimate`.
-void removeRightAngleOffset(const calibration::PlanarDistortionEstimator& estimator,
-                            const calibration::RightAngleConfig& config,
-                            const PinholeCamera& camera, PlanarStage* stage);
-
 /// The table that undistorts as `first` followed by `then`: per cell and bin the product of
 /// their factors (z_true = f_then * (f_first * z_raw), the bin of both taken at the same depth);
 /// a cell invalid in either is invalid.
