@@ -1,11 +1,14 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "device/fusion/fragment_builder.hpp"
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <string>
 #include <utility>
 
 #include "common/core/timing.hpp"
+#include "common/geometry/lie.hpp"
 
 namespace plumb::device {
 
@@ -109,6 +112,58 @@ bool FragmentBuilder::integrate(const FramePyramid& pyramid, const Eigen::Isomet
     return true;
 }
 
+namespace {
+
+/// Ratios of intervals within this factor of 1 are timestamp jitter, not dropped frames.
+constexpr double kJitter = 1.25;
+
+}  // namespace
+
+Eigen::Isometry3d FragmentBuilder::predictedPose() const {
+    if (!config_.constant_velocity || lost_) return T_M_last_;
+    const double since = frame_time_s_ - last_tracked_time_s_;
+    const double scale = since / velocity_dt_s_;
+    if (!(velocity_dt_s_ > 0.0) || !(since > 0.0) || !std::isfinite(scale) ||
+        (scale < kJitter && scale > 1.0 / kJitter)) {
+        return T_M_last_ * velocity_;
+    }
+    // The same velocity over `since` seconds instead of velocity_dt_s_.
+    return T_M_last_ * lie::expSE3(scale * lie::logSE3(velocity_));
+}
+
+void FragmentBuilder::noteFrameTime(double timestamp_s) {
+    frame_time_s_ = timestamp_s;
+    if (const double dt = frame_time_s_ - previous_frame_time_s_; dt > 0.0 && std::isfinite(dt)) {
+        intervals_s_[num_intervals_++ % kIntervals] = dt;
+    }
+    previous_frame_time_s_ = frame_time_s_;
+}
+
+void FragmentBuilder::noteTracked(const Eigen::Isometry3d& T_M_C) {
+    velocity_ = lost_ ? Eigen::Isometry3d::Identity() : T_M_last_.inverse() * T_M_C;
+    const double since = frame_time_s_ - last_tracked_time_s_;
+    velocity_dt_s_ = !lost_ && since > 0.0 && std::isfinite(since) ? since : 0.0;
+    last_tracked_time_s_ = frame_time_s_;
+}
+
+IcpConfig FragmentBuilder::icpConfigSinceTracked() const {
+    // Frames dropped since the last tracked one: the camera had that much longer to move.
+    IcpConfig icp = config_.icp;
+    const double periods = periodsSinceTracked();
+    icp.max_translation_m *= periods;
+    icp.max_rotation_deg *= periods;
+    return icp;
+}
+
+double FragmentBuilder::periodsSinceTracked() const {
+    if (num_intervals_ == 0) return 1.0;
+    std::array<double, kIntervals> seen = intervals_s_;
+    const size_t n = std::min<size_t>(num_intervals_, kIntervals);
+    std::nth_element(seen.begin(), seen.begin() + n / 2, seen.begin() + n);
+    const double periods = (frame_time_s_ - last_tracked_time_s_) / seen[n / 2];
+    return std::isfinite(periods) && periods >= kJitter ? periods : 1.0;
+}
+
 bool FragmentBuilder::integrationDue() const {
     if (!(config_.max_integration_hz > 0.0)) return true;
     const double dt = frame_time_s_ - last_fused_time_s_;
@@ -170,7 +225,7 @@ Result<FrameReport> FragmentBuilder::processImpl(const Frame& frame) {
     }
     FrameReport report;
     report.frame_index = frame.index;
-    frame_time_s_ = frame.timestamp_s;
+    noteFrameTime(frame.timestamp_s);
     report.timing.preprocess_ms = msSince(t_pre);
     colour_ = config_.fuse_colour && !frame.colour.empty() ? &frame.colour : nullptr;
 
@@ -182,6 +237,8 @@ Result<FrameReport> FragmentBuilder::processImpl(const Frame& frame) {
             report.closed.push_back(closeFragment(FragmentEnd::kTrackingLost, &report.timing));
         }
         if (!current_) openFragment(T_W_C_);
+        last_tracked_time_s_ = frame_time_s_;  // the camera starts (again) here
+        velocity_dt_s_ = 0.0;
         report.tracked = !restart;
         report.integrated = integrate(pyramid, Eigen::Isometry3d::Identity(), &report);
         if (report.integrated) addFrame(frame, Eigen::Isometry3d::Identity(), true, 1.0);
@@ -203,8 +260,8 @@ Result<FrameReport> FragmentBuilder::processImpl(const Frame& frame) {
     updateModel(model_volume, T_X_M, pyramid, /*rgbd=*/!intensity.empty(), &report.timing);
     // Start from a constant-velocity prediction: along directions the geometry leaves free
     // (solution remapping in the ICP) the camera keeps moving as it did.
-    const Eigen::Isometry3d T_M_pred =
-        config_.constant_velocity && !lost_ ? T_M_last_ * velocity_ : T_M_last_;
+    const Eigen::Isometry3d T_M_pred = predictedPose();
+    const IcpConfig icp_config = icpConfigSinceTracked();
     PhotometricInput photometric;
     if (have_reference_ && !intensity.empty()) {
         photometric.current = &intensity;
@@ -214,14 +271,14 @@ Result<FrameReport> FragmentBuilder::processImpl(const Frame& frame) {
     }
     const Eigen::Isometry3d T_X_last = T_X_M * T_M_last_;
     report.icp =
-        alignFrameToModel(pyramid, model_, T_X_P_, T_X_M * T_M_pred, config_.icp,
+        alignFrameToModel(pyramid, model_, T_X_P_, T_X_M * T_M_pred, icp_config,
                           photometric.current != nullptr ? &photometric : nullptr, &T_X_last);
     if (handover_) report.icp.T_M_C = T_P_M_.inverse() * report.icp.T_M_C;
     report.timing.track_ms = msSince(t_track);
 
     if (report.icp.ok) {
         const Eigen::Isometry3d T_M_C = report.icp.T_M_C;
-        velocity_ = lost_ ? Eigen::Isometry3d::Identity() : T_M_last_.inverse() * T_M_C;
+        noteTracked(T_M_C);
         T_W_C_ = T_W_M_ * T_M_C;
         report.tracked = true;
         report.relocalised = lost_;
@@ -264,6 +321,7 @@ Result<FrameReport> FragmentBuilder::processImpl(const Frame& frame) {
         report.message = "tracking failed: " + report.icp.failure;
         model_.clear();
         velocity_ = Eigen::Isometry3d::Identity();
+        velocity_dt_s_ = 0.0;
         report.T_W_C = T_W_C_;
         if (current_) {
             addFrame(frame, T_M_last_, false, 0.0);
@@ -276,6 +334,7 @@ Result<FrameReport> FragmentBuilder::processImpl(const Frame& frame) {
             report.new_segment = true;
             report.message += "; re-localisation failed, new segment " + std::to_string(segment_);
             openFragment(T_W_C_);
+            last_tracked_time_s_ = frame_time_s_;
             report.integrated = integrate(pyramid, Eigen::Isometry3d::Identity(), &report);
             if (report.integrated) addFrame(frame, Eigen::Isometry3d::Identity(), true, 1.0);
             setReference(pyramid, intensity);

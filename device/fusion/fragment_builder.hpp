@@ -15,12 +15,23 @@
 // volume from the last good pose; if that fails too, a new segment starts (Fragment::segment + 1)
 // whose pose is only a guess (the last good pose) for the backend to correct.
 //
+// Dropped frames: a live device that falls behind its camera drops frames, often several in a
+// row while one frame takes long. The constant-velocity prediction therefore scales the last
+// motion to the time since the last tracked frame (the motion is the camera's velocity times the
+// time the frames span, not a step per frame), and the implausible-motion tests
+// (IcpConfig::max_translation_m, max_rotation_deg, per frame period) grow with the frame
+// periods that time spans. The frame period is the median of the last nine intervals between
+// consecutive frames. Timestamps within a quarter of a period of a regular stream (jitter) change
+// neither; without usable timestamps (not increasing) every frame counts as one period.
+//
 // Block budget: when a frame would exceed TsdfConfig::max_blocks the fragment is closed early
 // (FragmentEnd::kBlockBudget) and the frame starts the next fragment; the frame report says so.
 //
 // Not thread-safe; one caller feeds frames in order. No I/O: callers log the reports.
 
 #include <Eigen/Geometry>
+#include <array>
+#include <cstdint>
 #include <limits>
 #include <optional>
 #include <span>
@@ -175,6 +186,19 @@ class FragmentBuilder {
     /// False when the frame being processed came too soon after the last one fused
     /// (max_integration_hz): it is tracked only.
     bool integrationDue() const;
+    /// The constant-velocity prediction of the camera in M for the frame being processed (the
+    /// last motion scaled to the time since the last tracked frame), and the number of frame
+    /// periods since that frame (at least 1) that scales the implausible-motion tests.
+    Eigen::Isometry3d predictedPose() const;
+    double periodsSinceTracked() const;
+    /// config_.icp with its implausible-motion tests scaled by periodsSinceTracked().
+    IcpConfig icpConfigSinceTracked() const;
+    /// The frame being processed has this timestamp (its interval to the previous one joins
+    /// the frame period's estimate).
+    void noteFrameTime(double timestamp_s);
+    /// The frame being processed tracked at T_M_C: the motion from the last tracked camera and
+    /// its time become the velocity of the next prediction (none after a loss).
+    void noteTracked(const Eigen::Isometry3d& T_M_C);
     /// The frame just tracked at T_W_C_ becomes the photometric reference of the next one (no
     /// reference when it has no colour).
     void setReference(const FramePyramid& pyramid, const std::vector<IntensityLevel>& intensity);
@@ -206,8 +230,18 @@ class FragmentBuilder {
     Eigen::Isometry3d T_X_P_ = Eigen::Isometry3d::Identity();
     int model_uses_ = 0;
     Eigen::Isometry3d T_W_C_ = Eigen::Isometry3d::Identity();
-    /// Last frame-to-frame motion T_Cprev_C (identity after a loss), for the prediction.
+    /// Last frame-to-frame motion T_Cprev_C (identity after a loss), for the prediction, and the
+    /// time it took (0: unknown, the motion counts as one frame period).
     Eigen::Isometry3d velocity_ = Eigen::Isometry3d::Identity();
+    double velocity_dt_s_ = 0.0;
+    /// Timestamp of the last frame tracked (the camera T_M_last_) and of the frame processed
+    /// before this one, and the last kIntervals intervals between consecutive frames (0: none
+    /// yet), whose median is the frame period. Dropped frames: see the file comment.
+    static constexpr size_t kIntervals = 9;
+    double last_tracked_time_s_ = std::numeric_limits<double>::quiet_NaN();
+    double previous_frame_time_s_ = std::numeric_limits<double>::quiet_NaN();
+    std::array<double, kIntervals> intervals_s_{};
+    uint32_t num_intervals_ = 0;  ///< intervals seen (the next goes to % kIntervals)
     /// The photometric reference: the last tracked frame's textured points and intensities, and
     /// its camera pose in the world. Kept through tracking failures (re-localisation starts from
     /// that frame's pose); empty while frames have no colour.

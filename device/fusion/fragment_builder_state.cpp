@@ -2,6 +2,7 @@
 // FragmentBuilder checkpoints: every member that carries over from one frame to the next.
 
 #include <cstring>
+#include <limits>
 
 #include "common/io/state_archive.hpp"
 #include "device/fusion/fragment_builder.hpp"
@@ -10,7 +11,10 @@ namespace plumb::device {
 namespace {
 
 constexpr uint32_t kStateMagic = 0x53424650u;  // "PFBS"
-constexpr uint32_t kStateVersion = 2;
+constexpr uint32_t kStateVersion = 3;
+/// Version 2 lacks the timing of the prediction (velocity_dt_s_ and the timestamps after it):
+/// restored without it, the next frame is predicted one frame period ahead.
+constexpr uint32_t kStateVersionWithoutTiming = 2;
 
 void saveFragment(io::StateWriter& out, const Fragment& f) {
     out.value(f.id);
@@ -132,6 +136,11 @@ std::vector<uint8_t> FragmentBuilder::saveState() const {
     out.value(quality_sum_);
     out.value(quality_count_);
     out.value<uint8_t>(first_frame_);
+    out.value(velocity_dt_s_);
+    out.value(last_tracked_time_s_);
+    out.value(previous_frame_time_s_);
+    for (double dt : intervals_s_) out.value(dt);
+    out.value(num_intervals_);
     return out.bytes();
 }
 
@@ -141,7 +150,7 @@ Status FragmentBuilder::restoreState(std::span<const uint8_t> bytes) {
     PinholeCamera camera;
     int frames_per_fragment = 0;
     if (!in.value(&magic) || magic != kStateMagic || !in.value(&version) ||
-        version != kStateVersion) {
+        (version != kStateVersion && version != kStateVersionWithoutTiming)) {
         return corrupt("fusion state: not a plumb fusion checkpoint of this version");
     }
     if (!in.value(&camera) || !in.value(&frames_per_fragment)) {
@@ -164,6 +173,16 @@ Status FragmentBuilder::restoreState(std::span<const uint8_t> bytes) {
          loadReference(in, &reference_) && in.pose(&T_W_R_) && in.value(&have_reference) &&
          in.value(&next_id_) && in.value(&segment_) && in.value(&quality_sum_) &&
          in.value(&quality_count_) && in.value(&first_frame);
+    velocity_dt_s_ = 0.0;
+    last_tracked_time_s_ = previous_frame_time_s_ = std::numeric_limits<double>::quiet_NaN();
+    intervals_s_.fill(0.0);
+    num_intervals_ = 0;
+    if (ok && version == kStateVersion) {
+        ok = in.value(&velocity_dt_s_) && in.value(&last_tracked_time_s_) &&
+             in.value(&previous_frame_time_s_);
+        for (double& dt : intervals_s_) ok = ok && in.value(&dt);
+        ok = ok && in.value(&num_intervals_);
+    }
     if (!ok || !in.atEnd()) return corrupt("fusion state: truncated or damaged");
     handover_ = handover != 0;
     have_model_ = have_model != 0;

@@ -7,6 +7,7 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <functional>
 #include <numbers>
 #include <vector>
@@ -369,6 +370,39 @@ TEST(FragmentBuilder, ARestoredStateContinuesExactlyAsTheBuilderWouldHave) {
         ASSERT_EQ(got.size(), expected.size());
         for (size_t i = 0; i < got.size(); ++i) expectSameFragment(got[i], expected[i]);
     }
+}
+
+// Checkpoints of version 2 lack the timing of the prediction (dropped frames, see the header):
+// restored without it, the next frame counts as one frame period after the last, which on a
+// regular stream is what it is, so the continuation is the same.
+TEST(FragmentBuilder, AStateSavedWithoutTheFrameTimingContinuesAsOneFramePeriodApart) {
+    FusionConfig config = fusionConfig();
+    config.frames_per_fragment = 8;
+    const testing::Scene room = testing::boxRoom();
+    constexpr int kStop = 10, kFrames = 20;
+    FragmentBuilder whole(camera(), config);
+    std::vector<Fragment> expected;
+    feed(whole, room, 0, kFrames, &expected);
+
+    FragmentBuilder first(camera(), config);
+    std::vector<Fragment> got;
+    feed(first, room, 0, kStop, &got);
+    std::vector<uint8_t> state = first.saveState();
+    // Version 2: the same fields without the trailing timing (three doubles, nine intervals
+    // and their count).
+    const size_t timing_bytes = 3 * sizeof(double) + 9 * sizeof(double) + sizeof(uint32_t);
+    ASSERT_GT(state.size(), timing_bytes);
+    state.resize(state.size() - timing_bytes);
+    const uint32_t version = 2;
+    std::memcpy(state.data() + sizeof(uint32_t), &version, sizeof(version));
+    FragmentBuilder second(camera(), config);
+    ASSERT_TRUE(second.restoreState(state).isOk());
+    feed(second, room, kStop, kFrames, &got);
+    ASSERT_EQ(got.size(), expected.size());
+    for (size_t i = 0; i < got.size(); ++i) expectSameFragment(got[i], expected[i]);
+
+    state.push_back(0);  // a version-2 state with bytes after its end is damaged
+    EXPECT_EQ(FragmentBuilder(camera(), config).restoreState(state).code(), StatusCode::kCorrupt);
 }
 
 TEST(FragmentBuilder, ADamagedOrForeignStateIsRefused) {
