@@ -14,6 +14,7 @@
 #include <string>
 
 #include "device/fusion/fragment_builder.hpp"
+#include "device/fusion/live_rate.hpp"
 
 namespace plumb::config {
 class Schema;
@@ -24,7 +25,7 @@ namespace plumb::device {
 struct CaptureConfig {
     /// Frames waiting between capture and fusion. Capture never blocks on a live sensor: a frame
     /// that finds the queue full is dropped and counted.
-    int queue_frames = 4;
+    int queue_frames = kDefaultCaptureQueueFrames;
     /// Pace recorded and simulated sources at their frame timestamps like a live sensor (frames
     /// fusion cannot keep up with are then dropped). false: recorded sources wait for fusion and
     /// lose nothing. Live sensors always drop.

@@ -43,12 +43,21 @@ TEST(PlumbFuseCli, FrameStepFusesFramesFloorOfJTimesStepAndTracksThem) {
     EXPECT_EQ(summary.at("frames_read").get<int>(), 23);
     EXPECT_DOUBLE_EQ(summary.at("processed_fraction").get<double>(), 10.0 / 23.0);
     // The simulator's 30 Hz, from the timestamps of frames 0 and 22; what a live device as fast
-    // as this run keeps of them follows from the measured time a frame.
+    // as this run keeps of them follows from the measured time a frame (by the mean), and from
+    // each frame's time through the device's capture queue.
     const nlohmann::json& live = summary.at("live");
     EXPECT_NEAR(live.at("sensor_hz").get<double>(), 30.0, 1e-6);
     const double period_ms = 1e3 / 30.0;
-    EXPECT_NEAR(live.at("keeps_fraction").get<double>(),
+    EXPECT_NEAR(live.at("keeps_fraction_by_mean").get<double>(),
                 std::min(1.0, period_ms / summary.at("ms_per_frame").get<double>()), 1e-9);
+    EXPECT_EQ(live.at("queue_frames").get<int>(), 4);
+    const double keeps = live.at("keeps_fraction").get<double>();
+    const int longest_drop_run = live.at("longest_drop_run").get<int>();
+    EXPECT_GT(keeps, 0.0);
+    EXPECT_LE(keeps, 1.0);
+    EXPECT_EQ(keeps == 1.0, longest_drop_run == 0) << keeps << " kept, " << longest_drop_run;
+    // Every kept frame ends at least its own time after it arrived.
+    EXPECT_GE(live.at("max_latency_ms").get<double>(), 0.0);
 
     const nlohmann::json fragment = nlohmann::json::parse(slurp(out / "fragment_000.json"));
     std::vector<int64_t> indices;

@@ -219,11 +219,16 @@ size_t fragmentFiles(const fs::path& out) {
     return n;
 }
 
-/// fragments.json without its measured times (ms_per_frame, live.keeps_fraction), which differ
-/// between any two runs.
+/// fragments.json without its measured times (ms_per_frame and the live figures derived from
+/// them), which differ between any two runs.
 std::string withoutTimes(nlohmann::json summary) {
     summary.erase("ms_per_frame");
-    if (summary.contains("live")) summary["live"].erase("keeps_fraction");
+    if (summary.contains("live")) {
+        for (const char* key :
+             {"keeps_fraction", "keeps_fraction_by_mean", "longest_drop_run", "max_latency_ms"}) {
+            summary["live"].erase(key);
+        }
+    }
     return summary.dump(2);
 }
 

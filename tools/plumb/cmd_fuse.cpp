@@ -36,6 +36,7 @@
 #include "common/io/trajectory.hpp"
 #include "device/fusion/fragment_builder.hpp"
 #include "device/fusion/fuse_frames.hpp"
+#include "device/fusion/live_rate.hpp"
 #include "drivers/sim/scene.hpp"
 #include "drivers/sim/sim_source.hpp"
 #include "drivers/source.hpp"
@@ -75,7 +76,10 @@ constexpr const char* kUsage =
     "                      fusion.max_integration_hz), processed_fraction\n"
     "                      (frames fused of those read: --frame-step), live (sensor_hz from\n"
     "                      the timestamps, keeps_fraction: the share of the camera's frames a\n"
-    "                      live device as fast as this run would process)\n"
+    "                      live device as fast as this run would process, each frame's time\n"
+    "                      replayed through plumb-device's capture queue of queue_frames;\n"
+    "                      longest_drop_run: most frames it would drop one after the other;\n"
+    "                      max_latency_ms; keeps_fraction_by_mean: period / mean frame time)\n"
     "  trajectory.txt      odometry (TUM, camera->world = T_W_F * T_F_C of tracked frames)\n"
     "  config.toml         the effective configuration\n"
     "  resume/             what --resume continues from (removed when the run completes)\n"
@@ -87,7 +91,7 @@ constexpr const char* kUsage =
     "tracked so far (trajectory.txt, the open fragment's frames included) and fragments.json\n"
     "with \"status\": \"interrupted\" and how far it got are kept, and `plumb fuse --resume DIR`\n"
     "continues the run, giving the same files byte for byte as a run never interrupted, but for\n"
-    "the measured times in fragments.json (ms_per_frame, live.keeps_fraction), which differ\n"
+    "the measured times in fragments.json (ms_per_frame and the live figures), which differ\n"
     "between any two runs, and its live.threads when --resume is given another --threads. A\n"
     "second Ctrl-C stops at once.\n"
     "\n"
@@ -300,7 +304,8 @@ struct FuseTally {
     uint64_t read = 0;       ///< source frames read
     uint64_t kept = 0;       ///< of those, frames kept (--frame-step)
     uint64_t frames = 0, lost = 0, relocalised = 0, segments_started = 0, budget = 0;
-    double process_s = 0.0;  ///< wall-clock time in the builder (of every session of the run)
+    double process_s = 0.0;        ///< wall-clock time in the builder (of every session of the run)
+    std::vector<double> frame_ms;  ///< the same per frame fused, milliseconds, in order
     /// (source position, timestamp) of the first and last frame fused: the sensor's period.
     std::optional<std::pair<uint64_t, double>> first_stamp, last_stamp;
     /// Tracked frames whose ICP left translations unconstrained (the geometry in view does not
@@ -335,7 +340,9 @@ void FuseTally::save(io::StateWriter& w) const {
     }
     // CBOR keeps every number exactly as it was (a float64 stays one).
     w.array(nlohmann::json::to_cbor(fragment_list));
-    for (const std::vector<double>* v : {&ates, &drifts_m, &drifts_deg, &medians}) w.array(*v);
+    for (const std::vector<double>* v : {&ates, &drifts_m, &drifts_deg, &medians, &frame_ms}) {
+        w.array(*v);
+    }
     for (uint64_t n : {positions, read, kept, frames, lost, relocalised, segments_started, budget,
                        frames_unconstrained, frames_photometric, frames_tracked_only}) {
         w.value(n);
@@ -386,7 +393,7 @@ bool FuseTally::load(io::StateReader& r) {
     if (!r.array(&cbor)) return false;
     fragment_list = nlohmann::json::from_cbor(cbor, true, false);
     if (!fragment_list.is_array()) return false;
-    for (std::vector<double>* v : {&ates, &drifts_m, &drifts_deg, &medians}) {
+    for (std::vector<double>* v : {&ates, &drifts_m, &drifts_deg, &medians, &frame_ms}) {
         if (!r.array(v)) return false;
     }
     for (uint64_t* c :
@@ -589,9 +596,11 @@ Result<bool> FuseRun::run(FrameSource& source, const std::function<bool()>& stop
         return true;
     };
     hooks.on_frame = [&](const Frame& frame, const device::FrameReport& report) {
-        t_.process_s +=
+        const double took_s =
             std::chrono::duration<double>(std::chrono::steady_clock::now() - process_start_)
                 .count();
+        t_.process_s += took_s;
+        t_.frame_ms.push_back(1e3 * took_s);
         noteReport(report, frame);
         progress.advance();
         return Status::ok();
@@ -665,15 +674,26 @@ std::pair<nlohmann::json, std::string> FuseRun::summary(
     if (first && last && last->first > first->first && last->second > first->second) {
         const double period_ms =
             1e3 * (last->second - first->second) / static_cast<double>(last->first - first->first);
-        const double keeps = std::min(1.0, period_ms / std::max(ms_per_frame, 1e-9));
+        const double by_mean = std::min(1.0, period_ms / std::max(ms_per_frame, 1e-9));
+        // Through the device's capture queue, frame by frame: a frame that takes long drops
+        // the frames after it in a row.
+        const device::LiveRate queue =
+            device::replayLiveCamera(t_.frame_ms, period_ms, device::kDefaultCaptureQueueFrames);
         summary["live"] = {
             {"sensor_hz", 1e3 / period_ms},
-            {"keeps_fraction", keeps},
+            {"keeps_fraction", queue.keptFraction()},
+            {"keeps_fraction_by_mean", by_mean},
+            {"queue_frames", device::kDefaultCaptureQueueFrames},
+            {"longest_drop_run", queue.longest_drop_run},
+            {"max_latency_ms", queue.max_latency_ms},
             {"threads",
              o_.threads > 0 ? o_.threads : static_cast<int>(std::thread::hardware_concurrency())}};
-        realtime_text =
-            fmt::format(" (a live device this fast keeps {:.0f} % of a {:.0f} Hz camera's frames)",
-                        100.0 * keeps, 1e3 / period_ms);
+        realtime_text = fmt::format(
+            " (a live device this fast keeps {:.0f} % of a {:.0f} Hz camera's frames through "
+            "its {}-frame queue, at most {} dropped in a row; {:.0f} % by the mean time a "
+            "frame)",
+            100.0 * queue.keptFraction(), 1e3 / period_ms, device::kDefaultCaptureQueueFrames,
+            queue.longest_drop_run, 100.0 * by_mean);
     }
     summary["fragments"] = t_.fragment_list;
     auto stats = [](const std::vector<double>& v) {
