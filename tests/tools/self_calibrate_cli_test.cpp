@@ -65,7 +65,8 @@ TEST(PlumbReconstructCli, SelfCalibrateLearnsTheTableFromTheRawDepthAndReportsBe
         plumb("reconstruct", logs,
               {"sim:living_room", "--intrinsics", "ci", "--frames", "600", "--frame-step", "4",
                "--self-calibrate", "--no-baseline", "--quiet", "--set",
-               "self_calibration.estimate.max_iterations=3", "--out", out.string()});
+               "self_calibration.estimate.max_iterations=3", "--set",
+               "self_calibration.max_frames=100", "--out", out.string()});
     ASSERT_EQ(run.exit_code, 0) << run.err;
     std::printf("%s", run.out.c_str());
     EXPECT_NE(run.out.find("self-calibration: table"), std::string::npos) << run.out;
@@ -91,7 +92,10 @@ TEST(PlumbReconstructCli, SelfCalibrateLearnsTheTableFromTheRawDepthAndReportsBe
     ASSERT_TRUE(m.contains("self_calibration")) << m.dump();
     const nlohmann::json& sc = m["self_calibration"];
     EXPECT_EQ(sc.at("table"), "depth_calibration.txt");
-    EXPECT_GT(sc.at("frames").get<int>(), 30);
+    // 150 frames tracked, at most 100 compared: every second one.
+    EXPECT_EQ(sc.at("frame_step").get<int>(), 2);
+    EXPECT_GT(sc.at("frames").get<int>(), 70);
+    EXPECT_LE(sc.at("frames").get<int>(), 75);
     EXPECT_GE(sc.at("iterations").size(), 1U);
     EXPECT_LE(sc.at("iterations").size(), 3U);
     EXPECT_GT(sc.at("covered_cells").at(1).get<int>(), 1000);

@@ -52,8 +52,12 @@ struct SelfCalibrateConfig {
     /// alone takes the raw depth's ATE from 13.8 to 3.2 cm (BENCHMARKS.md).
     bool planar = true;
     /// Every frame_step-th frame of the scan is compared with the model (each frame is held in
-    /// memory twice, with up to 8 bytes per compared pixel).
-    int frame_step = 2;
+    /// memory twice, with up to 8 bytes per compared pixel). Every frame: on 600-frame
+    /// simulated scans of three rooms, every second frame gave 15-51 % more ATE (BENCHMARKS.md).
+    int frame_step = 1;
+    /// ... but at most this many frames: a longer scan is compared at the smallest larger step
+    /// that keeps it within (about 5 MB a 640x480 frame, 4.4 GB for 900; 0 = no limit).
+    int max_frames = 900;
     /// Re-align every compared frame to each iteration's model by frame-to-model ICP before
     /// comparing it. Off: on a 600-frame living_room scan it made the learned table no better
     /// (median error at 3 m 0.66 % against 0.60 % with the reconstruction's poses) at 5x the
@@ -73,6 +77,10 @@ void describe(config::Schema& s, SelfCalibrateConfig& c) {
     s.field("frame_step", c.frame_step,
             "every frame_step-th frame of the scan is compared with the model")
         .min(1);
+    s.field("max_frames", c.max_frames,
+            "at most this many frames are compared: a longer scan at the smallest larger step "
+            "that keeps within it (memory: about 5 MB a 640x480 frame); 0 = no limit")
+        .min(0);
     s.field("refine_poses", c.refine_poses,
             "re-align every compared frame to each iteration's model by frame-to-model ICP");
     s.field("first_model_frame_stride", c.first_model_frame_stride,
@@ -411,6 +419,7 @@ struct Refinement {
     calibration::SelfCalibrationResult learned;
     nlohmann::json iterations = nlohmann::json::array();
     size_t frames = 0;
+    int64_t frame_step = 1;  ///< the step the frames were compared at (max_frames)
     size_t unaligned = 0;
     std::optional<PlanarStage> planar;  ///< the bend left after the refined table
 };
@@ -430,14 +439,20 @@ Result<Refinement> refineAtPoses(const std::string& uri, const Options& o,
     raw_options.colour = false;
     Result<std::unique_ptr<FrameSource>> source = openFrameSource(uri, raw_options);
     if (!source.isOk()) return source.status();
-    Result<PosedDepth> posed = readPosedDepth(**source, *poses, sc.frame_step);
+    out.frame_step = sc.frame_step;
+    if (sc.max_frames > 0) {
+        const auto limit = static_cast<size_t>(sc.max_frames);
+        out.frame_step = std::max<int64_t>(
+            out.frame_step, static_cast<int64_t>((poses->size() + limit - 1) / limit));
+    }
+    Result<PosedDepth> posed = readPosedDepth(**source, *poses, out.frame_step);
     if (!posed.isOk()) return posed.status();
     const std::vector<DepthImage>& depth = posed->depth;  // frames not tracked have no pose
     out.frames = depth.size();
     log::info(
-        "self-calibration {}: estimating the depth distortion table from {} frames at the "
-        "poses of {}",
-        step_refine, depth.size(), recon_dir.string());
+        "self-calibration {}: estimating the depth distortion table from {} frames (frame step "
+        "{}) at the poses of {}",
+        step_refine, depth.size(), out.frame_step, recon_dir.string());
     auto observe = [&](const calibration::CalibrationIteration& it) {
         const calibration::DistortionEstimate& e = it.estimate;
         log::info(
@@ -561,7 +576,7 @@ Result<backend::PipelineResult> selfCalibratedRun(FrameSource& raw_source, const
         {"status", "learned"},
         {"table", table_path.filename().string()},
         {"frames", refined->frames},
-        {"frame_step", sc.frame_step},
+        {"frame_step", refined->frame_step},
         {"refine_poses", sc.refine_poses},
         {"frames_not_aligned", refined->unaligned},
         {"iterations", refined->iterations},

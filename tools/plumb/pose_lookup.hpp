@@ -50,11 +50,12 @@ class PoseLookup {
     std::map<double, Eigen::Isometry3d> poses_;
 };
 
-/// The depth of every frame_step-th frame of `source` that has a pose in `poses`, with the pose.
+/// Of the frames of `source` that have a pose in `poses`, every frame_step-th one (the first,
+/// the frame_step + 1-th, ...), with its pose.
 struct PosedDepth {
     std::vector<DepthImage> depth;
     std::vector<Eigen::Isometry3d> T_W_C;
-    size_t without_pose = 0;  ///< frames taken whose pose the trajectory lacks (skipped)
+    size_t without_pose = 0;  ///< frames whose pose the trajectory lacks (skipped)
 };
 
 /// Reads `source` to its end; a frame error other than the end of the stream is returned.
