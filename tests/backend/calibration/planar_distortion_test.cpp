@@ -26,12 +26,6 @@ namespace {
 
 using Table = DistortionTable;
 
-/// Every `step`-th of `frames` frames of a simulated living_room scan at 640x480: raw depth.
-std::vector<DepthImage> simulate(const std::string& noise_mode, const std::string& table_path,
-                                 size_t frames, size_t step, PinholeCamera* camera) {
-    return testing::simulateLivingRoom(noise_mode, table_path, frames, step, camera);
-}
-
 /// The table whose inverse factors are, per bin, the least-squares polynomial of degree 4 in
 /// the image coordinates through those of `table`: its smooth part.
 Table smoothPart(const Table& table) {
@@ -101,7 +95,7 @@ TEST(PlanarDistortion, LearnsASmoothBendExactlyWithoutPoses) {
     ASSERT_TRUE(smooth.save(smooth_path).isOk());
     PinholeCamera camera;
     const std::vector<DepthImage> depth =
-        simulate("redwood", smooth_path.string(), 300, 5, &camera);
+        testing::simulateLivingRoom("redwood", smooth_path.string(), 300, 5, &camera);
     ASSERT_EQ(depth.size(), 60U);
     auto estimate = learn(depth, camera, PlanarDistortionConfig{});
     ASSERT_TRUE(estimate.isOk()) << estimate.status().toString();
@@ -183,7 +177,7 @@ TEST(PlanarDistortion, LearnsATiltThatDoesNotGrowWithDepthWhenAskedTo) {
     ASSERT_TRUE(truth.save(truth_path).isOk());
     PinholeCamera camera;
     const std::vector<DepthImage> depth =
-        simulate("redwood", truth_path.string(), 600, 10, &camera);
+        testing::simulateLivingRoom("redwood", truth_path.string(), 600, 10, &camera);
     PlanarDistortionConfig with_affine;
     with_affine.estimate_affine = true;
     auto on = learn(depth, camera, with_affine);
@@ -208,7 +202,8 @@ TEST(PlanarDistortion, RemovesMostOfTheMeasuredTablesBendAtThreeMetres) {
     ASSERT_TRUE(measured.isOk()) << measured.status().toString();
     PinholeCamera camera;
     // 60 frames over the whole loop (the two halves of a scan of half the loop disagree).
-    const std::vector<DepthImage> depth = simulate("redwood", path.string(), 600, 10, &camera);
+    const std::vector<DepthImage> depth =
+        testing::simulateLivingRoom("redwood", path.string(), 600, 10, &camera);
     auto estimate = learn(depth, camera, PlanarDistortionConfig{});
     ASSERT_TRUE(estimate.isOk()) << estimate.status().toString();
     // The measured table holds cell-to-cell structure no smooth model has (0.26 % at 3 m around
@@ -225,7 +220,8 @@ TEST(PlanarDistortion, RemovesMostOfTheMeasuredTablesBendAtThreeMetres) {
 TEST(PlanarDistortion, StaysNeutralOnUndistortedDepth) {
     PLUMB_REQUIRE_SHARED_DATA(path, "redwood-noise/dist-model.txt");
     PinholeCamera camera;
-    const std::vector<DepthImage> depth = simulate("undistorted", path.string(), 300, 10, &camera);
+    const std::vector<DepthImage> depth =
+        testing::simulateLivingRoom("undistorted", path.string(), 300, 10, &camera);
     auto estimate = learn(depth, camera, PlanarDistortionConfig{});
     ASSERT_TRUE(estimate.isOk()) << estimate.status().toString();
     const Table learned = estimate->model.toTable();
@@ -246,7 +242,8 @@ TEST(PlanarDistortion, StaysNeutralOnUndistortedDepth) {
 TEST(PlanarDistortion, ResultsDoNotDependOnTheThreadCount) {
     PLUMB_REQUIRE_SHARED_DATA(path, "redwood-noise/dist-model.txt");
     PinholeCamera camera;
-    const std::vector<DepthImage> depth = simulate("redwood", path.string(), 100, 10, &camera);
+    const std::vector<DepthImage> depth =
+        testing::simulateLivingRoom("redwood", path.string(), 100, 10, &camera);
     std::vector<std::string> tables;
     for (int threads : {1, 2}) {
         PlanarDistortionConfig config;

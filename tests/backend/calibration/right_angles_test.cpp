@@ -23,12 +23,6 @@
 namespace plumb::calibration {
 namespace {
 
-/// Every `step`-th of `frames` frames of a simulated living_room scan at 640x480: raw depth.
-std::vector<DepthImage> simulate(const std::string& noise_mode, const std::string& table_path,
-                                 size_t frames, size_t step, PinholeCamera* camera) {
-    return testing::simulateLivingRoom(noise_mode, table_path, frames, step, camera);
-}
-
 /// The planes of every frame, the depth taken as it is (the neutral model).
 std::vector<std::vector<SegmentPlane>> planesOf(const std::vector<DepthImage>& depth,
                                                 const PinholeCamera& camera, int num_threads = 0) {
@@ -63,7 +57,8 @@ TEST(RightAngles, RecoverADisparityOffsetThatPlanarityCannotSee) {
     const std::filesystem::path table_path =
         testing::freshTempDir("right_angles_offset") / "offset.txt";
     ASSERT_TRUE(offsetTable(truth, camera).save(table_path).isOk());
-    const std::vector<DepthImage> depth = simulate("redwood", table_path.string(), 300, 5, &camera);
+    const std::vector<DepthImage> depth =
+        testing::simulateLivingRoom("redwood", table_path.string(), 300, 5, &camera);
     ASSERT_EQ(depth.size(), 60U);
     auto estimate = estimateRightAngles(planesOf(depth, camera), RightAngleConfig{});
     ASSERT_TRUE(estimate.isOk()) << estimate.status().toString();
@@ -118,7 +113,8 @@ TEST(RightAngles, RecoverADisparityOffsetThatPlanarityCannotSee) {
 TEST(RightAngles, StaysNearZeroOnUndistortedDepth) {
     PLUMB_REQUIRE_SHARED_DATA(path, "redwood-noise/dist-model.txt");
     PinholeCamera camera;
-    const std::vector<DepthImage> depth = simulate("undistorted", path.string(), 300, 5, &camera);
+    const std::vector<DepthImage> depth =
+        testing::simulateLivingRoom("undistorted", path.string(), 300, 5, &camera);
     auto estimate = estimateRightAngles(planesOf(depth, camera), RightAngleConfig{});
     ASSERT_TRUE(estimate.isOk()) << estimate.status().toString();
     const DisparityOffset& d = estimate->delta;

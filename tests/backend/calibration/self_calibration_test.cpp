@@ -17,8 +17,7 @@
 #include "backend/calibration/self_calibration.hpp"
 #include "common/camera/pinhole.hpp"
 #include "common/config/config.hpp"
-#include "drivers/sim/noise.hpp"
-#include "drivers/sim/sim_source.hpp"
+#include "tests/backend/calibration/simulated_depth.hpp"
 #include "tests/testing/shared_data.hpp"
 
 namespace plumb::calibration {
@@ -27,33 +26,10 @@ namespace {
 using Table = DistortionTable;
 
 /// A simulated scan at the "ci" camera (160x120): raw depth and ground-truth poses.
-struct Scan {
-    PinholeCamera camera;
-    std::vector<DepthImage> depth;
-    std::vector<Eigen::Isometry3d> T_W_C;
-};
+using Scan = testing::SimulatedScan;
 
 Scan simulate(const std::string& noise_mode, const std::string& table_path, size_t frames) {
-    sim::SimConfig config;
-    config.scene = "living_room";
-    config.camera = cameraPreset("ci").value();
-    config.trajectory.num_frames = frames;
-    config.noise_model_path = table_path;
-    EXPECT_TRUE(sim::parseNoiseMode(noise_mode, &config.noise).isOk());
-    auto source = sim::SimSource::create(config);
-    EXPECT_TRUE(source.isOk()) << source.status().toString();
-    Scan scan;
-    if (!source.isOk()) return scan;
-    scan.camera = (*source)->camera();
-    for (size_t k = 0; k < frames; ++k) {
-        Result<Frame> f = (*source)->next();
-        EXPECT_TRUE(f.isOk()) << f.status().toString();
-        if (!f.isOk()) break;
-        EXPECT_TRUE(f->T_W_C_gt.has_value());
-        scan.depth.push_back(std::move(f->depth));
-        scan.T_W_C.push_back(*f->T_W_C_gt);
-    }
-    return scan;
+    return testing::simulateLivingRoomScan("ci", noise_mode, table_path, frames);
 }
 
 void printIteration(const CalibrationIteration& it) {
