@@ -213,20 +213,32 @@ class Fitter {
                 const Eigen::Vector3d jp(t1.dot(q), t2.dot(q), -1.0);
                 // dr/dc[b][k] = n . P w_b(z) phi_k(u, v)
                 const double np = n.dot(Eigen::Vector3d(b.x, b.y, b.z));
-                const std::array<double, kTerms> phi = PlanarDistortion::terms(b.u, b.v);
+                const std::array<double, kTerms> terms = PlanarDistortion::terms(b.u, b.v);
+                const Eigen::Map<const Eigen::Matrix<double, kTerms, 1>> phi(terms.data());
                 const DistortionTable::BinWeights bw = DistortionTable::binWeights(q.z());
-                Eigen::Matrix<double, kParams, 1> jt = Eigen::Matrix<double, kParams, 1>::Zero();
-                for (int k = 0; k < kTerms; ++k) {
-                    jt[bw.lo * kTerms + k] += (1.0 - bw.a) * np * phi[k];
-                    jt[bw.hi * kTerms + k] += bw.a * np * phi[k];
-                }
                 sys->bin_weight[bw.lo] += weight[j] * (1.0 - bw.a);
                 sys->bin_weight[bw.hi] += weight[j] * bw.a;
                 hpp.noalias() += w * jp * jp.transpose();
-                hpt.noalias() += w * jp * jt.transpose();
                 gp += w * r * jp;
-                sys->h.selfadjointView<Eigen::Lower>().rankUpdate(jt, w);
-                sys->g += w * r * jt;
+                // The Jacobian is (1 - a) np phi in bin lo and a np phi in bin hi, zero
+                // elsewhere: only those blocks of the system change.
+                const int lo = bw.lo * kTerms, hi = bw.hi * kTerms;
+                const double jl = (1.0 - bw.a) * np, jh = bw.a * np;
+                hpt.middleCols<kTerms>(lo).noalias() += (w * jl) * jp * phi.transpose();
+                hpt.middleCols<kTerms>(hi).noalias() += (w * jh) * jp * phi.transpose();
+                sys->g.segment<kTerms>(lo) += (w * r * jl) * phi;
+                sys->g.segment<kTerms>(hi) += (w * r * jh) * phi;
+                if (lo == hi) {
+                    sys->h.block<kTerms, kTerms>(lo, lo).selfadjointView<Eigen::Lower>().rankUpdate(
+                        phi, w * (jl + jh) * (jl + jh));
+                } else {
+                    sys->h.block<kTerms, kTerms>(lo, lo).selfadjointView<Eigen::Lower>().rankUpdate(
+                        phi, w * jl * jl);
+                    sys->h.block<kTerms, kTerms>(hi, hi).selfadjointView<Eigen::Lower>().rankUpdate(
+                        phi, w * jh * jh);
+                    sys->h.block<kTerms, kTerms>(hi, lo).noalias() +=
+                        (w * jh * jl) * phi * phi.transpose();
+                }
             }
             // Schur complement of the plane's block.
             const Eigen::Matrix3d hpp_inv = (hpp + 1e-9 * Eigen::Matrix3d::Identity()).inverse();
@@ -275,10 +287,19 @@ namespace {
 constexpr int kCurvedTerms = PlanarDistortion::kCurvedTerms;
 
 std::array<double, kCurvedTerms> monomials(double u, double v) {
+    constexpr int kDegree = PlanarDistortion::kDegree;
+    std::array<double, kDegree + 1> pu{}, pv{};  // u^i, v^i
+    pu[0] = pv[0] = 1.0;
+    for (int i = 1; i <= kDegree; ++i) {
+        pu[static_cast<size_t>(i)] = pu[static_cast<size_t>(i - 1)] * u;
+        pv[static_cast<size_t>(i)] = pv[static_cast<size_t>(i - 1)] * v;
+    }
     std::array<double, kCurvedTerms> m{};
     size_t k = 0;
-    for (int degree = 2; degree <= PlanarDistortion::kDegree; ++degree) {
-        for (int i = degree; i >= 0; --i) m[k++] = std::pow(u, i) * std::pow(v, degree - i);
+    for (int degree = 2; degree <= kDegree; ++degree) {
+        for (int i = degree; i >= 0; --i) {
+            m[k++] = pu[static_cast<size_t>(i)] * pv[static_cast<size_t>(degree - i)];
+        }
     }
     return m;
 }

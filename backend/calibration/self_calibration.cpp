@@ -40,53 +40,68 @@ struct CellFit {
     size_t outliers = 0;
 };
 
-/// Robust least squares of Eq. (1) over one cell's samples (see the header).
+/// Robust least squares of Eq. (1) over one cell's samples (see the header). Each pass reads
+/// the samples once: the normal equations are summed per pair of bins and then folded onto the
+/// unknowns (the covered bins; an uncovered bin counts as the nearest covered one).
 template <typename SampleT>
 CellFit fitCell(const std::vector<SampleT>& samples, const SelfCalibrationConfig& c) {
     CellFit fit;
     fit.factor.fill(1.0);
     if (static_cast<double>(samples.size()) < c.min_samples) return fit;
     const size_t n = samples.size();
-    std::vector<Table::BinWeights> bw(n);
-    for (size_t k = 0; k < n; ++k) bw[k] = Table::binWeights(samples[k].z_model);
+    // Medians over every stride-th sample (SelfCalibrationConfig::median_samples).
+    const size_t limit = c.median_samples > 0 ? static_cast<size_t>(c.median_samples) : n;
+    const size_t stride = (n + limit - 1) / limit;
+    std::vector<double> scratch((n + stride - 1) / stride);
 
     // Initial estimate: the median ratio in every bin.
-    std::vector<double> scratch(n);
-    for (size_t k = 0; k < n; ++k) scratch[k] = samples[k].ratio;
+    for (size_t k = 0; k < n; k += stride) scratch[k / stride] = samples[k].ratio;
     std::array<double, kBins> f;
     f.fill(medianOf(&scratch));
-
-    std::vector<double> residual(n), weight(n, 1.0);
-    auto predict = [&](size_t k) {
-        return (1.0 - bw[k].a) * f[static_cast<size_t>(bw[k].lo)] +
-               bw[k].a * f[static_cast<size_t>(bw[k].hi)];
+    auto predict = [&f](const Table::BinWeights& bw) {
+        return (1.0 - bw.a) * f[static_cast<size_t>(bw.lo)] + bw.a * f[static_cast<size_t>(bw.hi)];
     };
+
     uint8_t covered = 0;
     for (int pass = 0; pass <= c.robust_iterations; ++pass) {
         // Robust sigma from the median absolute residual at the current factors.
-        for (size_t k = 0; k < n; ++k) {
-            residual[k] = samples[k].ratio - predict(k);
-            scratch[k] = std::abs(residual[k]);
+        for (size_t k = 0; k < n; k += stride) {
+            scratch[k / stride] =
+                std::abs(samples[k].ratio - predict(Table::binWeights(samples[k].z_model)));
         }
         const double sigma = std::max(1.4826 * medianOf(&scratch), c.min_sigma);
         const double huber = c.huber_k * sigma;
         const double cutoff = c.outlier_sigmas * sigma;
+        // Huber weights, each bin's support and the normal equations of Eq. (1) per bin pair.
         std::array<double, kBins> support{};
+        Eigen::Matrix<double, kBins, kBins> A = Eigen::Matrix<double, kBins, kBins>::Zero();
+        Eigen::Matrix<double, kBins, 1> b = Eigen::Matrix<double, kBins, 1>::Zero();
         size_t outliers = 0;
         for (size_t k = 0; k < n; ++k) {
-            const double e = std::abs(residual[k]);
-            weight[k] = e <= huber ? 1.0 : (e <= cutoff ? huber / e : 0.0);
-            if (weight[k] == 0.0) {
+            const Table::BinWeights bw = Table::binWeights(samples[k].z_model);
+            const double r = samples[k].ratio;
+            const double e = std::abs(r - predict(bw));
+            const double w = e <= huber ? 1.0 : (e <= cutoff ? huber / e : 0.0);
+            if (w == 0.0) {
                 ++outliers;
                 continue;
             }
-            const Table::BinWeights& b = bw[k];
-            if (b.lo == b.hi) {
-                support[static_cast<size_t>(b.lo)] += 1.0;
+            const auto lo = static_cast<size_t>(bw.lo);
+            const auto hi = static_cast<size_t>(bw.hi);
+            const double jp = 1.0 - bw.a;
+            const double jq = bw.a;
+            if (lo == hi) {
+                support[lo] += 1.0;
             } else {
-                support[static_cast<size_t>(b.lo)] += (1.0 - b.a) * (1.0 - b.a);
-                support[static_cast<size_t>(b.hi)] += b.a * b.a;
+                support[lo] += jp * jp;
+                support[hi] += jq * jq;
             }
+            A(bw.lo, bw.lo) += w * jp * jp;
+            A(bw.hi, bw.hi) += w * jq * jq;
+            A(bw.lo, bw.hi) += w * jp * jq;
+            A(bw.hi, bw.lo) += w * jp * jq;
+            b(bw.lo) += w * jp * r;
+            b(bw.hi) += w * jq * r;
         }
         // Unknowns: the covered bins; an uncovered bin is tied to the nearest covered one.
         std::array<int, kBins> unknown_of{};
@@ -114,33 +129,21 @@ CellFit fitCell(const std::vector<SampleT>& samples, const SelfCalibrationConfig
             }
             unknown_of[static_cast<size_t>(i)] = best;
         }
-        // Normal equations of the weighted residuals of Eq. (1), plus the smoothness penalty
-        // between consecutive unknowns.
-        Eigen::Matrix<double, kBins, kBins> A = Eigen::Matrix<double, kBins, kBins>::Zero();
-        Eigen::Matrix<double, kBins, 1> b = Eigen::Matrix<double, kBins, 1>::Zero();
-        for (size_t k = 0; k < n; ++k) {
-            if (weight[k] == 0.0) continue;
-            const int p = unknown_of[static_cast<size_t>(bw[k].lo)];
-            const int q = unknown_of[static_cast<size_t>(bw[k].hi)];
-            const double jp = 1.0 - bw[k].a;
-            const double jq = bw[k].a;
-            const double w = weight[k];
-            const double r = samples[k].ratio;
-            A(p, p) += w * jp * jp;
-            A(q, q) += w * jq * jq;
-            A(p, q) += w * jp * jq;
-            A(q, p) += w * jp * jq;
-            b(p) += w * jp * r;
-            b(q) += w * jq * r;
+        // The bins' equations folded onto the unknowns, plus the smoothness penalty between
+        // consecutive unknowns.
+        Eigen::MatrixXd A_u = Eigen::MatrixXd::Zero(num_unknowns, num_unknowns);
+        Eigen::VectorXd b_u = Eigen::VectorXd::Zero(num_unknowns);
+        for (int i = 0; i < kBins; ++i) {
+            const int p = unknown_of[static_cast<size_t>(i)];
+            b_u(p) += b(i);
+            for (int j = 0; j < kBins; ++j) A_u(p, unknown_of[static_cast<size_t>(j)]) += A(i, j);
         }
         for (int u = 0; u + 1 < num_unknowns; ++u) {
-            A(u, u) += c.bin_smoothness;
-            A(u + 1, u + 1) += c.bin_smoothness;
-            A(u, u + 1) -= c.bin_smoothness;
-            A(u + 1, u) -= c.bin_smoothness;
+            A_u(u, u) += c.bin_smoothness;
+            A_u(u + 1, u + 1) += c.bin_smoothness;
+            A_u(u, u + 1) -= c.bin_smoothness;
+            A_u(u + 1, u) -= c.bin_smoothness;
         }
-        const Eigen::MatrixXd A_u = A.topLeftCorner(num_unknowns, num_unknowns);
-        const Eigen::VectorXd b_u = b.head(num_unknowns);
         const Eigen::VectorXd x = A_u.ldlt().solve(b_u);
         for (int i = 0; i < kBins; ++i) {
             f[static_cast<size_t>(i)] = x(unknown_of[static_cast<size_t>(i)]);
@@ -174,16 +177,6 @@ Image<T> blockOrigins(const Image<T>& image) {
     return out;
 }
 
-/// `image` (at block origins) spread over the 2x2 blocks of a width x height image.
-template <typename T>
-Image<T> spreadBlocks(const Image<T>& image, int width, int height) {
-    Image<T> out(width, height);
-    for (int v = 0; v < height; ++v) {
-        for (int u = 0; u < width; ++u) out(u, v) = image(u / 2, v / 2);
-    }
-    return out;
-}
-
 }  // namespace
 
 void describe(config::Schema& s, SelfCalibrationConfig& c) {
@@ -210,6 +203,10 @@ void describe(config::Schema& s, SelfCalibrationConfig& c) {
             "inlier samples on it sum to at least this; cells with no such bin keep the factor 1",
             "samples")
         .positive();
+    s.field("median_samples", c.median_samples,
+            "the robust fit's initial median and robust sigmas are taken over at most this many "
+            "of a cell's samples (every k-th); 0 = all")
+        .min(0);
     s.field("robust_iterations", c.robust_iterations,
             "reweighting passes of the per-cell robust fit after the initial median")
         .min(0);
@@ -258,6 +255,7 @@ Status validate(const SelfCalibrationConfig& c) {
     if (c.pixel_stride < 1) return bad("pixel_stride must be at least 1");
     if (!(c.min_samples > 0.0)) return bad("min_samples must be positive");
     if (c.robust_iterations < 0) return bad("robust_iterations must be >= 0");
+    if (c.median_samples < 0) return bad("median_samples must be >= 0");
     if (!(c.huber_k > 0.0 && c.outlier_sigmas > 0.0 && c.min_sigma > 0.0)) {
         return bad("huber_k, outlier_sigmas and min_sigma must be positive");
     }
@@ -282,6 +280,13 @@ DistortionEstimator::DistortionEstimator(int width, int height, const SelfCalibr
     // Cells as the sensor model finds them (drivers/sim/noise.cpp): the pixel scaled to 640x480.
     for (int u = 0; u < width; ++u) cell_of_column_[u] = Table::cellX(u * 640 / width);
     for (int v = 0; v < height; ++v) cell_of_row_[v] = Table::cellY(v * 480 / height);
+    // Rows [rows_of_cell_[y], rows_of_cell_[y + 1]) are those of cell row y (rising with v).
+    rows_of_cell_.assign(static_cast<size_t>(kSide) + 1, height);
+    for (int v = height - 1; v >= 0; --v) rows_of_cell_[static_cast<size_t>(cell_of_row_[v])] = v;
+    for (int y = kSide - 1; y >= 0; --y) {
+        rows_of_cell_[static_cast<size_t>(y)] = std::min(rows_of_cell_[static_cast<size_t>(y)],
+                                                         rows_of_cell_[static_cast<size_t>(y) + 1]);
+    }
 }
 
 Status DistortionEstimator::addFrame(const DepthImage& raw, const DepthImage& model,
@@ -293,31 +298,47 @@ Status DistortionEstimator::addFrame(const DepthImage& raw, const DepthImage& mo
     if (raw.width() != width_ || raw.height() != height_) {
         return sizeError("the raw depth", raw.width(), raw.height());
     }
-    if (model.width() != width_ || model.height() != height_) {
+    const SelfCalibrationConfig& c = config_;
+    // The model and the view cosines: per pixel, or (compare_at_block_origin) per block origin.
+    const bool half = c.compare_at_block_origin && model.width() == (width_ + 1) / 2 &&
+                      model.height() == (height_ + 1) / 2;
+    const int model_w = half ? (width_ + 1) / 2 : width_;
+    const int model_h = half ? (height_ + 1) / 2 : height_;
+    if (model.width() != model_w || model.height() != model_h) {
         return sizeError("the model depth", model.width(), model.height());
     }
-    if (!view_cos.empty() && (view_cos.width() != width_ || view_cos.height() != height_)) {
+    if (!view_cos.empty() && (view_cos.width() != model_w || view_cos.height() != model_h)) {
         return sizeError("the view cosine image", view_cos.width(), view_cos.height());
     }
-    const SelfCalibrationConfig& c = config_;
     const int step = c.pixel_stride;
-    for (int v = 0; v < height_; v += step) {
-        const int mv = c.compare_at_block_origin ? v - v % 2 : v;
-        for (int u = 0; u < width_; u += step) {
-            const int mu = c.compare_at_block_origin ? u - u % 2 : u;
-            const double z_raw = raw(u, v);
-            const double z_model = model(mu, mv);
-            if (!(z_raw > 0.0) || !(z_model >= c.min_depth_m && z_model <= c.max_depth_m)) {
-                continue;
+    // Rows of one row of cells add to those cells only: the rows of cells run in parallel and
+    // every cell gets its samples in the same order whatever the threads.
+    std::vector<size_t> added(static_cast<size_t>(kSide), 0);
+    plumb::parallelFor(c.num_threads, kSide, [&](int cell_row) {
+        size_t n = 0;
+        const int first = rows_of_cell_[static_cast<size_t>(cell_row)];
+        const int last = rows_of_cell_[static_cast<size_t>(cell_row) + 1];
+        for (int v = first + (step - first % step) % step; v < last; v += step) {
+            const int mv = half ? v / 2 : (c.compare_at_block_origin ? v - v % 2 : v);
+            for (int u = 0; u < width_; u += step) {
+                const int mu = half ? u / 2 : (c.compare_at_block_origin ? u - u % 2 : u);
+                const double z_raw = raw(u, v);
+                const double z_model = model(mu, mv);
+                if (!(z_raw > 0.0) || !(z_model >= c.min_depth_m && z_model <= c.max_depth_m)) {
+                    continue;
+                }
+                if (!view_cos.empty() && !(view_cos(mu, mv) >= c.min_view_cos)) continue;
+                const double ratio = z_model / z_raw;
+                if (!(std::abs(ratio - 1.0) <= c.max_ratio_deviation)) continue;
+                const size_t cell =
+                    static_cast<size_t>(cell_row) * kSide + cell_of_column_[static_cast<size_t>(u)];
+                samples_[cell].push_back({static_cast<float>(z_model), static_cast<float>(ratio)});
+                ++n;
             }
-            if (!view_cos.empty() && !(view_cos(mu, mv) >= c.min_view_cos)) continue;
-            const double ratio = z_model / z_raw;
-            if (!(std::abs(ratio - 1.0) <= c.max_ratio_deviation)) continue;
-            const size_t cell = static_cast<size_t>(cell_of_row_[v]) * kSide + cell_of_column_[u];
-            samples_[cell].push_back({static_cast<float>(z_model), static_cast<float>(ratio)});
-            ++num_samples_;
         }
-    }
+        added[static_cast<size_t>(cell_row)] = n;
+    });
+    for (const size_t n : added) num_samples_ += n;
     return Status::ok();
 }
 
@@ -500,9 +521,15 @@ Result<SelfCalibrationResult> alternate(const std::vector<DepthImage>& raw,
     result.table = initial != nullptr ? *initial : Table::neutral();
     std::vector<DepthImage> undistorted(raw.size());
     for (int it = 0; it < config.max_iterations; ++it) {
-        // Undistort with the current table.
+        // Undistort with the current table: at the block origins only when the model is fused
+        // from them (below) and no pose provider reads the whole frames.
+        const bool blocks = config.compare_at_block_origin;
+        const bool block_origins_only = blocks && !poses;
         const DepthCalibration calibration(result.table, "the current estimate");
-        for (size_t k = 0; k < raw.size(); ++k) undistorted[k] = calibration.undistort(raw[k]);
+        for (size_t k = 0; k < raw.size(); ++k) {
+            undistorted[k] = block_origins_only ? calibration.undistortBlockOrigins(raw[k])
+                                                : calibration.undistort(raw[k]);
+        }
         if (poses) {
             Result<std::vector<Eigen::Isometry3d>> provided = poses(undistorted);
             if (!provided.isOk()) return provided.status();
@@ -521,11 +548,11 @@ Result<SelfCalibrationResult> alternate(const std::vector<DepthImage>& raw,
         // Fuse the model: from the block origins only when the sensor measures on 2x2 blocks
         // (a pixel's depth belongs to its block origin; fused at the pixel itself, every view
         // would shift the surface by half a pixel up and left in its image).
-        const bool blocks = config.compare_at_block_origin;
         const PinholeCamera model_camera = blocks ? blockOriginCamera(camera) : camera;
-        std::vector<DepthImage> fused(blocks ? raw.size() : 0);
+        std::vector<DepthImage> fused(blocks && !block_origins_only ? raw.size() : 0);
         for (size_t k = 0; k < fused.size(); ++k) fused[k] = blockOrigins(undistorted[k]);
-        const std::vector<DepthImage>& model_input = blocks ? fused : undistorted;
+        const std::vector<DepthImage>& model_input =
+            blocks && !block_origins_only ? fused : undistorted;
         tsdf::TsdfVolume volume(config.tsdf);
         for (size_t k = 0; k < raw.size(); ++k) {
             Result<tsdf::IntegrationStats> s =
@@ -551,11 +578,7 @@ Result<SelfCalibrationResult> alternate(const std::vector<DepthImage>& raw,
                 tsdf::raycast(volume, model_camera, T_W_C[k], config.raycast,
                               aligner ? nullptr : &model_input[k]);
             Image<float> view_cos = viewCosines(ray, model_camera, T_W_C[k]);
-            const Status s =
-                blocks ? estimator.addFrame(raw[k],
-                                            spreadBlocks(ray.depth, camera.width, camera.height),
-                                            spreadBlocks(view_cos, camera.width, camera.height))
-                       : estimator.addFrame(raw[k], ray.depth, view_cos);
+            const Status s = estimator.addFrame(raw[k], ray.depth, view_cos);
             if (!s.isOk()) return s;
         }
         Result<DistortionEstimate> estimate = estimator.estimate(&result.table);

@@ -90,6 +90,10 @@ struct SelfCalibrationConfig {
     /// bin's centre counts 1, one half way to the next bin 1/4), so that a bin is not fitted from
     /// samples that barely depend on it.
     double min_samples = 30.0;
+    /// Robust fit: the initial median and each pass's robust sigma are taken over at most this
+    /// many of a cell's samples, every k-th in the order they were added (all frames alike);
+    /// 0 = over all. The fit itself uses every sample.
+    int median_samples = 4096;
     /// Robust fit: reweighting passes after the initial median.
     int robust_iterations = 4;
     /// Robust fit: Huber threshold, in robust sigmas of the cell's residuals.
@@ -122,8 +126,9 @@ struct SelfCalibrationConfig {
     RightAngleConfig right_angles;
     /// The model: TSDF fused from the undistorted frames at their poses.
     tsdf::TsdfConfig tsdf = defaultTsdf();
-    /// The model's depth at each frame's pose.
-    tsdf::RaycastConfig raycast;
+    /// The model's depth at each frame's pose: normals from the cell of the crossing (they only
+    /// gate the viewing angle) and secant hits, for speed.
+    tsdf::RaycastConfig raycast = defaultRaycast();
     /// Worker threads of the per-cell fit (0 = TBB default). Results do not depend on it.
     int num_threads = 0;
 
@@ -132,6 +137,12 @@ struct SelfCalibrationConfig {
         c.voxel_size_m = 0.01F;
         c.truncation_m = 0.06F;
         c.max_depth_m = 3.5F;  // as max_depth_m: truncated ranges would bias the model too
+        return c;
+    }
+    static tsdf::RaycastConfig defaultRaycast() {
+        tsdf::RaycastConfig c;
+        c.normals = tsdf::RaycastNormals::kCell;
+        c.secant_hits = true;
         return c;
     }
 };
@@ -174,8 +185,10 @@ class DistortionEstimator {
 
     /// Adds the samples of one frame: `raw` the sensor's depth (metres, 0 = invalid), `model` the
     /// model's depth at the frame's pose (0 = no surface), `view_cos` the |cos| of the model
-    /// surface's viewing angle (empty: not gated). kInvalidArgument when a size differs from the
-    /// estimator's.
+    /// surface's viewing angle (empty: not gated). `model` and `view_cos` are of the frame's size
+    /// or, with compare_at_block_origin, may be the block origins' images ((width + 1) / 2 x
+    /// (height + 1) / 2; pixel (i, j) is frame pixel (2i, 2j)). kInvalidArgument when a size is
+    /// neither.
     Status addFrame(const DepthImage& raw, const DepthImage& model, const Image<float>& view_cos);
 
     /// The table fitted to every sample so far, and its change from `previous` (nullptr: from
@@ -192,6 +205,7 @@ class DistortionEstimator {
     int width_, height_;
     SelfCalibrationConfig config_;
     std::vector<int> cell_of_column_, cell_of_row_;
+    std::vector<int> rows_of_cell_;  ///< first image row of each row of cells, then the height
     std::vector<std::vector<Sample>> samples_;  ///< per cell
     size_t num_samples_ = 0;
 };

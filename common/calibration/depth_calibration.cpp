@@ -110,4 +110,25 @@ DepthImage DepthCalibration::undistort(DepthImage depth) const {
     return depth;
 }
 
+DepthImage DepthCalibration::undistortBlockOrigins(const DepthImage& depth) const {
+    const int w = depth.width();
+    const int h = depth.height();
+    DepthImage out((w + 1) / 2, (h + 1) / 2);
+    tbb::parallel_for(
+        tbb::blocked_range<int>(0, out.height(), 8), [&](const tbb::blocked_range<int>& rows) {
+            for (int j = rows.begin(); j < rows.end(); ++j) {
+                const int cell_y = DistortionTable::cellY(2 * j * 480 / h);
+                for (int i = 0; i < out.width(); ++i) {
+                    const float measured = depth(2 * i, 2 * j);
+                    out(i, j) =
+                        measured > 0.0F
+                            ? static_cast<float>(undistortDepth(
+                                  DistortionTable::cellX(2 * i * 640 / w), cell_y, measured))
+                            : 0.0F;
+                }
+            }
+        });
+    return out;
+}
+
 }  // namespace plumb

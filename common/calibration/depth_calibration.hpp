@@ -35,6 +35,11 @@ class DepthCalibration {
     /// Works in place on `depth` (pass an rvalue to avoid a copy).
     DepthImage undistort(DepthImage depth) const;
 
+    /// undistort() at the origins of the 2x2 blocks only: pixel (i, j) of the result, an image
+    /// of ((width + 1) / 2) x ((height + 1) / 2), is pixel (2i, 2j) of undistort(depth), the
+    /// same float, for a quarter of the work.
+    DepthImage undistortBlockOrigins(const DepthImage& depth) const;
+
     /// Where the table came from (for logs).
     const std::string& source() const { return source_; }
 

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <utility>
 
 #include "drivers/calibrated_source.hpp"
 #include "drivers/sim/noise.hpp"
@@ -119,6 +120,36 @@ TEST(DepthCalibration, ScalesAnyImageSizeToTheTableGrid) {
                 EXPECT_NEAR(undistorted(u, v), 2.5F, 2.5e-4) << u << "," << v;
             }
         }
+    }
+}
+
+TEST(DepthCalibration, UndistortingTheBlockOriginsOnlyGivesTheSameDepthThere) {
+    PLUMB_REQUIRE_SHARED_DATA(path, "redwood-noise/dist-model.txt");
+    auto calibration = DepthCalibration::load(path);
+    ASSERT_TRUE(calibration.isOk());
+    // Odd sizes (the last block is one pixel wide and high), depths 0.3-9.5 m, invalid pixels.
+    for (const auto& [w, h] : {std::pair{640, 480}, std::pair{321, 241}}) {
+        DepthImage measured(w, h);
+        for (int v = 0; v < h; ++v) {
+            for (int u = 0; u < w; ++u) {
+                const bool invalid = (u * 7 + v * 3) % 11 == 0;
+                measured(u, v) =
+                    invalid ? 0.0F : static_cast<float>(0.3 + 9.2 * (u + v * w) / (w * h));
+            }
+        }
+        const DepthImage full = calibration->undistort(measured);
+        const DepthImage origins = calibration->undistortBlockOrigins(measured);
+        ASSERT_EQ(origins.width(), (w + 1) / 2);
+        ASSERT_EQ(origins.height(), (h + 1) / 2);
+        int valid = 0;
+        for (int j = 0; j < origins.height(); ++j) {
+            for (int i = 0; i < origins.width(); ++i) {
+                ASSERT_EQ(origins(i, j), full(2 * i, 2 * j))
+                    << w << "x" << h << " " << i << "," << j;
+                valid += origins(i, j) > 0.0F;
+            }
+        }
+        EXPECT_GT(valid, origins.width() * origins.height() / 2);
     }
 }
 

@@ -11,6 +11,7 @@
 #include <cmath>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "common/calibration/distortion_table.hpp"
@@ -120,6 +121,34 @@ TEST(PlumbReconstructCli, SelfCalibrateLearnsTheTableFromTheRawDepthAndReportsBe
                (out / "depth_calibration.txt").string(), "--out", fused.string(), "--quiet"});
     ASSERT_EQ(fuse.exit_code, 0) << fuse.err;
     EXPECT_TRUE(fs::exists(fused / "fragment_000.ply"));
+}
+
+TEST(PlumbReconstructCli, SelfCalibrateReadsTheScanOnceAndLearnsWhatReadingItAgainLearns) {
+    PLUMB_REQUIRE_SHARED_DATA(path, "redwood-noise/dist-model.txt");
+    const fs::path logs = testing::freshTempDir("plumb_self_calibrate_once_logs");
+    auto run = [&](const std::string& name, const std::string& keep_frames_mb) {
+        const fs::path out = testing::freshTempDir(name);
+        const ProcessRun r = plumb("reconstruct", logs,
+                                   {"sim:living_room", "--intrinsics", "ci", "--frames", "600",
+                                    "--frame-step", "4", "--self-calibrate", "--no-baseline",
+                                    "--set", "self_calibration.estimate.max_iterations=1", "--set",
+                                    "self_calibration.max_frames=50", "--set",
+                                    "keep_frames_mb=" + keep_frames_mb, "--out", out.string()});
+        EXPECT_EQ(r.exit_code, 0) << r.err;
+        return std::make_pair(r, out);
+    };
+    const auto [kept, kept_out] = run("plumb_self_calibrate_once_kept", "4096");
+    const auto [read, read_out] = run("plumb_self_calibrate_once_read", "0");
+    EXPECT_NE(kept.err.find("raw frames are kept for every pass"), std::string::npos) << kept.err;
+    EXPECT_NE(read.err.find("every pass reads the scan again"), std::string::npos) << read.err;
+    // The passes saw the same frames: the same planar, refined and final tables, trajectory.
+    for (const char* file :
+         {"self_calibration/planar_table.txt", "self_calibration/refined_table.txt",
+          "depth_calibration.txt", "trajectory.txt"}) {
+        const std::string a = testing::slurp(kept_out / file);
+        EXPECT_FALSE(a.empty()) << file;
+        EXPECT_EQ(a, testing::slurp(read_out / file)) << file;
+    }
 }
 
 TEST(PlumbReconstructCli, ScanWhosePlanesDoNotDetermineTheBendIsReconstructedFromTheRawDepth) {

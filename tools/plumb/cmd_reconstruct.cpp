@@ -40,6 +40,7 @@
 #include "tools/plumb/pose_lookup.hpp"
 #include "tools/plumb/reconstruct_fusion.hpp"
 #include "tools/plumb/run_record.hpp"
+#include "tools/plumb/scan_cache.hpp"
 #include "tools/plumb/source_arguments.hpp"
 
 namespace plumb::tools {
@@ -381,13 +382,9 @@ nlohmann::json mainFigures(const backend::PipelineResult& r) {
 /// `--self-calibrate`: the bend learned from the planes of the frames of `uri` (without colour)
 /// undistorted by `undistort` ("none": the raw frames), composed with that table and written to
 /// `path`.
-Result<PlanarStage> planarStage(const std::string& uri, const Options& o,
-                                const SelfCalibrateConfig& sc, const std::string& undistort,
-                                const std::filesystem::path& path) {
-    SourceOptions raw_options = o.source_options;
-    raw_options.depth_calibration = undistort;
-    raw_options.colour = false;
-    Result<std::unique_ptr<FrameSource>> source = openFrameSource(uri, raw_options);
+Result<PlanarStage> planarStage(const ScanCache& scan, const SelfCalibrateConfig& sc,
+                                const std::string& undistort, const std::filesystem::path& path) {
+    Result<std::unique_ptr<FrameSource>> source = scan.open(undistort, /*colour=*/false);
     if (!source.isOk()) return source.status();
     calibration::RightAngleConfig right_angles = sc.estimate.right_angles;
     if (undistort == "none" && !right_angles.first_pass) right_angles.enabled = false;
@@ -424,8 +421,8 @@ struct Refinement {
     std::optional<PlanarStage> planar;  ///< the bend left after the refined table
 };
 
-Result<Refinement> refineAtPoses(const std::string& uri, const Options& o,
-                                 const SelfCalibrateConfig& sc, const PinholeCamera& camera,
+Result<Refinement> refineAtPoses(const ScanCache& scan, const SelfCalibrateConfig& sc,
+                                 const PinholeCamera& camera,
                                  const std::filesystem::path& recon_dir,
                                  const std::filesystem::path& refined_path,
                                  const std::filesystem::path& table_path,
@@ -434,10 +431,7 @@ Result<Refinement> refineAtPoses(const std::string& uri, const Options& o,
     Result<PoseLookup> poses = PoseLookup::read(recon_dir / "trajectory.txt");
     if (!poses.isOk()) return poses.status();
     // The raw frames at the reconstruction's poses.
-    SourceOptions raw_options = o.source_options;
-    raw_options.depth_calibration = "none";
-    raw_options.colour = false;
-    Result<std::unique_ptr<FrameSource>> source = openFrameSource(uri, raw_options);
+    Result<std::unique_ptr<FrameSource>> source = scan.open("none", /*colour=*/false);
     if (!source.isOk()) return source.status();
     out.frame_step = sc.frame_step;
     if (sc.max_frames > 0) {
@@ -485,7 +479,7 @@ Result<Refinement> refineAtPoses(const std::string& uri, const Options& o,
             "self-calibration {}: learning the bend left in the frames the refined table "
             "undistorts",
             step_planar);
-        Result<PlanarStage> p = planarStage(uri, o, sc, refined_path.string(), table_path);
+        Result<PlanarStage> p = planarStage(scan, sc, refined_path.string(), table_path);
         if (p.isOk()) {
             out.planar = std::move(*p);
         } else if (p.status().code() == StatusCode::kFailedPrecondition) {
@@ -517,23 +511,34 @@ Result<backend::PipelineResult> selfCalibratedRun(FrameSource& raw_source, const
     auto next = [&step] { return fmt::format("{}/5", ++step); };
     SourceOptions raw_options = o.source_options;
     raw_options.depth_calibration = "none";
+    // Every pass below reads the scan: the raw frames are read once and replayed to each.
+    Result<ScanCache> scan = ScanCache::read(raw_source, uri, raw_options,
+                                             static_cast<size_t>(cfg.keep_frames_mb) * 1000000,
+                                             InterruptScope::requested);
+    if (!scan.isOk()) return scan.status();
+    if (scan->complete()) {
+        log::info("self-calibration: the scan's {} raw frames are kept for every pass",
+                  scan->frames());
+    } else {
+        log::info("self-calibration: every pass reads the scan again: {}", scan->notKeptBecause());
+    }
     std::optional<PlanarStage> planar;
-    std::unique_ptr<FrameSource> planar_source;
-    FrameSource* first_source = &raw_source;
+    Result<std::unique_ptr<FrameSource>> opened = scan->open("none");
+    if (!opened.isOk()) return opened.status();
+    std::unique_ptr<FrameSource> first_source = std::move(*opened);
     SourceOptions first_options = raw_options;
     const std::string planar_step = next();
     if (sc.planar) {
         const std::filesystem::path planar_path = folder / "planar_table.txt";
         log::info("self-calibration {}: learning the bend of the depth from each frame's planes",
                   planar_step);
-        Result<PlanarStage> p = planarStage(uri, o, sc, "none", planar_path);
+        Result<PlanarStage> p = planarStage(*scan, sc, "none", planar_path);
         if (p.isOk()) {
             planar = std::move(*p);
             first_options.depth_calibration = planar_path.string();
-            Result<std::unique_ptr<FrameSource>> opened = openFrameSource(uri, first_options);
+            opened = scan->open(first_options.depth_calibration);
             if (!opened.isOk()) return opened.status();
-            planar_source = std::move(*opened);
-            first_source = planar_source.get();
+            first_source = std::move(*opened);
         } else if (p.status().code() == StatusCode::kFailedPrecondition) {
             // Without the bend, a table refined at poses tracked from the raw depth learns the
             // poses' error as much as the camera's (BENCHMARKS.md, real data): no table is
@@ -545,7 +550,7 @@ Result<backend::PipelineResult> selfCalibratedRun(FrameSource& raw_source, const
                                       {"reason", p.status().message()},
                                       {"table", nullptr},
                                       {"planar", nullptr}};
-            return reconstructOnce(raw_source, uri, raw_options, cfg, cfg.pipeline,
+            return reconstructOnce(*first_source, uri, raw_options, cfg, cfg.pipeline,
                                    std::move(input), o.out, o);
         } else {
             return p.status();
@@ -565,7 +570,7 @@ Result<backend::PipelineResult> selfCalibratedRun(FrameSource& raw_source, const
     const std::filesystem::path table_path = o.out / "depth_calibration.txt";
     const std::string refine_step = next();
     Result<Refinement> refined =
-        refineAtPoses(uri, o, sc, base.camera, folder / "first", folder / "refined_table.txt",
+        refineAtPoses(*scan, sc, base.camera, folder / "first", folder / "refined_table.txt",
                       table_path, refine_step, next());
     if (!refined.isOk()) return refined.status();
     const calibration::DistortionEstimate& last = refined->learned.iterations.back().estimate;
@@ -595,7 +600,7 @@ Result<backend::PipelineResult> selfCalibratedRun(FrameSource& raw_source, const
         {"estimate_seconds", seconds() - first_seconds}};
     SourceOptions calibrated = o.source_options;
     calibrated.depth_calibration = table_path.string();
-    Result<std::unique_ptr<FrameSource>> calibrated_source = openFrameSource(uri, calibrated);
+    Result<std::unique_ptr<FrameSource>> calibrated_source = scan->open(table_path.string());
     if (!calibrated_source.isOk()) return calibrated_source.status();
     return reconstructOnce(**calibrated_source, uri, calibrated, cfg, cfg.pipeline,
                            std::move(input), o.out, o);

@@ -175,9 +175,46 @@ TEST(SelfCalibration, BadInputGetsSpecificErrors) {
 
     DistortionEstimator estimator(camera.width, camera.height, config);
     const Status mismatch = estimator.addFrame(DepthImage(camera.width, camera.height),
-                                               DepthImage(80, 60), Image<float>());
+                                               DepthImage(70, 50), Image<float>());
     ASSERT_FALSE(mismatch.isOk());
-    EXPECT_NE(mismatch.message().find("the model depth is 80x60"), std::string::npos);
+    EXPECT_NE(mismatch.message().find("the model depth is 70x50"), std::string::npos);
+}
+
+TEST(SelfCalibration, ABlockOriginModelGivesTheSamplesOfItsImageSpreadOverTheBlocks) {
+    // 161x121: the last column and row of blocks are one pixel wide.
+    const int w = 161, h = 121;
+    SelfCalibrationConfig config;
+    config.min_samples = 4.0;
+    DepthImage raw(w, h), model((w + 1) / 2, (h + 1) / 2), spread(w, h);
+    Image<float> cos_half((w + 1) / 2, (h + 1) / 2), cos_full(w, h);
+    for (int j = 0; j < model.height(); ++j) {
+        for (int i = 0; i < model.width(); ++i) {
+            model(i, j) =
+                (i * 7 + j * 3) % 13 == 0 ? 0.0F : 0.5F + 0.02F * static_cast<float>(i + j);
+            cos_half(i, j) = (i + 2 * j) % 9 == 0 ? 0.1F : 0.9F;
+        }
+    }
+    for (int v = 0; v < h; ++v) {
+        for (int u = 0; u < w; ++u) {
+            spread(u, v) = model(u / 2, v / 2);
+            cos_full(u, v) = cos_half(u / 2, v / 2);
+            raw(u, v) = spread(u, v) * (1.0F + 0.001F * static_cast<float>((u * 5 + v) % 7 - 3));
+        }
+    }
+    DistortionEstimator from_half(w, h, config), from_full(w, h, config);
+    ASSERT_TRUE(from_half.addFrame(raw, model, cos_half).isOk());
+    ASSERT_TRUE(from_full.addFrame(raw, spread, cos_full).isOk());
+    ASSERT_GT(from_half.numSamples(), size_t{1000});
+    EXPECT_EQ(from_half.numSamples(), from_full.numSamples());
+    auto a = from_half.estimate();
+    auto b = from_full.estimate();
+    ASSERT_TRUE(a.isOk() && b.isOk());
+    EXPECT_EQ(a->covered, b->covered);
+    for (int y = 0; y < DistortionTable::kCellsPerSide; ++y) {
+        for (int x = 0; x < DistortionTable::kCellsPerSide; ++x) {
+            EXPECT_EQ(a->table.cell(x, y), b->table.cell(x, y)) << x << "," << y;
+        }
+    }
 }
 
 TEST(SelfCalibration, FittedFactorsFollowTheSamplesAndTheGauge) {
