@@ -40,68 +40,104 @@ struct CellFit {
     size_t outliers = 0;
 };
 
-/// Robust least squares of Eq. (1) over one cell's samples (see the header). Each pass reads
-/// the samples once: the normal equations are summed per pair of bins and then folded onto the
-/// unknowns (the covered bins; an uncovered bin counts as the nearest covered one).
+/// The depth segment of z: 0 below the first bin centre, s in 1..4 between centres s - 1 and
+/// s, 5 beyond the last (binWeights(z): lo = max(s - 1, 0), hi = min(s, 4)).
+int depthSegment(double z) { return std::min(static_cast<int>((z + 1.0) / 2.0), kBins); }
+
+/// Robust least squares of Eq. (1) over one cell's samples (see the header), given per depth
+/// segment (`segments[s]`, depthSegment): within a segment the two factors a sample depends on
+/// are the same, so each pass reads the samples once and sums the normal equations per segment,
+/// then folds them onto the unknowns (the covered bins; an uncovered bin counts as the nearest
+/// covered one).
 template <typename SampleT>
-CellFit fitCell(const std::vector<SampleT>& samples, const SelfCalibrationConfig& c) {
+CellFit fitCell(const std::vector<SampleT>* segments, int num_segments,
+                const SelfCalibrationConfig& c) {
     CellFit fit;
     fit.factor.fill(1.0);
-    if (static_cast<double>(samples.size()) < c.min_samples) return fit;
-    const size_t n = samples.size();
-    // Medians over every stride-th sample (SelfCalibrationConfig::median_samples).
+    size_t n = 0;
+    for (int s = 0; s < num_segments; ++s) n += segments[s].size();
+    if (static_cast<double>(n) < c.min_samples) return fit;
+    // Medians over every stride-th sample (SelfCalibrationConfig::median_samples), taken in
+    // segment order.
     const size_t limit = c.median_samples > 0 ? static_cast<size_t>(c.median_samples) : n;
     const size_t stride = (n + limit - 1) / limit;
-    std::vector<double> scratch((n + stride - 1) / stride);
+    std::vector<double> scratch;
+    scratch.reserve((n + stride - 1) / stride);
+    // Segment s: its bins and the interpolation weight a of depth z on bin hi.
+    auto bins = [](int s) { return std::make_pair(std::max(s - 1, 0), std::min(s, kBins - 1)); };
+    auto weightOnHi = [](int s, double z) { return (z - (2.0 * (s - 1) + 1.0)) / 2.0; };
+    auto subsample = [&](const auto& value) {
+        scratch.clear();
+        size_t k = 0;
+        for (int s = 0; s < num_segments; ++s) {
+            const std::vector<SampleT>& seg = segments[s];
+            for (; k < seg.size(); k += stride) scratch.push_back(value(s, seg[k]));
+            k -= seg.size();
+        }
+    };
 
     // Initial estimate: the median ratio in every bin.
-    for (size_t k = 0; k < n; k += stride) scratch[k / stride] = samples[k].ratio;
+    subsample([](int, const SampleT& x) { return double{x.ratio}; });
     std::array<double, kBins> f;
     f.fill(medianOf(&scratch));
-    auto predict = [&f](const Table::BinWeights& bw) {
-        return (1.0 - bw.a) * f[static_cast<size_t>(bw.lo)] + bw.a * f[static_cast<size_t>(bw.hi)];
-    };
 
     uint8_t covered = 0;
     for (int pass = 0; pass <= c.robust_iterations; ++pass) {
         // Robust sigma from the median absolute residual at the current factors.
-        for (size_t k = 0; k < n; k += stride) {
-            scratch[k / stride] =
-                std::abs(samples[k].ratio - predict(Table::binWeights(samples[k].z_model)));
-        }
+        subsample([&](int s, const SampleT& x) {
+            const auto [lo, hi] = bins(s);
+            const double a = lo == hi ? 0.0 : weightOnHi(s, x.z_model);
+            return std::abs(x.ratio - ((1.0 - a) * f[static_cast<size_t>(lo)] +
+                                       a * f[static_cast<size_t>(hi)]));
+        });
         const double sigma = std::max(1.4826 * medianOf(&scratch), c.min_sigma);
         const double huber = c.huber_k * sigma;
         const double cutoff = c.outlier_sigmas * sigma;
-        // Huber weights, each bin's support and the normal equations of Eq. (1) per bin pair.
+        // Huber weights, each bin's support and the normal equations of Eq. (1), summed per
+        // segment in powers of a: (1 - a)^2 = 1 - 2a + a^2, a (1 - a) = a - a^2.
         std::array<double, kBins> support{};
         Eigen::Matrix<double, kBins, kBins> A = Eigen::Matrix<double, kBins, kBins>::Zero();
         Eigen::Matrix<double, kBins, 1> b = Eigen::Matrix<double, kBins, 1>::Zero();
         size_t outliers = 0;
-        for (size_t k = 0; k < n; ++k) {
-            const Table::BinWeights bw = Table::binWeights(samples[k].z_model);
-            const double r = samples[k].ratio;
-            const double e = std::abs(r - predict(bw));
-            const double w = e <= huber ? 1.0 : (e <= cutoff ? huber / e : 0.0);
-            if (w == 0.0) {
-                ++outliers;
+        for (int s = 0; s < num_segments; ++s) {
+            const auto [lo, hi] = bins(s);
+            const double f_lo = f[static_cast<size_t>(lo)];
+            const double df = f[static_cast<size_t>(hi)] - f_lo;
+            const bool interpolated = lo != hi;
+            double sw = 0, swa = 0, swaa = 0, swr = 0, swar = 0;  // weighted sums
+            double n0 = 0, n1 = 0, n2 = 0;                        // inlier count, sum a, a^2
+            for (const SampleT& x : segments[s]) {
+                const double a = interpolated ? weightOnHi(s, x.z_model) : 0.0;
+                const double r = x.ratio;
+                const double e = std::abs(r - (f_lo + a * df));
+                const double w = e <= huber ? 1.0 : (e <= cutoff ? huber / e : 0.0);
+                if (w == 0.0) {
+                    ++outliers;
+                    continue;
+                }
+                sw += w;
+                swa += w * a;
+                swaa += w * a * a;
+                swr += w * r;
+                swar += w * a * r;
+                n0 += 1.0;
+                n1 += a;
+                n2 += a * a;
+            }
+            if (!interpolated) {
+                support[static_cast<size_t>(lo)] += n0;
+                A(lo, lo) += sw;
+                b(lo) += swr;
                 continue;
             }
-            const auto lo = static_cast<size_t>(bw.lo);
-            const auto hi = static_cast<size_t>(bw.hi);
-            const double jp = 1.0 - bw.a;
-            const double jq = bw.a;
-            if (lo == hi) {
-                support[lo] += 1.0;
-            } else {
-                support[lo] += jp * jp;
-                support[hi] += jq * jq;
-            }
-            A(bw.lo, bw.lo) += w * jp * jp;
-            A(bw.hi, bw.hi) += w * jq * jq;
-            A(bw.lo, bw.hi) += w * jp * jq;
-            A(bw.hi, bw.lo) += w * jp * jq;
-            b(bw.lo) += w * jp * r;
-            b(bw.hi) += w * jq * r;
+            support[static_cast<size_t>(lo)] += n0 - 2.0 * n1 + n2;
+            support[static_cast<size_t>(hi)] += n2;
+            A(lo, lo) += sw - 2.0 * swa + swaa;
+            A(hi, hi) += swaa;
+            A(lo, hi) += swa - swaa;
+            A(hi, lo) += swa - swaa;
+            b(lo) += swr - swar;
+            b(hi) += swar;
         }
         // Unknowns: the covered bins; an uncovered bin is tied to the nearest covered one.
         std::array<int, kBins> unknown_of{};
@@ -275,7 +311,7 @@ DistortionEstimator::DistortionEstimator(int width, int height, const SelfCalibr
       config_(config),
       cell_of_column_(static_cast<size_t>(std::max(width, 0))),
       cell_of_row_(static_cast<size_t>(std::max(height, 0))),
-      samples_(static_cast<size_t>(kSide) * kSide) {
+      samples_(static_cast<size_t>(kSide) * kSide * kSegments) {
     PLUMB_CHECK(width > 0 && height > 0) << "image size " << width << "x" << height;
     // Cells as the sensor model finds them (drivers/sim/noise.cpp): the pixel scaled to 640x480.
     for (int u = 0; u < width; ++u) cell_of_column_[u] = Table::cellX(u * 640 / width);
@@ -332,7 +368,8 @@ Status DistortionEstimator::addFrame(const DepthImage& raw, const DepthImage& mo
                 if (!(std::abs(ratio - 1.0) <= c.max_ratio_deviation)) continue;
                 const size_t cell =
                     static_cast<size_t>(cell_row) * kSide + cell_of_column_[static_cast<size_t>(u)];
-                samples_[cell].push_back({static_cast<float>(z_model), static_cast<float>(ratio)});
+                samples_[cell * kSegments + static_cast<size_t>(depthSegment(z_model))].push_back(
+                    {static_cast<float>(z_model), static_cast<float>(ratio)});
                 ++n;
             }
         }
@@ -343,10 +380,11 @@ Status DistortionEstimator::addFrame(const DepthImage& raw, const DepthImage& mo
 }
 
 Result<DistortionEstimate> DistortionEstimator::estimate(const Table* previous) const {
-    const size_t num_cells = samples_.size();
+    const size_t num_cells = samples_.size() / kSegments;
     std::vector<CellFit> fits(num_cells);
     plumb::parallelFor(config_.num_threads, static_cast<int>(num_cells), [&](int i) {
-        fits[static_cast<size_t>(i)] = fitCell(samples_[static_cast<size_t>(i)], config_);
+        fits[static_cast<size_t>(i)] =
+            fitCell(&samples_[static_cast<size_t>(i) * kSegments], kSegments, config_);
     });
 
     DistortionEstimate out;

@@ -206,7 +206,9 @@ class DistortionEstimator {
     SelfCalibrationConfig config_;
     std::vector<int> cell_of_column_, cell_of_row_;
     std::vector<int> rows_of_cell_;  ///< first image row of each row of cells, then the height
-    std::vector<std::vector<Sample>> samples_;  ///< per cell
+    /// Per cell, per depth segment (kSegments): samples between the same two bin centres.
+    static constexpr int kSegments = DistortionTable::kBins + 1;
+    std::vector<std::vector<Sample>> samples_;  ///< [cell * kSegments + segment]
     size_t num_samples_ = 0;
 };
 
