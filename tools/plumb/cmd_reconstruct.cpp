@@ -379,9 +379,8 @@ nlohmann::json mainFigures(const backend::PipelineResult& r) {
     return out;
 }
 
-/// `--self-calibrate`: the bend learned from the planes of the frames of `uri` (without colour)
-/// undistorted by `undistort` ("none": the raw frames), composed with that table and written to
-/// `path`.
+/// `--self-calibrate`: the bend learned from the planes of the scan's frames undistorted by
+/// `undistort` ("none": the raw frames), composed with that table and written to `path`.
 Result<PlanarStage> planarStage(const ScanCache& scan, const SelfCalibrateConfig& sc,
                                 const std::string& undistort, const std::filesystem::path& path) {
     Result<std::unique_ptr<FrameSource>> source = scan.open(undistort, /*colour=*/false);
@@ -512,6 +511,8 @@ Result<backend::PipelineResult> selfCalibratedRun(FrameSource& raw_source, const
     SourceOptions raw_options = o.source_options;
     raw_options.depth_calibration = "none";
     // Every pass below reads the scan: the raw frames are read once and replayed to each.
+    log::info("self-calibration: reading the scan once for its five passes (at most {} MB kept)",
+              cfg.keep_frames_mb);
     Result<ScanCache> scan = ScanCache::read(raw_source, uri, raw_options,
                                              static_cast<size_t>(cfg.keep_frames_mb) * 1000000,
                                              InterruptScope::requested);
