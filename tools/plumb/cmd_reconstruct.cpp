@@ -99,7 +99,8 @@ struct ReconstructConfig {
     /// Memory, MB, for keeping the frames read by tracking and fusion, so that the final model
     /// re-integrates them without reading (decoding, rendering) them again: about 2.4 MB a
     /// 640x480 frame with colour, 4096 MB holds a 1700-frame scan. A longer scan is read again;
-    /// 0 always reads again. The result is the same either way.
+    /// 0 always reads again. The result is the same either way. `--self-calibrate` keeps the raw
+    /// frames within the same budget for its five passes (tools/plumb/scan_cache.hpp).
     int keep_frames_mb = 4096;
 };
 
@@ -110,7 +111,8 @@ void describe(config::Schema& s, ReconstructConfig& c) {
               "--self-calibrate: learning the depth distortion table from the scan");
     s.field("keep_frames_mb", c.keep_frames_mb,
             "memory (MB) for keeping the tracked frames for the final model instead of reading "
-            "them again; a longer scan is read again, 0 = always")
+            "them again (with --self-calibrate also the raw frames, for all its passes); a "
+            "longer scan is read again, 0 = always")
         .min(0);
 }
 
