@@ -79,7 +79,9 @@ constexpr const char* kUsage =
     "                      live device as fast as this run would process, each frame's time\n"
     "                      replayed through plumb-device's capture queue of queue_frames;\n"
     "                      longest_drop_run: most frames it would drop one after the other;\n"
-    "                      max_latency_ms; keeps_fraction_by_mean: period / mean frame time)\n"
+    "                      max_latency_ms; frames_timed: the frames replayed, all fused ones\n"
+    "                      unless resumed from an older checkpoint; keeps_fraction_by_mean:\n"
+    "                      period / mean frame time)\n"
     "  trajectory.txt      odometry (TUM, camera->world = T_W_F * T_F_C of tracked frames)\n"
     "  config.toml         the effective configuration\n"
     "  resume/             what --resume continues from (removed when the run completes)\n"
@@ -132,9 +134,12 @@ constexpr const char* kUsage =
 
 constexpr const char* kCommand = "fuse";
 
-/// The checkpoint of an interrupted run: DIR/resume/fuse_state.bin.
+/// The checkpoint of an interrupted run: DIR/resume/fuse_state.bin. Version 3 holds each fused
+/// frame's time (FuseTally::frame_ms). Version-2 checkpoints were written both with them and,
+/// earlier, without: both restore (without them, the live figures replay only the frames timed
+/// after the resume).
 constexpr uint32_t kCheckpointMagic = 0x46465250u;  // "PRFF"
-constexpr uint32_t kCheckpointVersion = 2;
+constexpr uint32_t kCheckpointVersion = 3;
 constexpr int64_t kMaxCheckpointBytes = int64_t{1} << 34;
 
 struct FuseOptions {
@@ -322,7 +327,7 @@ struct FuseTally {
     uint64_t frames_tracked_only = 0;
 
     void save(io::StateWriter& w) const;
-    bool load(io::StateReader& r);
+    bool load(io::StateReader& r, bool with_frame_ms);
 };
 
 void FuseTally::save(io::StateWriter& w) const {
@@ -367,7 +372,7 @@ void FuseTally::save(io::StateWriter& w) const {
     }
 }
 
-bool FuseTally::load(io::StateReader& r) {
+bool FuseTally::load(io::StateReader& r, bool with_frame_ms) {
     uint64_t n = 0;
     if (!loadCount(r, &n)) return false;
     truth.T_W_C.assign(n, std::nullopt);
@@ -393,9 +398,10 @@ bool FuseTally::load(io::StateReader& r) {
     if (!r.array(&cbor)) return false;
     fragment_list = nlohmann::json::from_cbor(cbor, true, false);
     if (!fragment_list.is_array()) return false;
-    for (std::vector<double>* v : {&ates, &drifts_m, &drifts_deg, &medians, &frame_ms}) {
+    for (std::vector<double>* v : {&ates, &drifts_m, &drifts_deg, &medians}) {
         if (!r.array(v)) return false;
     }
+    if (with_frame_ms && !r.array(&frame_ms)) return false;
     for (uint64_t* c :
          {&positions, &read, &kept, &frames, &lost, &relocalised, &segments_started, &budget,
           &frames_unconstrained, &frames_photometric, &frames_tracked_only}) {
@@ -622,14 +628,20 @@ Status FuseRun::resume(FrameSource& source) {
                         ": no checkpoint (the run was stopped at once, by a second Ctrl-C or "
                         "a kill); run it again with --force");
     }
-    io::StateReader r(*bytes);
-    uint32_t magic = 0, version = 0;
     double step = 0.0;
     std::vector<uint8_t> builder;
-    const bool ok = r.value(&magic) && magic == kCheckpointMagic && r.value(&version) &&
-                    version == kCheckpointVersion && r.value(&step) && t_.load(r) &&
-                    r.array(&builder) && r.atEnd();
-    if (!ok) return corrupt(what + ": not a plumb fuse checkpoint, or damaged");
+    // The whole checkpoint in one of the layouts its version may have.
+    auto parse = [&](bool with_frame_ms) {
+        io::StateReader r(*bytes);
+        uint32_t magic = 0, version = 0;
+        t_ = FuseTally{};
+        if (!(r.value(&magic) && magic == kCheckpointMagic && r.value(&version))) return false;
+        if (!(version == kCheckpointVersion && with_frame_ms) && version != 2) return false;
+        return r.value(&step) && t_.load(r, with_frame_ms) && r.array(&builder) && r.atEnd();
+    };
+    if (!parse(true) && !parse(false)) {
+        return corrupt(what + ": not a plumb fuse checkpoint, or damaged");
+    }
     if (step != o_.frame_step) return corrupt(what + ": saved with another --frame-step");
     if (Status s = builder_.restoreState(builder); !s.isOk()) return prefixed(s, what);
     for (uint64_t i = 0; i < t_.positions; ++i) {
@@ -684,6 +696,7 @@ std::pair<nlohmann::json, std::string> FuseRun::summary(
             {"keeps_fraction", queue.keptFraction()},
             {"keeps_fraction_by_mean", by_mean},
             {"queue_frames", device::kDefaultCaptureQueueFrames},
+            {"frames_timed", t_.frame_ms.size()},
             {"longest_drop_run", queue.longest_drop_run},
             {"max_latency_ms", queue.max_latency_ms},
             {"threads",
