@@ -1,12 +1,14 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "backend/calibration/self_calibration.hpp"
 
+#include <emmintrin.h>
 #include <fmt/format.h>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
 #include <utility>
 
 #include "common/calibration/depth_calibration.hpp"
@@ -43,6 +45,81 @@ struct CellFit {
 /// The depth segment of z: 0 below the first bin centre, s in 1..4 between centres s - 1 and
 /// s, 5 beyond the last (binWeights(z): lo = max(s - 1, 0), hi = min(s, 4)).
 int depthSegment(double z) { return std::min(static_cast<int>((z + 1.0) / 2.0), kBins); }
+
+/// One robust pass's weighted sums over one depth segment's samples: with a the interpolation
+/// weight on the segment's upper bin (0 where it has one bin), r the ratio and w the Huber
+/// weight of the residual e = |r - (f_lo + a df)| (1 up to `huber`, huber / e up to `cutoff`,
+/// 0 beyond: an outlier), the sums of w, w a, w a^2, w r and w a r, and over the inliers of 1,
+/// a and a^2.
+struct SegmentSums {
+    double sw = 0, swa = 0, swaa = 0, swr = 0, swar = 0;
+    double n0 = 0, n1 = 0, n2 = 0;
+    size_t outliers = 0;
+};
+
+/// SegmentSums of `samples`, two at a time in the two lanes of SSE2 registers (sample k into
+/// lane k % 2, the lanes added last): the same sums on every run.
+template <typename SampleT>
+SegmentSums sumSegment(const std::vector<SampleT>& samples, int segment, bool interpolated,
+                       double f_lo, double df, double huber, double cutoff) {
+    static_assert(sizeof(SampleT) == 2 * sizeof(float) && offsetof(SampleT, z_model) == 0 &&
+                      offsetof(SampleT, ratio) == sizeof(float),
+                  "sumSegment loads samples as (z_model, ratio) float pairs");
+    // a = (z - (2 (segment - 1) + 1)) / 2 on an interpolated segment (weightOnHi), else 0.
+    const __m128d a_offset = _mm_set1_pd(interpolated ? 2.0 * (segment - 1) + 1.0 : 0.0);
+    const __m128d a_scale = _mm_set1_pd(interpolated ? 0.5 : 0.0);
+    const __m128d v_f_lo = _mm_set1_pd(f_lo), v_df = _mm_set1_pd(df);
+    const __m128d v_huber = _mm_set1_pd(huber), v_cutoff = _mm_set1_pd(cutoff);
+    const __m128d one = _mm_set1_pd(1.0);
+    const __m128d abs_mask = _mm_castsi128_pd(_mm_set1_epi64x(0x7fffffffffffffffLL));
+    __m128d sw = _mm_setzero_pd(), swa = sw, swaa = sw, swr = sw, swar = sw, n0 = sw, n1 = sw,
+            n2 = sw;
+    auto add = [&](__m128d z, __m128d r) {
+        const __m128d a = _mm_mul_pd(_mm_sub_pd(z, a_offset), a_scale);
+        const __m128d e =
+            _mm_and_pd(_mm_sub_pd(r, _mm_add_pd(v_f_lo, _mm_mul_pd(a, v_df))), abs_mask);
+        const __m128d inlier = _mm_and_pd(_mm_cmple_pd(e, v_cutoff), one);
+        // Huber: 1 up to huber (x / x = 1), huber / e beyond; 0 for outliers.
+        const __m128d w = _mm_mul_pd(inlier, _mm_div_pd(v_huber, _mm_max_pd(e, v_huber)));
+        const __m128d wa = _mm_mul_pd(w, a);
+        const __m128d ia = _mm_mul_pd(inlier, a);
+        sw = _mm_add_pd(sw, w);
+        swa = _mm_add_pd(swa, wa);
+        swaa = _mm_add_pd(swaa, _mm_mul_pd(wa, a));
+        swr = _mm_add_pd(swr, _mm_mul_pd(w, r));
+        swar = _mm_add_pd(swar, _mm_mul_pd(wa, r));
+        n0 = _mm_add_pd(n0, inlier);
+        n1 = _mm_add_pd(n1, ia);
+        n2 = _mm_add_pd(n2, _mm_mul_pd(ia, a));
+    };
+    const size_t n = samples.size();
+    const float* data = reinterpret_cast<const float*>(samples.data());
+    size_t k = 0;
+    for (; k + 2 <= n; k += 2) {
+        const __m128 pair = _mm_loadu_ps(data + 2 * k);  // z0 r0 z1 r1
+        add(_mm_cvtps_pd(_mm_shuffle_ps(pair, pair, _MM_SHUFFLE(2, 0, 2, 0))),
+            _mm_cvtps_pd(_mm_shuffle_ps(pair, pair, _MM_SHUFFLE(3, 1, 3, 1))));
+    }
+    if (k < n) {
+        // The last, odd sample in lane 0; lane 1 an outlier (a ratio of 1e30: weight 0, and
+        // 0 * 1e30 adds exact zeros where an infinite ratio would add NaN).
+        const __m128d z = _mm_set_pd(0.0, samples[k].z_model);
+        const __m128d r = _mm_set_pd(1e30, samples[k].ratio);
+        add(z, r);
+    }
+    auto total = [](__m128d v) { return _mm_cvtsd_f64(_mm_add_sd(v, _mm_unpackhi_pd(v, v))); };
+    SegmentSums out;
+    out.sw = total(sw);
+    out.swa = total(swa);
+    out.swaa = total(swaa);
+    out.swr = total(swr);
+    out.swar = total(swar);
+    out.n0 = total(n0);
+    out.n1 = total(n1);
+    out.n2 = total(n2);
+    out.outliers = n - static_cast<size_t>(out.n0);
+    return out;
+}
 
 /// Robust least squares of Eq. (1) over one cell's samples (see the header), given per depth
 /// segment (`segments[s]`, depthSegment): within a segment the two factors a sample depends on
@@ -104,26 +181,11 @@ CellFit fitCell(const std::vector<SampleT>* segments, int num_segments,
             const double f_lo = f[static_cast<size_t>(lo)];
             const double df = f[static_cast<size_t>(hi)] - f_lo;
             const bool interpolated = lo != hi;
-            double sw = 0, swa = 0, swaa = 0, swr = 0, swar = 0;  // weighted sums
-            double n0 = 0, n1 = 0, n2 = 0;                        // inlier count, sum a, a^2
-            for (const SampleT& x : segments[s]) {
-                const double a = interpolated ? weightOnHi(s, x.z_model) : 0.0;
-                const double r = x.ratio;
-                const double e = std::abs(r - (f_lo + a * df));
-                const double w = e <= huber ? 1.0 : (e <= cutoff ? huber / e : 0.0);
-                if (w == 0.0) {
-                    ++outliers;
-                    continue;
-                }
-                sw += w;
-                swa += w * a;
-                swaa += w * a * a;
-                swr += w * r;
-                swar += w * a * r;
-                n0 += 1.0;
-                n1 += a;
-                n2 += a * a;
-            }
+            const SegmentSums sums =
+                sumSegment(segments[s], s, interpolated, f_lo, df, huber, cutoff);
+            const double sw = sums.sw, swa = sums.swa, swaa = sums.swaa, swr = sums.swr,
+                         swar = sums.swar, n0 = sums.n0, n1 = sums.n1, n2 = sums.n2;
+            outliers += sums.outliers;
             if (!interpolated) {
                 support[static_cast<size_t>(lo)] += n0;
                 A(lo, lo) += sw;
@@ -325,6 +387,11 @@ DistortionEstimator::DistortionEstimator(int width, int height, const SelfCalibr
     }
 }
 
+void DistortionEstimator::clear() {
+    for (std::vector<Sample>& cell_segment : samples_) cell_segment.clear();
+    num_samples_ = 0;
+}
+
 Status DistortionEstimator::addFrame(const DepthImage& raw, const DepthImage& model,
                                      const Image<float>& view_cos) {
     auto sizeError = [&](const char* what, int w, int h) {
@@ -521,7 +588,7 @@ Image<float> viewCosines(const tsdf::RaycastResult& ray, const PinholeCamera& ca
     const int h = ray.depth.height();
     Image<float> out(w, h, 0.0F);
     const Eigen::Matrix3f R_C_V = T_V_C.rotation().transpose().cast<float>();
-    for (int v = 0; v < h; ++v) {
+    plumb::parallelFor(0, h, [&](int v) {  // rows are independent
         for (int u = 0; u < w; ++u) {
             if (!(ray.depth(u, v) > 0.0F)) continue;
             const Eigen::Vector3f& n_V = ray.normals_V(u, v);
@@ -530,7 +597,7 @@ Image<float> viewCosines(const tsdf::RaycastResult& ray, const PinholeCamera& ca
             const Eigen::Vector3f d_C = camera.ray(u, v).cast<float>().normalized();
             out(u, v) = std::abs(n_C.dot(d_C));
         }
-    }
+    });
     return out;
 }
 
@@ -558,6 +625,8 @@ Result<SelfCalibrationResult> alternate(const std::vector<DepthImage>& raw,
     SelfCalibrationResult result;
     result.table = initial != nullptr ? *initial : Table::neutral();
     std::vector<DepthImage> undistorted(raw.size());
+    // One estimator for every iteration: its samples' memory is reused.
+    DistortionEstimator estimator(camera.width, camera.height, config);
     for (int it = 0; it < config.max_iterations; ++it) {
         // Undistort with the current table: at the block origins only when the model is fused
         // from them (below) and no pose provider reads the whole frames.
@@ -610,11 +679,13 @@ Result<SelfCalibrationResult> alternate(const std::vector<DepthImage>& raw,
             }
         }
         // Compare every raw frame with the model at its pose.
-        DistortionEstimator estimator(camera.width, camera.height, config);
+        estimator.clear();
+        tsdf::RaycastConfig ray_config = config.raycast;
+        ray_config.max_depth_m =
+            std::min(ray_config.max_depth_m, static_cast<float>(config.max_depth_m));
         for (size_t k = 0; k < raw.size(); ++k) {
-            const tsdf::RaycastResult ray =
-                tsdf::raycast(volume, model_camera, T_W_C[k], config.raycast,
-                              aligner ? nullptr : &model_input[k]);
+            const tsdf::RaycastResult ray = tsdf::raycast(
+                volume, model_camera, T_W_C[k], ray_config, aligner ? nullptr : &model_input[k]);
             Image<float> view_cos = viewCosines(ray, model_camera, T_W_C[k]);
             const Status s = estimator.addFrame(raw[k], ray.depth, view_cos);
             if (!s.isOk()) return s;

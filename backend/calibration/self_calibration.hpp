@@ -127,7 +127,9 @@ struct SelfCalibrationConfig {
     /// The model: TSDF fused from the undistorted frames at their poses.
     tsdf::TsdfConfig tsdf = defaultTsdf();
     /// The model's depth at each frame's pose: normals from the cell of the crossing (they only
-    /// gate the viewing angle) and secant hits, for speed.
+    /// gate the viewing angle) and secant hits, for speed. Rays end at the smaller of its
+    /// max_depth_m and the samples' max_depth_m, and rays whose undistorted depth lies beyond
+    /// that end are not cast: they would march in full for a sample the depth gate drops.
     tsdf::RaycastConfig raycast = defaultRaycast();
     /// Worker threads of the per-cell fit (0 = TBB default). Results do not depend on it.
     int num_threads = 0;
@@ -143,6 +145,7 @@ struct SelfCalibrationConfig {
         tsdf::RaycastConfig c;
         c.normals = tsdf::RaycastNormals::kCell;
         c.secant_hits = true;
+        c.skip_hints_beyond_end = true;
         return c;
     }
 };
@@ -196,6 +199,9 @@ class DistortionEstimator {
     Result<DistortionEstimate> estimate(const DistortionTable* previous = nullptr) const;
 
     size_t numSamples() const { return num_samples_; }
+
+    /// Drops every sample, keeping their memory for the next frames (the next iteration's).
+    void clear();
 
   private:
     struct Sample {

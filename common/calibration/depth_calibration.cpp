@@ -93,17 +93,26 @@ DepthImage DepthCalibration::undistort(DepthImage depth) const {
     // §1.4.A.2-3), looked up at the origin of the pixel's 2x2 disparity block.
     std::vector<int> cell_x(static_cast<size_t>(w));
     for (int u = 0; u < w; ++u) cell_x[u] = DistortionTable::cellX((u - u % 2) * 640 / w);
-    // Rows are independent: any split gives the same image.
+    // Rows are independent: any split gives the same image. A pixel that repeats its left
+    // neighbour's reading in the same cell (quantised depth on flat surfaces, the pixels of one
+    // disparity block) repeats its undistorted depth too.
     tbb::parallel_for(tbb::blocked_range<int>(0, h, 16), [&](const tbb::blocked_range<int>& rows) {
         for (int v = rows.begin(); v < rows.end(); ++v) {
             const int cell_y = DistortionTable::cellY((v - v % 2) * 480 / h);
+            float last_measured = 0.0F, last_depth = 0.0F;
+            int last_cell = -1;
             for (int u = 0; u < w; ++u) {
                 const float measured = depth(u, v);
                 if (!(measured > 0.0F)) {
                     depth(u, v) = 0.0F;  // invalid stays invalid, NaN included
                     continue;
                 }
-                depth(u, v) = static_cast<float>(undistortDepth(cell_x[u], cell_y, measured));
+                if (measured != last_measured || cell_x[u] != last_cell) {
+                    last_measured = measured;
+                    last_cell = cell_x[u];
+                    last_depth = static_cast<float>(undistortDepth(last_cell, cell_y, measured));
+                }
+                depth(u, v) = last_depth;
             }
         }
     });
@@ -118,13 +127,21 @@ DepthImage DepthCalibration::undistortBlockOrigins(const DepthImage& depth) cons
         tbb::blocked_range<int>(0, out.height(), 8), [&](const tbb::blocked_range<int>& rows) {
             for (int j = rows.begin(); j < rows.end(); ++j) {
                 const int cell_y = DistortionTable::cellY(2 * j * 480 / h);
+                float last_measured = 0.0F, last_depth = 0.0F;
+                int last_cell = -1;
                 for (int i = 0; i < out.width(); ++i) {
                     const float measured = depth(2 * i, 2 * j);
-                    out(i, j) =
-                        measured > 0.0F
-                            ? static_cast<float>(undistortDepth(
-                                  DistortionTable::cellX(2 * i * 640 / w), cell_y, measured))
-                            : 0.0F;
+                    if (!(measured > 0.0F)) {
+                        out(i, j) = 0.0F;
+                        continue;
+                    }
+                    const int cell_x = DistortionTable::cellX(2 * i * 640 / w);
+                    if (measured != last_measured || cell_x != last_cell) {  // as in undistort()
+                        last_measured = measured;
+                        last_cell = cell_x;
+                        last_depth = static_cast<float>(undistortDepth(cell_x, cell_y, measured));
+                    }
+                    out(i, j) = last_depth;
                 }
             }
         });

@@ -50,10 +50,11 @@ class DepthCalibration {
     static constexpr int kMaxIterations = 8;
     static constexpr double kTolerance = 1e-6;
 
-  private:
-    /// undistort() of one pixel: measured depth > 0 in cell (cell_x, cell_y).
+    /// The depth undistort() gives a pixel of table cell (cell_x, cell_y) (DistortionTable::
+    /// cellX, cellY of its block origin) that measured `measured` > 0, before rounding to float.
     double undistortDepth(int cell_x, int cell_y, double measured) const;
 
+  private:
     DistortionTable table_;
     std::string source_;
 };

@@ -342,6 +342,7 @@ bool marchFromHint(const RayMarcher& marcher, const Ray& ray, float t_begin, con
     const RaycastConfig& config = marcher.config();
     const float vs = marcher.voxelSize(), mu = marcher.truncation();
     float d = nearestHint(hint, ray.u, ray.v, scale, 0);
+    if (config.skip_hints_beyond_end && std::isfinite(d) && d > ray.t_end) return true;
     if (std::isfinite(d)) {
         // March from close in front of it: mostly the crossing is one or two samples away.
         // Where the model surface lies nearer than that (noise in the hint) that start is not

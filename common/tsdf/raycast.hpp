@@ -83,6 +83,10 @@ struct RaycastConfig {
     /// saw nothing around it; nor, from nearly the same pose, will the frame being tracked).
     /// Negative: such rays march in full, from the nearest block.
     int hint_hole_radius_px = 2;
+    /// With a start hint: a ray whose hinted depth lies beyond the end of its march (max_depth_m,
+    /// or the farthest block along it) is not cast: the hinted frame saw free space along all of
+    /// it. False: such rays march in full, from the nearest block.
+    bool skip_hints_beyond_end = false;
     /// A sample that the last one aimed at the surface (F mu within two voxels) and that lands
     /// within half a voxel of it gives the hit by one secant step through the two, without
     /// bracketing the crossing first and refining it: two samples a ray from a hinted start
@@ -117,7 +121,7 @@ struct RaycastResult {
 /// instead of from the nearest block, and marches the whole ray unless one of those first
 /// samples is observed free space (F > 0). A surface the model still holds in front of that free
 /// space (seen by older frames, not by the hinted one) is skipped. Rays over holes in the hint
-/// follow hint_hole_radius_px.
+/// follow hint_hole_radius_px, rays hinted beyond their end skip_hints_beyond_end.
 RaycastResult raycast(const TsdfVolume& volume, const PinholeCamera& camera,
                       const Eigen::Isometry3d& T_V_C, const RaycastConfig& config = {},
                       const DepthImage* start_hint = nullptr);

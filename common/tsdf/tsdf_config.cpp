@@ -65,6 +65,10 @@ void describe(config::Schema& s, RaycastConfig& c) {
             "full)",
             "px")
         .min(-1);
+    s.field("skip_hints_beyond_end", c.skip_hints_beyond_end,
+            "with a start hint: a ray whose hinted depth lies beyond the end of its march "
+            "(max_depth_m, or the farthest block along it) is not cast (false: it marches in "
+            "full)");
     s.field("secant_hits", c.secant_hits,
             "a sample aimed at the surface by the last one that lands within half a voxel of it "
             "gives the hit by one secant step through the two (two samples a hinted ray instead "

@@ -521,6 +521,19 @@ TEST(Raycast, MarchingFromTheLastFusedDepthFindsTheSameSurface) {
     RaycastConfig march_holes;
     march_holes.hint_hole_radius_px = -1;
     EXPECT_EQ(raycastDifferences(full, raycast(volume, cam, T_last, march_holes, &empty), 0.0f), 0);
+    // A hint beyond the end of every march: those rays march in full, unless
+    // skip_hints_beyond_end says not to cast them; hints within range are not affected by it.
+    DepthImage beyond = last;
+    for (float& d : beyond.pixels()) d = d > 0.0f ? d + 10.0f : 0.0f;
+    EXPECT_EQ(raycastDifferences(full, raycast(volume, cam, T_last, {}, &beyond), 0.0f), 0);
+    RaycastConfig skip_beyond;
+    skip_beyond.skip_hints_beyond_end = true;
+    const RaycastResult skipped = raycast(volume, cam, T_last, skip_beyond, &beyond);
+    EXPECT_EQ(std::count_if(skipped.depth.pixels().begin(), skipped.depth.pixels().end(),
+                            [](float d) { return d > 0.0f; }),
+              0);
+    EXPECT_EQ(raycastDifferences(hinted, raycast(volume, cam, T_last, skip_beyond, &last), 0.0f),
+              0);
     // Without the near start every hinted ray marches from one truncation in front: the same
     // surface.
     RaycastConfig far_start;

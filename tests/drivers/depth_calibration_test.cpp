@@ -153,6 +153,37 @@ TEST(DepthCalibration, UndistortingTheBlockOriginsOnlyGivesTheSameDepthThere) {
     }
 }
 
+TEST(DepthCalibration, ARepeatedReadingIsUndistortedAsItsCellAndDepthSay) {
+    PLUMB_REQUIRE_SHARED_DATA(path, "redwood-noise/dist-model.txt");
+    auto calibration = DepthCalibration::load(path);
+    ASSERT_TRUE(calibration.isOk());
+    // Readings quantised to 5 cm: runs of equal readings along rows, across cell boundaries
+    // (every 8 px) and across invalid pixels; each pixel must get its own cell's depth.
+    DepthImage measured(640, 480);
+    for (int v = 0; v < 480; ++v) {
+        for (int u = 0; u < 640; ++u) {
+            const double z = 0.5 + 0.004 * u + 0.01 * v;
+            measured(u, v) = (u + v) % 13 == 0 ? 0.0F : static_cast<float>(std::round(z * 20) / 20);
+        }
+    }
+    const DepthImage undistorted = calibration->undistort(measured);
+    int repeats = 0;
+    for (int v = 0; v < 480; ++v) {
+        for (int u = 0; u < 640; ++u) {
+            const float m = measured(u, v);
+            if (!(m > 0.0F)) {
+                EXPECT_EQ(undistorted(u, v), 0.0F);
+                continue;
+            }
+            repeats += u > 0 && measured(u - 1, v) == m;
+            const double alone = calibration->undistortDepth(DistortionTable::cellX(u - u % 2),
+                                                             DistortionTable::cellY(v - v % 2), m);
+            ASSERT_EQ(undistorted(u, v), static_cast<float>(alone)) << u << "," << v;
+        }
+    }
+    EXPECT_GT(repeats, 640 * 480 / 2);
+}
+
 TEST(DepthCalibration, BadFilesAndValuesAreClearErrors) {
     auto missing = DepthCalibration::load("/nonexistent/dist-model.txt");
     ASSERT_FALSE(missing.isOk());

@@ -217,6 +217,40 @@ TEST(SelfCalibration, ABlockOriginModelGivesTheSamplesOfItsImageSpreadOverTheBlo
     }
 }
 
+TEST(SelfCalibration, AClearedEstimatorFitsOnlyTheFramesAddedAfterwards) {
+    // An odd number of samples per cell and segment (the fit sums them two at a time), and an
+    // earlier frame 3 % off that clear() must forget.
+    const int w = 161, h = 121;
+    SelfCalibrationConfig config;
+    config.compare_at_block_origin = false;
+    config.min_samples = 4.0;
+    DepthImage model(w, h), raw(w, h), earlier(w, h);
+    for (int v = 0; v < h; ++v) {
+        for (int u = 0; u < w; ++u) {
+            model(u, v) = 0.7F + 0.015F * static_cast<float>((u + 2 * v) % 151);
+            raw(u, v) = model(u, v) * (1.0F + 0.002F * static_cast<float>((u * 3 + v) % 5 - 2));
+            earlier(u, v) = model(u, v) * 1.03F;
+        }
+    }
+    DistortionEstimator reused(w, h, config), fresh(w, h, config);
+    ASSERT_TRUE(reused.addFrame(earlier, model, Image<float>()).isOk());
+    reused.clear();
+    EXPECT_EQ(reused.numSamples(), size_t{0});
+    ASSERT_TRUE(reused.addFrame(raw, model, Image<float>()).isOk());
+    ASSERT_TRUE(fresh.addFrame(raw, model, Image<float>()).isOk());
+    EXPECT_EQ(reused.numSamples(), fresh.numSamples());
+    auto a = reused.estimate();
+    auto b = fresh.estimate();
+    ASSERT_TRUE(a.isOk() && b.isOk());
+    EXPECT_EQ(a->covered, b->covered);
+    EXPECT_EQ(a->outliers, b->outliers);
+    for (int y = 0; y < DistortionTable::kCellsPerSide; ++y) {
+        for (int x = 0; x < DistortionTable::kCellsPerSide; ++x) {
+            ASSERT_EQ(a->table.cell(x, y), b->table.cell(x, y)) << x << "," << y;
+        }
+    }
+}
+
 TEST(SelfCalibration, FittedFactorsFollowTheSamplesAndTheGauge) {
     // Exact synthetic samples: a fronto-parallel sweep from 0.6 to 3.8 m seen through a table
     // whose factor rises linearly with depth; the fit recovers it up to the gauge (bin 0 mean 1).
