@@ -181,25 +181,22 @@ CellFit fitCell(const std::vector<SampleT>* segments, int num_segments,
             const double f_lo = f[static_cast<size_t>(lo)];
             const double df = f[static_cast<size_t>(hi)] - f_lo;
             const bool interpolated = lo != hi;
-            const SegmentSums sums =
-                sumSegment(segments[s], s, interpolated, f_lo, df, huber, cutoff);
-            const double sw = sums.sw, swa = sums.swa, swaa = sums.swaa, swr = sums.swr,
-                         swar = sums.swar, n0 = sums.n0, n1 = sums.n1, n2 = sums.n2;
-            outliers += sums.outliers;
+            const SegmentSums m = sumSegment(segments[s], s, interpolated, f_lo, df, huber, cutoff);
+            outliers += m.outliers;
             if (!interpolated) {
-                support[static_cast<size_t>(lo)] += n0;
-                A(lo, lo) += sw;
-                b(lo) += swr;
+                support[static_cast<size_t>(lo)] += m.n0;
+                A(lo, lo) += m.sw;
+                b(lo) += m.swr;
                 continue;
             }
-            support[static_cast<size_t>(lo)] += n0 - 2.0 * n1 + n2;
-            support[static_cast<size_t>(hi)] += n2;
-            A(lo, lo) += sw - 2.0 * swa + swaa;
-            A(hi, hi) += swaa;
-            A(lo, hi) += swa - swaa;
-            A(hi, lo) += swa - swaa;
-            b(lo) += swr - swar;
-            b(hi) += swar;
+            support[static_cast<size_t>(lo)] += m.n0 - 2.0 * m.n1 + m.n2;
+            support[static_cast<size_t>(hi)] += m.n2;
+            A(lo, lo) += m.sw - 2.0 * m.swa + m.swaa;
+            A(hi, hi) += m.swaa;
+            A(lo, hi) += m.swa - m.swaa;
+            A(hi, lo) += m.swa - m.swaa;
+            b(lo) += m.swr - m.swar;
+            b(hi) += m.swar;
         }
         // Unknowns: the covered bins; an uncovered bin is tied to the nearest covered one.
         std::array<int, kBins> unknown_of{};
@@ -372,15 +369,15 @@ DistortionEstimator::DistortionEstimator(int width, int height, const SelfCalibr
       height_(height),
       config_(config),
       cell_of_column_(static_cast<size_t>(std::max(width, 0))),
-      cell_of_row_(static_cast<size_t>(std::max(height, 0))),
       samples_(static_cast<size_t>(kSide) * kSide * kSegments) {
     PLUMB_CHECK(width > 0 && height > 0) << "image size " << width << "x" << height;
     // Cells as the sensor model finds them (drivers/sim/noise.cpp): the pixel scaled to 640x480.
     for (int u = 0; u < width; ++u) cell_of_column_[u] = Table::cellX(u * 640 / width);
-    for (int v = 0; v < height; ++v) cell_of_row_[v] = Table::cellY(v * 480 / height);
     // Rows [rows_of_cell_[y], rows_of_cell_[y + 1]) are those of cell row y (rising with v).
     rows_of_cell_.assign(static_cast<size_t>(kSide) + 1, height);
-    for (int v = height - 1; v >= 0; --v) rows_of_cell_[static_cast<size_t>(cell_of_row_[v])] = v;
+    for (int v = height - 1; v >= 0; --v) {
+        rows_of_cell_[static_cast<size_t>(Table::cellY(v * 480 / height))] = v;
+    }
     for (int y = kSide - 1; y >= 0; --y) {
         rows_of_cell_[static_cast<size_t>(y)] = std::min(rows_of_cell_[static_cast<size_t>(y)],
                                                          rows_of_cell_[static_cast<size_t>(y) + 1]);

@@ -210,7 +210,7 @@ class DistortionEstimator {
     };
     int width_, height_;
     SelfCalibrationConfig config_;
-    std::vector<int> cell_of_column_, cell_of_row_;
+    std::vector<int> cell_of_column_;
     std::vector<int> rows_of_cell_;  ///< first image row of each row of cells, then the height
     /// Per cell, per depth segment (kSegments): samples between the same two bin centres.
     static constexpr int kSegments = DistortionTable::kBins + 1;

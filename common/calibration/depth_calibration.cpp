@@ -86,6 +86,36 @@ double DepthCalibration::undistortDepth(int cell_x, int cell_y, double measured)
     return z;
 }
 
+namespace {
+
+/// undistortDepth() along one image row, reusing the last depth for a reading that repeats the
+/// last one in the same cell (quantised depth on flat surfaces, the pixels of one disparity
+/// block): the same floats.
+class RowUndistorter {
+  public:
+    RowUndistorter(const DepthCalibration& calibration, int cell_y)
+        : calibration_(calibration), cell_y_(cell_y) {}
+
+    /// The undistorted depth of a valid reading (> 0) of cell column `cell_x`.
+    float operator()(int cell_x, float measured) {
+        if (measured != last_measured_ || cell_x != last_cell_) {
+            last_measured_ = measured;
+            last_cell_ = cell_x;
+            last_depth_ =
+                static_cast<float>(calibration_.undistortDepth(cell_x, cell_y_, measured));
+        }
+        return last_depth_;
+    }
+
+  private:
+    const DepthCalibration& calibration_;
+    const int cell_y_;
+    float last_measured_ = 0.0F, last_depth_ = 0.0F;
+    int last_cell_ = -1;
+};
+
+}  // namespace
+
 DepthImage DepthCalibration::undistort(DepthImage depth) const {
     const int w = depth.width();
     const int h = depth.height();
@@ -93,26 +123,14 @@ DepthImage DepthCalibration::undistort(DepthImage depth) const {
     // §1.4.A.2-3), looked up at the origin of the pixel's 2x2 disparity block.
     std::vector<int> cell_x(static_cast<size_t>(w));
     for (int u = 0; u < w; ++u) cell_x[u] = DistortionTable::cellX((u - u % 2) * 640 / w);
-    // Rows are independent: any split gives the same image. A pixel that repeats its left
-    // neighbour's reading in the same cell (quantised depth on flat surfaces, the pixels of one
-    // disparity block) repeats its undistorted depth too.
+    // Rows are independent: any split gives the same image.
     tbb::parallel_for(tbb::blocked_range<int>(0, h, 16), [&](const tbb::blocked_range<int>& rows) {
         for (int v = rows.begin(); v < rows.end(); ++v) {
-            const int cell_y = DistortionTable::cellY((v - v % 2) * 480 / h);
-            float last_measured = 0.0F, last_depth = 0.0F;
-            int last_cell = -1;
+            RowUndistorter row(*this, DistortionTable::cellY((v - v % 2) * 480 / h));
             for (int u = 0; u < w; ++u) {
                 const float measured = depth(u, v);
-                if (!(measured > 0.0F)) {
-                    depth(u, v) = 0.0F;  // invalid stays invalid, NaN included
-                    continue;
-                }
-                if (measured != last_measured || cell_x[u] != last_cell) {
-                    last_measured = measured;
-                    last_cell = cell_x[u];
-                    last_depth = static_cast<float>(undistortDepth(last_cell, cell_y, measured));
-                }
-                depth(u, v) = last_depth;
+                // Invalid stays invalid, NaN included.
+                depth(u, v) = measured > 0.0F ? row(cell_x[u], measured) : 0.0F;
             }
         }
     });
@@ -126,22 +144,12 @@ DepthImage DepthCalibration::undistortBlockOrigins(const DepthImage& depth) cons
     tbb::parallel_for(
         tbb::blocked_range<int>(0, out.height(), 8), [&](const tbb::blocked_range<int>& rows) {
             for (int j = rows.begin(); j < rows.end(); ++j) {
-                const int cell_y = DistortionTable::cellY(2 * j * 480 / h);
-                float last_measured = 0.0F, last_depth = 0.0F;
-                int last_cell = -1;
+                RowUndistorter row(*this, DistortionTable::cellY(2 * j * 480 / h));
                 for (int i = 0; i < out.width(); ++i) {
                     const float measured = depth(2 * i, 2 * j);
-                    if (!(measured > 0.0F)) {
-                        out(i, j) = 0.0F;
-                        continue;
-                    }
-                    const int cell_x = DistortionTable::cellX(2 * i * 640 / w);
-                    if (measured != last_measured || cell_x != last_cell) {  // as in undistort()
-                        last_measured = measured;
-                        last_cell = cell_x;
-                        last_depth = static_cast<float>(undistortDepth(cell_x, cell_y, measured));
-                    }
-                    out(i, j) = last_depth;
+                    out(i, j) = measured > 0.0F
+                                    ? row(DistortionTable::cellX(2 * i * 640 / w), measured)
+                                    : 0.0F;
                 }
             }
         });
