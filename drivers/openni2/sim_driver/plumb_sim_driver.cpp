@@ -12,11 +12,11 @@
 // of streaming. Frame k of the stream is SimSource::render(k) of the URI's configuration
 // (drivers/openni2/sim_device.hpp), frameIndex = k. The depth stream's thread is the camera's
 // shutter: it renders frame k and, when the colour stream is started, hands it the frame's colour
-// (the simulator's Frame::colour, or the test pattern), which goes out with the same frameIndex
-// and the depth's timestamp (plus colour_offset_us). Colour without a started depth stream sends
-// nothing. No frame sync (enableFrameSync is not supported): clients pair by timestamp. The default
-// device is plumb-sim://<scene> with the scene from $PLUMB_SIM_DEVICE (default living_room); any
-// other plumb-sim:// URI opens through tryDevice.
+// (the simulator's Frame::colour, or the test pattern), which goes out just before the depth
+// frame, with the same frameIndex and the depth's timestamp (plus colour_offset_us). Colour
+// without a started depth stream sends nothing. No frame sync (enableFrameSync is not supported):
+// clients pair by timestamp. The default device is plumb-sim://<scene> with the scene from
+// $PLUMB_SIM_DEVICE (default living_room); any other plumb-sim:// URI opens through tryDevice.
 //
 // We write the C entry points ourselves instead of using ONI_EXPORT_DRIVER, which needs XnLib.
 
@@ -504,9 +504,9 @@ void SimStream::run(std::unique_ptr<sim::SimSource> source) {
                 return;
             }
         }
-        raiseNewFrame(frame);
-        getServices().releaseFrame(frame);
-        // The colour camera exposes with the depth camera: frame k's colour follows at once.
+        // The colour camera exposes with the depth camera and its frame k reaches the host
+        // first: a reader that has depth frame k finds its colour frame there, however late
+        // this thread runs after sending the depth frame.
         const SimDeviceSpec& spec = camera_->spec;
         const bool skipped = spec.colour_skip > 0 && (k + 1) % spec.colour_skip == 0;
         if (spec.colour != "0" && !skipped) {
@@ -520,6 +520,8 @@ void SimStream::run(std::unique_ptr<sim::SimSource> source) {
                 }
             }
         }
+        raiseNewFrame(frame);
+        getServices().releaseFrame(frame);
     }
 }
 
