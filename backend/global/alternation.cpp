@@ -7,6 +7,7 @@
 #include <cmath>
 
 #include "common/config/config.hpp"
+#include "common/core/logging.hpp"
 
 namespace plumb::global {
 
@@ -158,6 +159,12 @@ Result<AlternationResult> alternate(const std::vector<GlobalCloud>& clouds,
                                     rec.layout_change_m < config.layout_offset_tolerance_m;
         const bool poses_settled = rec.max_pose_change_rad < config.pose_tolerance_rad &&
                                    rec.max_pose_change_m < config.pose_tolerance_m;
+        log::debug(
+            "alternation: outer iteration {}: E {:.4e} -> {:.4e} in {} inner iterations; poses "
+            "moved up to {:.3f} mm and {:.4f} deg, the layout {:.3f} mm and {:.3f} deg",
+            outer, rec.before.total, rec.after.total, rec.inner_iterations,
+            rec.max_pose_change_m * 1e3, rec.max_pose_change_rad * 180.0 / M_PI,
+            rec.layout_change_m * 1e3, rec.layout_change_deg);
         previous = rec.layout;
         result.layout = rec.layout;
         result.iterations.push_back(std::move(rec));
