@@ -21,6 +21,10 @@ void describe(config::Schema& s, AlternationConfig& c) {
     s.field("pose_tolerance_m", c.pose_tolerance_m,
             "outer loop converged when no fragment moved more than this in an iteration", "m")
         .positive();
+    s.field("energy_tolerance", c.energy_tolerance,
+            "outer loop converged when the layout is unchanged, the annealing done, and E_R fell "
+            "by less than this fraction over the iteration (0 = poses and layout only)")
+        .min(0.0);
     s.field("layout_angle_tolerance_deg", c.layout_angle_tolerance_deg,
             "layout unchanged when every plane normal moved less than this", "deg")
         .positive();
@@ -81,6 +85,17 @@ bool compareLayouts(const Layout& a, const Layout& b, double* max_angle_deg, dou
     return same;
 }
 
+namespace {
+
+/// The annealed distances and margins of two outer iterations are the same.
+bool sameDistances(const GlobalConfig& a, const GlobalConfig& b) {
+    return a.frag_max_distance_m == b.frag_max_distance_m &&
+           a.layout_max_distance_m == b.layout_max_distance_m &&
+           a.wall_margin_m == b.wall_margin_m && a.floor_margin_m == b.floor_margin_m;
+}
+
+}  // namespace
+
 Result<AlternationResult> alternate(const std::vector<GlobalCloud>& clouds,
                                     const std::vector<Eigen::Isometry3d>& initial_T_W_F,
                                     const std::vector<PairPrior>& priors,
@@ -96,6 +111,7 @@ Result<AlternationResult> alternate(const std::vector<GlobalCloud>& clouds,
     result.T_W_F = initial_T_W_F;
     result.stop_reason = "max_outer_iterations";
     Layout previous;
+    GlobalConfig previous_gc;
     for (int outer = 0; outer < config.max_outer_iterations; ++outer) {
         OuterIteration rec;
         rec.iteration = outer;
@@ -159,6 +175,10 @@ Result<AlternationResult> alternate(const std::vector<GlobalCloud>& clouds,
                                     rec.layout_change_m < config.layout_offset_tolerance_m;
         const bool poses_settled = rec.max_pose_change_rad < config.pose_tolerance_rad &&
                                    rec.max_pose_change_m < config.pose_tolerance_m;
+        const bool energy_settled =
+            config.energy_tolerance > 0.0 && outer > 0 && sameDistances(gc, previous_gc) &&
+            result.iterations.back().after.total - rec.after.total <
+                config.energy_tolerance * result.iterations.back().after.total;
         log::debug(
             "alternation: outer iteration {}: E {:.4e} -> {:.4e} in {} inner iterations; poses "
             "moved up to {:.3f} mm and {:.4f} deg, the layout {:.3f} mm and {:.3f} deg",
@@ -166,12 +186,18 @@ Result<AlternationResult> alternate(const std::vector<GlobalCloud>& clouds,
             rec.max_pose_change_m * 1e3, rec.max_pose_change_rad * 180.0 / M_PI,
             rec.layout_change_m * 1e3, rec.layout_change_deg);
         previous = rec.layout;
+        previous_gc = gc;
         result.layout = rec.layout;
         result.iterations.push_back(std::move(rec));
         report(progress);
         if (layout_settled && poses_settled) {
             result.converged = true;
             result.stop_reason = "converged";
+            break;
+        }
+        if (layout_settled && energy_settled) {
+            result.converged = true;
+            result.stop_reason = "energy settled";
             break;
         }
     }

@@ -10,8 +10,9 @@
 //       T <- refinePoses(T, layout)  (correspondences C_i, C_ij at T;  (registration step, §3.3)
 //                                     LM inner loop, E non-increasing for fixed C)
 //       shrink the correspondence distances and support margins (annealing)
-//       stop when the layout is unchanged (same planes, |Δn| < tol, |Δd| < tol) and the largest
-//       pose change of the outer iteration is below the pose tolerances.
+//       stop when the layout is unchanged (same planes, |Δn| < tol, |Δd| < tol) and either the
+//       largest pose change of the outer iteration is below the pose tolerances or, once the
+//       annealing is done, E fell by less than energy_tolerance of itself over the iteration.
 //
 // The layout step is a callback so that this module depends on common/ types only; the
 // pipeline passes backend/layout's estimator. The energies of every outer and inner iteration
@@ -43,6 +44,12 @@ struct AlternationConfig {
     /// layout is unchanged).
     double pose_tolerance_rad = 1e-4;
     double pose_tolerance_m = 1e-4;
+    /// Outer loop also stops (converged) when the layout is unchanged, the correspondence
+    /// distances are those of the previous outer iteration (the annealing is done), and E_R at
+    /// the end of this iteration is lower than at the end of the previous one by less than this
+    /// fraction of it: the poses then creep along a direction E_R hardly constrains, a tenth of a
+    /// millimetre an iteration, with no gain the energy can see. 0 = poses and layout only.
+    double energy_tolerance = 1e-3;
     /// Layout unchanged: same number of planes of each kind and every plane within these.
     double layout_angle_tolerance_deg = 0.1;
     double layout_offset_tolerance_m = 0.001;
@@ -91,7 +98,8 @@ struct AlternationResult {
     Layout layout;                         ///< the layout of the last outer iteration
     std::vector<OuterIteration> iterations;
     bool converged = false;
-    /// "converged", "max_outer_iterations", or "layout step raised the energy" (the last
+    /// "converged", "energy settled" (see AlternationConfig::energy_tolerance; also converged),
+    /// "max_outer_iterations", or "layout step raised the energy" (the last
     /// layout was not kept; see AlternationConfig::monotone_layout_steps).
     std::string stop_reason;
 };

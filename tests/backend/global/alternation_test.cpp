@@ -95,6 +95,53 @@ TEST(Alternation, ConvergesWithTheGroundTruthLayout) {
     EXPECT_EQ(r->layout.planes.size(), sim.layout_gt.planes.size());
 }
 
+TEST(Alternation, StopsWhenTheEnergyNoLongerFallsOnceTheAnnealingIsDone) {
+    // Pose tolerances no run reaches, so only the energy test can end the loop early: without
+    // it the loop runs to the iteration limit; with it, it stops once E_R falls by less than
+    // energy_tolerance of itself in an iteration at the final distances, where the poses are
+    // as good as the limit's.
+    const auto& sim = scan();
+    const Start& start = perturbedStart();
+    LayoutEstimator estimator = [&](const std::vector<Eigen::Isometry3d>&) -> Result<Layout> {
+        return sim.layout_gt;
+    };
+    AlternationConfig cfg;
+    cfg.pose_tolerance_m = 1e-12;
+    cfg.pose_tolerance_rad = 1e-12;
+    cfg.max_outer_iterations = 8;
+    cfg.energy_tolerance = 0.0;
+    Result<AlternationResult> full =
+        alternate(start.clouds, start.T0, start.priors, estimator, cfg);
+    ASSERT_TRUE(full.isOk()) << full.status().toString();
+    EXPECT_EQ(full->stop_reason, "max_outer_iterations");
+    ASSERT_EQ(full->iterations.size(), 8U);
+
+    cfg.energy_tolerance = 1e-3;
+    Result<AlternationResult> early =
+        alternate(start.clouds, start.T0, start.priors, estimator, cfg);
+    ASSERT_TRUE(early.isOk()) << early.status().toString();
+    EXPECT_EQ(early->stop_reason, "energy settled");
+    EXPECT_TRUE(early->converged);
+    // The distances shrink by 0.7 per iteration from 5 to 2.5 cm (fragments) and 10 to 5 cm
+    // (layout, margins): iterations 0 to 2 anneal, so the earliest stop is after iteration 3.
+    ASSERT_GE(early->iterations.size(), 4U);
+    ASSERT_LT(early->iterations.size(), full->iterations.size());
+    const size_t n = early->iterations.size();
+    const double last = early->iterations[n - 1].after.total;
+    const double before_last = early->iterations[n - 2].after.total;
+    EXPECT_LT(before_last - last, 1e-3 * before_last);
+    // The iterations run are those of the run without the test.
+    for (size_t k = 0; k < n; ++k)
+        EXPECT_EQ(early->iterations[k].after.total, full->iterations[k].after.total) << k;
+    const double ate_early = testing::cameraPositionRmse(sim, early->T_W_F);
+    const double ate_full = testing::cameraPositionRmse(sim, full->T_W_F);
+    std::printf(
+        "energy test: stopped after %zu of 8 outer iterations, camera RMSE %.3f cm "
+        "(%.3f cm after 8)\n",
+        n, 100 * ate_early, 100 * ate_full);
+    EXPECT_LT(std::abs(ate_early - ate_full), 0.0005);
+}
+
 TEST(Alternation, ALayoutStepThatRaisesTheEnergyIsNotTaken) {
     // The estimator gives the true layout, then the whole layout moved by 7 cm: at the poses the
     // first registration step reached, the moved layout fits worse, so Algorithm 1 stops and
