@@ -140,14 +140,12 @@ Result<AlternationResult> alternate(const std::vector<GlobalCloud>& clouds,
                                      config.global.floor_margin_m * shrink);
         if (outer > 0 && config.monotone_layout_steps) {
             // Block-coordinate descent: the layout step must not raise E_R at these poses.
-            Result<EnergyTerms> e_prev = evaluateEnergy(clouds, result.T_W_F, priors, previous, gc);
-            Result<EnergyTerms> e_new =
-                evaluateEnergy(clouds, result.T_W_F, priors, rec.layout, gc);
-            if (!e_prev.isOk()) return e_prev.status();
-            if (!e_new.isOk()) return e_new.status();
-            rec.energy_previous_layout = e_prev->total;
-            rec.energy_new_layout = e_new->total;
-            if (e_new->total > e_prev->total) {
+            Result<std::array<EnergyTerms, 2>> e =
+                evaluateEnergies(clouds, result.T_W_F, priors, previous, rec.layout, gc);
+            if (!e.isOk()) return e.status();
+            rec.energy_previous_layout = (*e)[0].total;
+            rec.energy_new_layout = (*e)[1].total;
+            if (rec.energy_new_layout > rec.energy_previous_layout) {
                 result.stop_reason = "layout step raised the energy";
                 break;
             }

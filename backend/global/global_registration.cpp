@@ -474,24 +474,34 @@ bool mayOverlap(const std::vector<Occupancy>& occupancy, const std::vector<Globa
            static_cast<double>(near) / static_cast<double>(clouds[small].size()) >= min_overlap;
 }
 
-Correspondences establish(const std::vector<GlobalCloud>& clouds,
-                          const std::vector<Eigen::Isometry3d>& T_W_F,
-                          const std::vector<PairPrior>& priors, const PreparedLayout* layout,
-                          const GlobalConfig& config) {
+/// C_i: each fragment's points with the layout plane they are pulled onto (none without a
+/// layout), in point order.
+std::vector<std::vector<LayoutMatch>> establishLayout(const std::vector<GlobalCloud>& clouds,
+                                                      const std::vector<Eigen::Isometry3d>& T_W_F,
+                                                      const PreparedLayout* layout,
+                                                      const GlobalConfig& config) {
     const size_t n = clouds.size();
-    Correspondences c;
-    // C_i: fragment-layout correspondences.
-    c.layout.resize(n);
-    if (layout != nullptr && !layout->planes.empty()) {
-        parallelFor(config.num_threads, n, [&](size_t i) {
-            const GlobalCloud& cl = clouds[i];
-            const Eigen::Isometry3d& T = T_W_F[i];
-            for (size_t k = 0; k < cl.size(); ++k) {
-                const int plane = layout->assign(T * cl.points()[k], T.linear() * cl.normals()[k]);
-                if (plane >= 0) c.layout[i].push_back({static_cast<uint32_t>(k), plane});
-            }
-        });
-    }
+    std::vector<std::vector<LayoutMatch>> matches(n);
+    if (layout == nullptr || layout->planes.empty()) return matches;
+    parallelFor(config.num_threads, n, [&](size_t i) {
+        const GlobalCloud& cl = clouds[i];
+        const Eigen::Isometry3d& T = T_W_F[i];
+        for (size_t k = 0; k < cl.size(); ++k) {
+            const int plane = layout->assign(T * cl.points()[k], T.linear() * cl.normals()[k]);
+            if (plane >= 0) matches[i].push_back({static_cast<uint32_t>(k), plane});
+        }
+    });
+    return matches;
+}
+
+/// C_ij: the kept fragment pairs with their correspondences in both directions, in (a, b)
+/// order. They do not depend on the layout.
+std::vector<PairMatches> establishPairs(const std::vector<GlobalCloud>& clouds,
+                                        const std::vector<Eigen::Isometry3d>& T_W_F,
+                                        const std::vector<PairPrior>& priors,
+                                        const GlobalConfig& config) {
+    const size_t n = clouds.size();
+    std::vector<PairMatches> kept;
     // C_ij: candidate pairs = the priors' pairs plus pairs whose bounding spheres meet and whose
     // occupied cells leave room for the overlap test.
     std::vector<Occupancy> occupancy(n);
@@ -556,8 +566,18 @@ Correspondences establish(const std::vector<GlobalCloud>& clouds,
                          : static_cast<double>(pm.b_to_a.size()) / static_cast<double>(nb);
             if (overlap < config.min_overlap) continue;
         }
-        c.pairs.push_back(std::move(pm));
+        kept.push_back(std::move(pm));
     }
+    return kept;
+}
+
+Correspondences establish(const std::vector<GlobalCloud>& clouds,
+                          const std::vector<Eigen::Isometry3d>& T_W_F,
+                          const std::vector<PairPrior>& priors, const PreparedLayout* layout,
+                          const GlobalConfig& config) {
+    Correspondences c;
+    c.layout = establishLayout(clouds, T_W_F, layout, config);
+    c.pairs = establishPairs(clouds, T_W_F, priors, config);
     return c;
 }
 
@@ -947,6 +967,26 @@ Result<EnergyTerms> evaluateEnergy(const std::vector<GlobalCloud>& clouds,
     const Problem& pb = problem.value();
     const Correspondences corr = establish(clouds, T_W_F, priors, pb.layout, config);
     return evaluate(pb, corr, T_W_F, nullptr);
+}
+
+Result<std::array<EnergyTerms, 2>> evaluateEnergies(const std::vector<GlobalCloud>& clouds,
+                                                    const std::vector<Eigen::Isometry3d>& T_W_F,
+                                                    const std::vector<PairPrior>& priors,
+                                                    const Layout& first, const Layout& second,
+                                                    const GlobalConfig& config) {
+    PLUMB_RETURN_IF_ERROR(validateInputs(clouds.size(), T_W_F, priors, config));
+    std::array<EnergyTerms, 2> energies;
+    Correspondences corr;
+    corr.pairs = establishPairs(clouds, T_W_F, priors, config);
+    const std::array<const Layout*, 2> layouts{&first, &second};
+    for (size_t k = 0; k < layouts.size(); ++k) {
+        std::optional<PreparedLayout> prepared;
+        Result<Problem> problem = makeProblem(clouds, priors, *layouts[k], config, &prepared);
+        if (!problem.isOk()) return problem.status();
+        corr.layout = establishLayout(clouds, T_W_F, problem->layout, config);
+        energies[k] = evaluate(problem.value(), corr, T_W_F, nullptr);
+    }
+    return energies;
 }
 
 Result<GlobalResult> refinePoses(const std::vector<Fragment>& fragments,

@@ -43,6 +43,7 @@
 // and its queries are thread-safe.
 
 #include <Eigen/Geometry>
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -233,6 +234,14 @@ Result<EnergyTerms> evaluateEnergy(const std::vector<GlobalCloud>& clouds,
                                    const std::vector<Eigen::Isometry3d>& T_W_F,
                                    const std::vector<PairPrior>& priors, const Layout& layout,
                                    const GlobalConfig& config);
+
+/// evaluateEnergy() with two layouts at the same poses: the same two results, with the fragment
+/// pairs' correspondences (which do not depend on the layout) established once.
+Result<std::array<EnergyTerms, 2>> evaluateEnergies(const std::vector<GlobalCloud>& clouds,
+                                                    const std::vector<Eigen::Isometry3d>& T_W_F,
+                                                    const std::vector<PairPrior>& priors,
+                                                    const Layout& first, const Layout& second,
+                                                    const GlobalConfig& config);
 
 /// Convenience: prepareClouds() then refinePoses().
 Result<GlobalResult> refinePoses(const std::vector<Fragment>& fragments,

@@ -334,6 +334,39 @@ TEST(GlobalRegistration, TrackedPriorsAreWeighedByTheirOwnWeight) {
     }
 }
 
+TEST(GlobalRegistration, TwoLayoutsAreEvaluatedAsEachAlone) {
+    // evaluateEnergies() shares the fragment pairs' correspondences between the two layouts: its
+    // energies are those of two evaluateEnergy() calls, term by term and bit for bit, and the
+    // layout terms differ (the second layout is moved by 3 cm).
+    const SimFragments& sim = livingRoom();
+    const auto& cl = livingRoomClouds();
+    const auto T = testing::perturbedPoses(sim, 1.0, 0.03, 11);
+    const auto priors = testing::makePriors(sim, cl, 0.3, 0.005);
+    Layout moved = sim.layout_gt;
+    moved.T_W_L = Eigen::Translation3d(0.03, 0.0, 0.0) * moved.T_W_L;
+    const GlobalConfig cfg;
+    Result<std::array<EnergyTerms, 2>> both =
+        evaluateEnergies(cl, T, priors, sim.layout_gt, moved, cfg);
+    ASSERT_TRUE(both.isOk()) << both.status().toString();
+    const std::array<const Layout*, 2> layouts{&sim.layout_gt, &moved};
+    for (size_t k = 0; k < 2; ++k) {
+        Result<EnergyTerms> alone = evaluateEnergy(cl, T, priors, *layouts[k], cfg);
+        ASSERT_TRUE(alone.isOk()) << alone.status().toString();
+        EXPECT_EQ((*both)[k].total, alone->total) << k;
+        EXPECT_EQ((*both)[k].layout, alone->layout) << k;
+        EXPECT_EQ((*both)[k].frag, alone->frag) << k;
+        EXPECT_EQ((*both)[k].pair, alone->pair) << k;
+        EXPECT_EQ((*both)[k].num_layout, alone->num_layout) << k;
+        EXPECT_EQ((*both)[k].num_frag, alone->num_frag) << k;
+    }
+    EXPECT_NE((*both)[0].layout, (*both)[1].layout);
+    EXPECT_GT((*both)[0].num_frag, 0U);
+    Layout bad = moved;
+    bad.planes.front().normal_L = Eigen::Vector3d(0.0, 0.0, 2.0);
+    EXPECT_EQ(evaluateEnergies(cl, T, priors, sim.layout_gt, bad, cfg).status().code(),
+              StatusCode::kInvalidArgument);
+}
+
 TEST(GlobalRegistration, BadInputGivesSpecificErrors) {
     const SimFragments& sim = livingRoom();
     const auto& clouds = livingRoomClouds();
