@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 #include "common/config/config.hpp"
 #include "common/core/logging.hpp"
@@ -138,23 +139,28 @@ Result<AlternationResult> alternate(const std::vector<GlobalCloud>& clouds,
                                     config.global.wall_margin_m * shrink);
         gc.floor_margin_m = std::max(std::min(config.final_margin_m, config.global.floor_margin_m),
                                      config.global.floor_margin_m * shrink);
+        auto failed = [outer](const Status& st) {
+            return Status(st.code(), fmt::format("alternation: registration in outer iteration "
+                                                 "{}: {}",
+                                                 outer, st.message()));
+        };
+        std::optional<GlobalResult> step;
         if (outer > 0 && config.monotone_layout_steps) {
             // Block-coordinate descent: the layout step must not raise E_R at these poses.
-            Result<std::array<EnergyTerms, 2>> e =
-                evaluateEnergies(clouds, result.T_W_F, priors, previous, rec.layout, gc);
-            if (!e.isOk()) return e.status();
-            rec.energy_previous_layout = (*e)[0].total;
-            rec.energy_new_layout = (*e)[1].total;
-            if (rec.energy_new_layout > rec.energy_previous_layout) {
+            Result<LayoutStepOutcome> o =
+                refinePosesAfterLayoutStep(clouds, result.T_W_F, priors, previous, rec.layout, gc);
+            if (!o.isOk()) return failed(o.status());
+            rec.energy_previous_layout = o->energies[0].total;
+            rec.energy_new_layout = o->energies[1].total;
+            if (!o->step) {
                 result.stop_reason = "layout step raised the energy";
                 break;
             }
-        }
-        Result<GlobalResult> step = refinePoses(clouds, result.T_W_F, priors, rec.layout, gc);
-        if (!step.isOk()) {
-            return Status(step.status().code(),
-                          fmt::format("alternation: registration in outer iteration {}: {}", outer,
-                                      step.status().message()));
+            step = std::move(o->step);
+        } else {
+            Result<GlobalResult> r = refinePoses(clouds, result.T_W_F, priors, rec.layout, gc);
+            if (!r.isOk()) return failed(r.status());
+            step = std::move(r).value();
         }
         rec.before = step->initial;
         rec.after = step->final;

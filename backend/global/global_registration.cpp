@@ -876,25 +876,23 @@ std::vector<std::vector<int>> layoutAssignments(const std::vector<GlobalCloud>& 
     return out;
 }
 
-Result<GlobalResult> refinePoses(const std::vector<GlobalCloud>& clouds,
-                                 std::vector<Eigen::Isometry3d> T_W_F,
-                                 const std::vector<PairPrior>& priors, const Layout& layout,
-                                 const GlobalConfig& config) {
-    const size_t n = clouds.size();
-    PLUMB_RETURN_IF_ERROR(validateInputs(n, T_W_F, priors, config));
-    GlobalResult result;
-    if (n <= 1) {
-        result.T_W_F = std::move(T_W_F);
-        result.converged = true;
-        return result;
-    }
-    std::optional<PreparedLayout> prepared;
-    Result<Problem> problem = makeProblem(clouds, priors, layout, config, &prepared);
-    if (!problem.isOk()) return problem.status();
-    const Problem& pb = problem.value();
+namespace {
 
+/// refinePoses() of problem `pb` from T_W_F (more than one fragment); `first`, when given, are
+/// the correspondences the first round would establish at T_W_F.
+GlobalResult refineRounds(const Problem& pb, std::vector<Eigen::Isometry3d> T_W_F,
+                          std::optional<Correspondences> first) {
+    const std::vector<GlobalCloud>& clouds = *pb.clouds;
+    const GlobalConfig& config = *pb.config;
+    const size_t n = clouds.size();
+    GlobalResult result;
     for (int round = 0; round < config.rounds; ++round) {
-        const Correspondences corr = establish(clouds, T_W_F, priors, pb.layout, config);
+        Correspondences corr;
+        if (round == 0 && first) {
+            corr = std::move(*first);
+        } else {
+            corr = establish(clouds, T_W_F, *pb.priors, pb.layout, config);
+        }
         std::vector<GroupSystem> system;
         EnergyTerms energy = evaluate(pb, corr, T_W_F, &system);
         if (round == 0) result.initial = energy;
@@ -956,6 +954,74 @@ Result<GlobalResult> refinePoses(const std::vector<GlobalCloud>& clouds,
     return result;
 }
 
+/// E_R at T_W_F with two layouts, the fragment pairs' correspondences established once;
+/// `second_corr` (may be null) receives the correspondences with the second layout.
+Result<std::array<EnergyTerms, 2>> evaluateTwo(const std::vector<GlobalCloud>& clouds,
+                                               const std::vector<Eigen::Isometry3d>& T_W_F,
+                                               const std::vector<PairPrior>& priors,
+                                               const Layout& first, const Layout& second,
+                                               const GlobalConfig& config,
+                                               Correspondences* second_corr) {
+    PLUMB_RETURN_IF_ERROR(validateInputs(clouds.size(), T_W_F, priors, config));
+    std::array<EnergyTerms, 2> energies;
+    Correspondences corr;
+    corr.pairs = establishPairs(clouds, T_W_F, priors, config);
+    const std::array<const Layout*, 2> layouts{&first, &second};
+    for (size_t k = 0; k < layouts.size(); ++k) {
+        std::optional<PreparedLayout> prepared;
+        Result<Problem> problem = makeProblem(clouds, priors, *layouts[k], config, &prepared);
+        if (!problem.isOk()) return problem.status();
+        corr.layout = establishLayout(clouds, T_W_F, problem->layout, config);
+        energies[k] = evaluate(problem.value(), corr, T_W_F, nullptr);
+    }
+    if (second_corr != nullptr) *second_corr = std::move(corr);
+    return energies;
+}
+
+}  // namespace
+
+Result<GlobalResult> refinePoses(const std::vector<GlobalCloud>& clouds,
+                                 std::vector<Eigen::Isometry3d> T_W_F,
+                                 const std::vector<PairPrior>& priors, const Layout& layout,
+                                 const GlobalConfig& config) {
+    PLUMB_RETURN_IF_ERROR(validateInputs(clouds.size(), T_W_F, priors, config));
+    if (clouds.size() <= 1) {
+        GlobalResult result;
+        result.T_W_F = std::move(T_W_F);
+        result.converged = true;
+        return result;
+    }
+    std::optional<PreparedLayout> prepared;
+    Result<Problem> problem = makeProblem(clouds, priors, layout, config, &prepared);
+    if (!problem.isOk()) return problem.status();
+    return refineRounds(problem.value(), std::move(T_W_F), std::nullopt);
+}
+
+Result<LayoutStepOutcome> refinePosesAfterLayoutStep(const std::vector<GlobalCloud>& clouds,
+                                                     const std::vector<Eigen::Isometry3d>& T_W_F,
+                                                     const std::vector<PairPrior>& priors,
+                                                     const Layout& previous, const Layout& layout,
+                                                     const GlobalConfig& config) {
+    LayoutStepOutcome out;
+    Correspondences corr;
+    Result<std::array<EnergyTerms, 2>> e =
+        evaluateTwo(clouds, T_W_F, priors, previous, layout, config, &corr);
+    if (!e.isOk()) return e.status();
+    out.energies = e.value();
+    if (out.energies[1].total > out.energies[0].total) return out;
+    if (clouds.size() <= 1) {
+        Result<GlobalResult> r = refinePoses(clouds, T_W_F, priors, layout, config);
+        if (!r.isOk()) return r.status();
+        out.step = std::move(r).value();
+        return out;
+    }
+    std::optional<PreparedLayout> prepared;
+    Result<Problem> problem = makeProblem(clouds, priors, layout, config, &prepared);
+    if (!problem.isOk()) return problem.status();
+    out.step = refineRounds(problem.value(), T_W_F, std::move(corr));
+    return out;
+}
+
 Result<EnergyTerms> evaluateEnergy(const std::vector<GlobalCloud>& clouds,
                                    const std::vector<Eigen::Isometry3d>& T_W_F,
                                    const std::vector<PairPrior>& priors, const Layout& layout,
@@ -974,19 +1040,7 @@ Result<std::array<EnergyTerms, 2>> evaluateEnergies(const std::vector<GlobalClou
                                                     const std::vector<PairPrior>& priors,
                                                     const Layout& first, const Layout& second,
                                                     const GlobalConfig& config) {
-    PLUMB_RETURN_IF_ERROR(validateInputs(clouds.size(), T_W_F, priors, config));
-    std::array<EnergyTerms, 2> energies;
-    Correspondences corr;
-    corr.pairs = establishPairs(clouds, T_W_F, priors, config);
-    const std::array<const Layout*, 2> layouts{&first, &second};
-    for (size_t k = 0; k < layouts.size(); ++k) {
-        std::optional<PreparedLayout> prepared;
-        Result<Problem> problem = makeProblem(clouds, priors, *layouts[k], config, &prepared);
-        if (!problem.isOk()) return problem.status();
-        corr.layout = establishLayout(clouds, T_W_F, problem->layout, config);
-        energies[k] = evaluate(problem.value(), corr, T_W_F, nullptr);
-    }
-    return energies;
+    return evaluateTwo(clouds, T_W_F, priors, first, second, config, nullptr);
 }
 
 Result<GlobalResult> refinePoses(const std::vector<Fragment>& fragments,

@@ -46,6 +46,7 @@
 #include <array>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "common/config/schema.hpp"
@@ -242,6 +243,25 @@ Result<std::array<EnergyTerms, 2>> evaluateEnergies(const std::vector<GlobalClou
                                                     const std::vector<PairPrior>& priors,
                                                     const Layout& first, const Layout& second,
                                                     const GlobalConfig& config);
+
+/// The registration step of Algorithm 1 after a layout step, with its test
+/// (AlternationConfig::monotone_layout_steps).
+struct LayoutStepOutcome {
+    /// E_R at the given poses with the previous layout and with the new one (evaluateEnergies()).
+    std::array<EnergyTerms, 2> energies;
+    /// refinePoses() with the new layout; empty when the new layout raised E_R.
+    std::optional<GlobalResult> step;
+};
+
+/// evaluateEnergies(previous, layout) at `T_W_F`, then, unless the new layout raised E_R,
+/// refinePoses() with it from `T_W_F`, whose first round takes the correspondences the evaluation
+/// just established there (the same ones) instead of establishing them again. The results of
+/// those two calls, bit for bit.
+Result<LayoutStepOutcome> refinePosesAfterLayoutStep(const std::vector<GlobalCloud>& clouds,
+                                                     const std::vector<Eigen::Isometry3d>& T_W_F,
+                                                     const std::vector<PairPrior>& priors,
+                                                     const Layout& previous, const Layout& layout,
+                                                     const GlobalConfig& config);
 
 /// Convenience: prepareClouds() then refinePoses().
 Result<GlobalResult> refinePoses(const std::vector<Fragment>& fragments,

@@ -365,6 +365,43 @@ TEST(GlobalRegistration, TwoLayoutsAreEvaluatedAsEachAlone) {
     bad.planes.front().normal_L = Eigen::Vector3d(0.0, 0.0, 2.0);
     EXPECT_EQ(evaluateEnergies(cl, T, priors, sim.layout_gt, bad, cfg).status().code(),
               StatusCode::kInvalidArgument);
+    EXPECT_EQ(refinePosesAfterLayoutStep(cl, T, priors, sim.layout_gt, bad, cfg).status().code(),
+              StatusCode::kInvalidArgument);
+}
+
+TEST(GlobalRegistration, TheRegistrationStepAfterALayoutStepIsTheTestThenRefinePoses) {
+    // refinePosesAfterLayoutStep() reuses the correspondences of its test in the first round:
+    // the poses and every iteration's energy are those of evaluateEnergies() then refinePoses().
+    // A layout moved by 3 cm raises E_R against the true one and is not registered onto.
+    const SimFragments& sim = livingRoom();
+    const auto& cl = livingRoomClouds();
+    const auto T = testing::perturbedPoses(sim, 1.0, 0.03, 11);
+    const auto priors = testing::makePriors(sim, cl, 0.3, 0.005);
+    Layout moved = sim.layout_gt;
+    moved.T_W_L = Eigen::Translation3d(0.03, 0.0, 0.0) * moved.T_W_L;
+    const GlobalConfig cfg;
+    Result<LayoutStepOutcome> kept =
+        refinePosesAfterLayoutStep(cl, T, priors, moved, sim.layout_gt, cfg);
+    ASSERT_TRUE(kept.isOk()) << kept.status().toString();
+    ASSERT_TRUE(kept->step.has_value());
+    Result<std::array<EnergyTerms, 2>> e =
+        evaluateEnergies(cl, T, priors, moved, sim.layout_gt, cfg);
+    Result<GlobalResult> plain = refinePoses(cl, T, priors, sim.layout_gt, cfg);
+    ASSERT_TRUE(e.isOk() && plain.isOk());
+    EXPECT_EQ(kept->energies[0].total, (*e)[0].total);
+    EXPECT_EQ(kept->energies[1].total, (*e)[1].total);
+    EXPECT_EQ(kept->step->initial.total, (*e)[1].total);
+    ASSERT_EQ(kept->step->iterations.size(), plain->iterations.size());
+    for (size_t k = 0; k < plain->iterations.size(); ++k)
+        EXPECT_EQ(kept->step->iterations[k].energy.total, plain->iterations[k].energy.total) << k;
+    for (size_t i = 0; i < T.size(); ++i)
+        EXPECT_TRUE(kept->step->T_W_F[i].matrix() == plain->T_W_F[i].matrix()) << i;
+
+    Result<LayoutStepOutcome> refused =
+        refinePosesAfterLayoutStep(cl, plain->T_W_F, priors, sim.layout_gt, moved, cfg);
+    ASSERT_TRUE(refused.isOk()) << refused.status().toString();
+    EXPECT_GT(refused->energies[1].total, refused->energies[0].total);
+    EXPECT_FALSE(refused->step.has_value());
 }
 
 TEST(GlobalRegistration, BadInputGivesSpecificErrors) {
