@@ -334,17 +334,26 @@ TEST(GlobalRegistration, TrackedPriorsAreWeighedByTheirOwnWeight) {
     }
 }
 
+/// Perturbed poses of the living room, its priors, and its true layout moved by 3 cm along x.
+struct TwoLayouts {
+    const SimFragments& sim = livingRoom();
+    const std::vector<GlobalCloud>& cl = livingRoomClouds();
+    std::vector<Eigen::Isometry3d> T = testing::perturbedPoses(sim, 1.0, 0.03, 11);
+    std::vector<PairPrior> priors = testing::makePriors(sim, cl, 0.3, 0.005);
+    Layout moved = [this] {
+        Layout l = sim.layout_gt;
+        l.T_W_L = Eigen::Translation3d(0.03, 0.0, 0.0) * l.T_W_L;
+        return l;
+    }();
+    GlobalConfig cfg;
+};
+
 TEST(GlobalRegistration, TwoLayoutsAreEvaluatedAsEachAlone) {
     // evaluateEnergies() shares the fragment pairs' correspondences between the two layouts: its
     // energies are those of two evaluateEnergy() calls, term by term and bit for bit, and the
     // layout terms differ (the second layout is moved by 3 cm).
-    const SimFragments& sim = livingRoom();
-    const auto& cl = livingRoomClouds();
-    const auto T = testing::perturbedPoses(sim, 1.0, 0.03, 11);
-    const auto priors = testing::makePriors(sim, cl, 0.3, 0.005);
-    Layout moved = sim.layout_gt;
-    moved.T_W_L = Eigen::Translation3d(0.03, 0.0, 0.0) * moved.T_W_L;
-    const GlobalConfig cfg;
+    const TwoLayouts in;
+    const auto& [sim, cl, T, priors, moved, cfg] = in;
     Result<std::array<EnergyTerms, 2>> both =
         evaluateEnergies(cl, T, priors, sim.layout_gt, moved, cfg);
     ASSERT_TRUE(both.isOk()) << both.status().toString();
@@ -361,7 +370,7 @@ TEST(GlobalRegistration, TwoLayoutsAreEvaluatedAsEachAlone) {
     }
     EXPECT_NE((*both)[0].layout, (*both)[1].layout);
     EXPECT_GT((*both)[0].num_frag, 0U);
-    Layout bad = moved;
+    Layout bad = in.moved;
     bad.planes.front().normal_L = Eigen::Vector3d(0.0, 0.0, 2.0);
     EXPECT_EQ(evaluateEnergies(cl, T, priors, sim.layout_gt, bad, cfg).status().code(),
               StatusCode::kInvalidArgument);
@@ -373,13 +382,8 @@ TEST(GlobalRegistration, TheRegistrationStepAfterALayoutStepIsTheTestThenRefineP
     // refinePosesAfterLayoutStep() reuses the correspondences of its test in the first round:
     // the poses and every iteration's energy are those of evaluateEnergies() then refinePoses().
     // A layout moved by 3 cm raises E_R against the true one and is not registered onto.
-    const SimFragments& sim = livingRoom();
-    const auto& cl = livingRoomClouds();
-    const auto T = testing::perturbedPoses(sim, 1.0, 0.03, 11);
-    const auto priors = testing::makePriors(sim, cl, 0.3, 0.005);
-    Layout moved = sim.layout_gt;
-    moved.T_W_L = Eigen::Translation3d(0.03, 0.0, 0.0) * moved.T_W_L;
-    const GlobalConfig cfg;
+    const TwoLayouts in;
+    const auto& [sim, cl, T, priors, moved, cfg] = in;
     Result<LayoutStepOutcome> kept =
         refinePosesAfterLayoutStep(cl, T, priors, moved, sim.layout_gt, cfg);
     ASSERT_TRUE(kept.isOk()) << kept.status().toString();
