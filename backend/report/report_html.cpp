@@ -367,7 +367,11 @@ std::vector<std::string> warnings(const nlohmann::json& metrics) {
                 t.value("frames_in_fragments_with_unobserved_directions", size_t{0}), idList(weak),
                 t.value("unobserved_direction_eigenvalue_ratio", 0.0)));
     }
-    if (metrics.contains("alternation") && !metrics["alternation"].value("converged", true))
+    // A layout step that would raise E_R ends the block-coordinate descent where it is: the
+    // poses are those of the last registration step, nothing to doubt.
+    if (metrics.contains("alternation") && !metrics["alternation"].value("converged", true) &&
+        metrics["alternation"].value("stop_reason", std::string()) !=
+            "layout step raised the energy")
         w.push_back(
             fmt::format("the layout / registration alternation did not converge: {} after {} outer "
                         "iterations",

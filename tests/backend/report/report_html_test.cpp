@@ -374,6 +374,12 @@ TEST(ReportHtml, WarningsNameWhatToDoubt) {
     clean["outline_on_walls"] = 0.95;
     EXPECT_NE(renderReportHtml(clean, ReportFigures{}).find("None: every check passed"),
               std::string::npos);
+    // Algorithm 1 ending because the next layout would raise the energy is its normal end.
+    clean["alternation"] = {{"outer_iterations", 2},
+                            {"converged", false},
+                            {"stop_reason", "layout step raised the energy"}};
+    EXPECT_NE(renderReportHtml(clean, ReportFigures{}).find("None: every check passed"),
+              std::string::npos);
     // No layout at all is a warning too.
     clean.erase("layout_walls");
     EXPECT_NE(renderReportHtml(clean, ReportFigures{}).find("no room layout was found"),
