@@ -978,12 +978,12 @@ Result<std::array<EnergyTerms, 2>> evaluateTwo(const std::vector<GlobalCloud>& c
     return energies;
 }
 
-}  // namespace
-
-Result<GlobalResult> refinePoses(const std::vector<GlobalCloud>& clouds,
-                                 std::vector<Eigen::Isometry3d> T_W_F,
-                                 const std::vector<PairPrior>& priors, const Layout& layout,
-                                 const GlobalConfig& config) {
+/// refinePoses() from T_W_F; `first`, when given, are the correspondences its first round would
+/// establish at T_W_F.
+Result<GlobalResult> refineFrom(const std::vector<GlobalCloud>& clouds,
+                                std::vector<Eigen::Isometry3d> T_W_F,
+                                const std::vector<PairPrior>& priors, const Layout& layout,
+                                const GlobalConfig& config, std::optional<Correspondences> first) {
     PLUMB_RETURN_IF_ERROR(validateInputs(clouds.size(), T_W_F, priors, config));
     if (clouds.size() <= 1) {
         GlobalResult result;
@@ -994,7 +994,16 @@ Result<GlobalResult> refinePoses(const std::vector<GlobalCloud>& clouds,
     std::optional<PreparedLayout> prepared;
     Result<Problem> problem = makeProblem(clouds, priors, layout, config, &prepared);
     if (!problem.isOk()) return problem.status();
-    return refineRounds(problem.value(), std::move(T_W_F), std::nullopt);
+    return refineRounds(problem.value(), std::move(T_W_F), std::move(first));
+}
+
+}  // namespace
+
+Result<GlobalResult> refinePoses(const std::vector<GlobalCloud>& clouds,
+                                 std::vector<Eigen::Isometry3d> T_W_F,
+                                 const std::vector<PairPrior>& priors, const Layout& layout,
+                                 const GlobalConfig& config) {
+    return refineFrom(clouds, std::move(T_W_F), priors, layout, config, std::nullopt);
 }
 
 Result<LayoutStepOutcome> refinePosesAfterLayoutStep(const std::vector<GlobalCloud>& clouds,
@@ -1009,16 +1018,9 @@ Result<LayoutStepOutcome> refinePosesAfterLayoutStep(const std::vector<GlobalClo
     if (!e.isOk()) return e.status();
     out.energies = e.value();
     if (out.energies[1].total > out.energies[0].total) return out;
-    if (clouds.size() <= 1) {
-        Result<GlobalResult> r = refinePoses(clouds, T_W_F, priors, layout, config);
-        if (!r.isOk()) return r.status();
-        out.step = std::move(r).value();
-        return out;
-    }
-    std::optional<PreparedLayout> prepared;
-    Result<Problem> problem = makeProblem(clouds, priors, layout, config, &prepared);
-    if (!problem.isOk()) return problem.status();
-    out.step = refineRounds(problem.value(), T_W_F, std::move(corr));
+    Result<GlobalResult> step = refineFrom(clouds, T_W_F, priors, layout, config, std::move(corr));
+    if (!step.isOk()) return step.status();
+    out.step = std::move(step).value();
     return out;
 }
 
