@@ -17,6 +17,7 @@
 
 #include "backend/global/residuals.hpp"
 #include "common/cloud/kd_tree.hpp"
+#include "common/cloud/voxel_groups.hpp"
 #include "common/config/config.hpp"
 #include "common/core/parallel.hpp"
 #include "common/geometry/polygon.hpp"
@@ -154,30 +155,19 @@ Result<std::vector<GlobalCloud>> prepareClouds(const std::vector<Fragment>& frag
         }
     }
     std::vector<GlobalCloud> clouds(fragments.size());
-    const double inv_voxel = 1.0 / config.voxel_size_m;
     parallelFor(config.num_threads, fragments.size(), [&](size_t f) {
         const PointCloud& c = fragments[f].points_F;
         GlobalCloud& out = clouds[f];
-        using Key = std::array<int64_t, 3>;
-        std::vector<std::pair<Key, uint32_t>> keyed(c.size());
-        for (size_t k = 0; k < c.size(); ++k) {
-            const Eigen::Vector3d p = c.points[k].cast<double>();
-            keyed[k] = {Key{static_cast<int64_t>(std::floor(p.x() * inv_voxel)),
-                            static_cast<int64_t>(std::floor(p.y() * inv_voxel)),
-                            static_cast<int64_t>(std::floor(p.z() * inv_voxel))},
-                        static_cast<uint32_t>(k)};
-        }
-        std::sort(keyed.begin(), keyed.end());
+        const VoxelGroups groups = groupByVoxel(c.points, config.voxel_size_m);
         std::vector<Eigen::Vector3d> pts, nrm;
         std::vector<uint32_t> src;
-        for (size_t a = 0; a < keyed.size();) {
-            size_t b = a;
+        for (size_t v = 0; v < groups.voxels(); ++v) {
+            const uint32_t a = groups.start[v], b = groups.start[v + 1];
             Eigen::Vector3d sum_p = Eigen::Vector3d::Zero();
             Eigen::Vector3d sum_n = Eigen::Vector3d::Zero();
-            while (b < keyed.size() && keyed[b].first == keyed[a].first) {
-                sum_p += c.points[keyed[b].second].cast<double>();
-                sum_n += c.normals[keyed[b].second].cast<double>();
-                ++b;
+            for (uint32_t k = a; k < b; ++k) {
+                sum_p += c.points[groups.order[k]].cast<double>();
+                sum_n += c.normals[groups.order[k]].cast<double>();
             }
             const double count = static_cast<double>(b - a);
             const Eigen::Vector3d centroid = sum_p / count;
@@ -185,21 +175,20 @@ Result<std::vector<GlobalCloud>> prepareClouds(const std::vector<Fragment>& frag
             // A voxel whose normals cancel (thin structure seen from both sides) has no usable
             // orientation for point-to-plane terms.
             if (nn > 0.5 * count) {
-                uint32_t best = keyed[a].second;
+                uint32_t best = groups.order[a];
                 double best_d = std::numeric_limits<double>::infinity();
-                for (size_t k = a; k < b; ++k) {
+                for (uint32_t k = a; k < b; ++k) {
                     const double d =
-                        (c.points[keyed[k].second].cast<double>() - centroid).squaredNorm();
+                        (c.points[groups.order[k]].cast<double>() - centroid).squaredNorm();
                     if (d < best_d) {
                         best_d = d;
-                        best = keyed[k].second;
+                        best = groups.order[k];
                     }
                 }
                 pts.push_back(centroid);
                 nrm.push_back(sum_n / nn);
                 src.push_back(best);
             }
-            a = b;
         }
         const size_t max_points = static_cast<size_t>(config.max_points_per_fragment);
         if (pts.size() > max_points) {
