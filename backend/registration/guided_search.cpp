@@ -4,7 +4,10 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <numbers>
+#include <utility>
+#include <vector>
 
 namespace plumb::registration {
 
@@ -47,6 +50,61 @@ Eigen::Vector3i cellOf(const Eigen::Vector3f& p, float inv_cell) {
     return (p * inv_cell).array().floor().cast<int>();
 }
 
+/// Four float or int lanes (GCC vector extensions: SSE2 on x86-64, NEON on aarch64).
+using Float4 = float __attribute__((vector_size(16)));
+using Int4 = int32_t __attribute__((vector_size(16)));
+
+/// std::round (half away from zero) lane by lane, for |x| < 2^23: x - trunc(x) is exact there.
+Int4 roundHalfAway(Float4 x) {
+    const Int4 t = __builtin_convertvector(x, Int4);  // truncates towards zero
+    const Float4 frac = x - __builtin_convertvector(t, Float4);
+    return t - (frac >= 0.5f) + (frac <= -0.5f);  // a true lane is -1
+}
+
+/// The source points of a vote, positions and normals coordinate by coordinate (padded by three
+/// lanes), so that four candidates go through the normal and window tests together.
+class SortedPoints {
+  public:
+    explicit SortedPoints(size_t n) {
+        for (auto* a : {&px_, &py_, &pz_, &nx_, &ny_, &nz_}) a->assign(n + 3, 0.0f);
+    }
+    void set(size_t k, const Eigen::Vector3f& p, const Eigen::Vector3f& n) {
+        px_[k] = p.x(), py_[k] = p.y(), pz_[k] = p.z();
+        nx_[k] = n.x(), ny_[k] = n.y(), nz_[k] = n.z();
+    }
+    /// Calls vote(b) with the bin offset b = round((p_k - q) * inv_bin) of every point k in
+    /// [begin, end) whose normal agrees with nq (n_k . nq >= cos_max, the dot product summed as
+    /// Eigen's Vector3f::dot sums it) and whose offset lies within h bins on every axis: the
+    /// scalar test's float operations in lanes, so the same votes.
+    template <typename Vote>
+    void vote(size_t begin, size_t end, const Eigen::Vector3f& q, const Eigen::Vector3f& nq,
+              float cos_max, float inv_bin, int h, Vote&& vote) const {
+        const Int4 lane = {0, 1, 2, 3};
+        for (size_t k = begin; k < end; k += 4) {
+            const Float4 nx = load(nx_, k), ny = load(ny_, k), nz = load(nz_, k);
+            const Float4 dot = nx * nq.x() + (ny * nq.y() + nz * nq.z());
+            Int4 pass = (lane < static_cast<int32_t>(end - k)) & ~(dot < cos_max);
+            if (!any(pass)) continue;
+            const Int4 bx = roundHalfAway((load(px_, k) - q.x()) * inv_bin);
+            const Int4 by = roundHalfAway((load(py_, k) - q.y()) * inv_bin);
+            const Int4 bz = roundHalfAway((load(pz_, k) - q.z()) * inv_bin);
+            pass &= (bx <= h) & (bx >= -h) & (by <= h) & (by >= -h) & (bz <= h) & (bz >= -h);
+            for (int l = 0; l < 4; ++l)
+                if (pass[l] != 0) vote(bx[l], by[l], bz[l]);
+        }
+    }
+
+  private:
+    static Float4 load(const std::vector<float>& a, size_t k) {
+        Float4 v;
+        std::memcpy(&v, a.data() + k, sizeof(v));
+        return v;
+    }
+    static bool any(Int4 m) { return (m[0] | m[1] | m[2] | m[3]) != 0; }
+
+    std::vector<float> px_, py_, pz_, nx_, ny_, nz_;
+};
+
 }  // namespace
 
 double odometryPriorSigma(const GuidedSearchConfig& config, uint32_t apart) {
@@ -73,11 +131,10 @@ std::vector<GuidedCandidate> guidedCandidates(const FragmentIndex& source,
     }
     std::sort(cells.begin(), cells.end());
     std::vector<int64_t> keys(cells.size());
-    std::vector<Eigen::Vector3f> points(cells.size()), normals(cells.size());
+    SortedPoints sorted(cells.size());
     for (size_t k = 0; k < cells.size(); ++k) {
         keys[k] = cells[k].first;
-        points[k] = src.points[cells[k].second];
-        normals[k] = src.normals[cells[k].second];
+        sorted.set(k, src.points[cells[k].second], src.normals[cells[k].second]);
     }
 
     // Vote grid over offsets d in [-h, h]^3 bins (at most 201 per axis: a wider window gets
@@ -106,15 +163,11 @@ std::vector<GuidedCandidate> guidedCandidates(const FragmentIndex& source,
             for (int dx = -1; dx <= 1; ++dx) {
                 const int64_t first = cellKey(c + Eigen::Vector3i(dx, dy, -1));
                 const int64_t last = cellKey(c + Eigen::Vector3i(dx, dy, 1));
-                for (size_t k = static_cast<size_t>(
-                         std::lower_bound(keys.begin(), keys.end(), first) - keys.begin());
-                     k < keys.size() && keys[k] <= last; ++k) {
-                    if (normals[k].dot(nq) < cos_max) continue;
-                    const Eigen::Vector3f d = (points[k] - q) * inv_bin;
-                    const Eigen::Vector3i b = d.array().round().cast<int>();
-                    if (b.cwiseAbs().maxCoeff() > h) continue;
-                    votes[at(b.x() + h, b.y() + h, b.z() + h)] += 1.0f;
-                }
+                const auto begin = std::lower_bound(keys.begin(), keys.end(), first);
+                const auto end = std::upper_bound(begin, keys.end(), last);
+                sorted.vote(static_cast<size_t>(begin - keys.begin()),
+                            static_cast<size_t>(end - keys.begin()), q, nq, cos_max, inv_bin, h,
+                            [&](int x, int y, int z) { votes[at(x + h, y + h, z + h)] += 1.0f; });
             }
         }
     }
