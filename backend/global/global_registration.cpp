@@ -651,7 +651,10 @@ EnergyTerms evaluate(const Problem& pb, const Correspondences& c,
         g.b = pm.b;
         const GlobalCloud& ca = (*pb.clouds)[pm.a];
         const GlobalCloud& cb = (*pb.clouds)[pm.b];
-        RowJacobian Ja, Jb;
+        // A residual's Jacobians are J and -J (fragResidual), so every term of H_ab, H_bb and
+        // b_b is the matching term of H_aa or b_a negated or repeated, exactly (a product's
+        // rounding does not depend on the signs): those three are the sums of H_aa and b_a,
+        // negated or repeated, and only H_aa and b_a are accumulated.
         auto add = [&](const GlobalCloud& from, const GlobalCloud& to, uint32_t i, uint32_t j,
                        const std::vector<FragMatch>& matches, bool from_is_a) {
             for (const FragMatch& m : matches) {
@@ -663,18 +666,19 @@ EnergyTerms evaluate(const Problem& pb, const Correspondences& c,
                 const double w = huberWeight(r, delta, &rho);
                 g.cost += rho;
                 if (want) {
-                    Ja = from_is_a ? Ji : Jj;
-                    Jb = from_is_a ? Jj : Ji;
+                    const RowJacobian& Ja = from_is_a ? Ji : Jj;
                     g.H_aa.noalias() += w * Ja.transpose() * Ja;
-                    g.H_ab.noalias() += w * Ja.transpose() * Jb;
-                    g.H_bb.noalias() += w * Jb.transpose() * Jb;
                     g.b_a.noalias() += w * r * Ja.transpose();
-                    g.b_b.noalias() += w * r * Jb.transpose();
                 }
             }
         };
         add(ca, cb, pm.a, pm.b, pm.a_to_b, true);
         add(cb, ca, pm.b, pm.a, pm.b_to_a, false);
+        if (want) {
+            g.H_ab = -g.H_aa;
+            g.H_bb = g.H_aa;
+            g.b_b = -g.b_a;
+        }
     });
     // Pair priors, Eq. (10).
     parallelFor(cfg.num_threads, n_prior_groups, [&](size_t k) {
