@@ -643,25 +643,36 @@ EnergyTerms evaluate(const Problem& pb, const Correspondences& c,
             }
         }
     });
-    // Fragment pair groups, Eq. (9), both directions.
+    // Fragment pair groups, Eq. (9), both directions, from every point and normal of the
+    // fragments they join in the world frame (a point has correspondences in several pairs).
+    std::vector<char> joined(pb.clouds->size(), 0);
+    for (const PairMatches& pm : c.pairs) joined[pm.a] = joined[pm.b] = 1;
+    std::vector<std::vector<Eigen::Vector3d>> x_W(pb.clouds->size()), m_W(pb.clouds->size());
+    parallelFor(cfg.num_threads, pb.clouds->size(), [&](size_t f) {
+        if (!joined[f]) return;
+        const GlobalCloud& cl = (*pb.clouds)[f];
+        x_W[f].resize(cl.size());
+        m_W[f].resize(cl.size());
+        for (size_t k = 0; k < cl.size(); ++k) {
+            x_W[f][k] = T_W_F[f] * cl.points()[k];
+            m_W[f][k] = T_W_F[f].linear() * cl.normals()[k];
+        }
+    });
     parallelFor(cfg.num_threads, n_pair_groups, [&](size_t k) {
         const PairMatches& pm = c.pairs[k];
         GroupSystem& g = groups[n_layout_groups + k];
         g.a = pm.a;
         g.b = pm.b;
-        const GlobalCloud& ca = (*pb.clouds)[pm.a];
-        const GlobalCloud& cb = (*pb.clouds)[pm.b];
         // A residual's Jacobians are J and -J (fragResidual), so every term of H_ab, H_bb and
         // b_b is the matching term of H_aa or b_a negated or repeated, exactly (a product's
         // rounding does not depend on the signs): those three are the sums of H_aa and b_a,
         // negated or repeated, and only H_aa and b_a are accumulated.
-        auto add = [&](const GlobalCloud& from, const GlobalCloud& to, uint32_t i, uint32_t j,
-                       const std::vector<FragMatch>& matches, bool from_is_a) {
+        auto add = [&](uint32_t i, uint32_t j, const std::vector<FragMatch>& matches,
+                       bool from_is_a) {
             for (const FragMatch& m : matches) {
                 RowJacobian Ji, Jj;
-                const double r =
-                    fragResidual(T_W_F[i], T_W_F[j], from.points()[m.p], to.points()[m.q],
-                                 to.normals()[m.q], want ? &Ji : nullptr, want ? &Jj : nullptr);
+                const double r = fragResidualWorld(x_W[i][m.p], x_W[j][m.q], m_W[j][m.q],
+                                                   want ? &Ji : nullptr, want ? &Jj : nullptr);
                 double rho = 0.0;
                 const double w = huberWeight(r, delta, &rho);
                 g.cost += rho;
@@ -672,8 +683,8 @@ EnergyTerms evaluate(const Problem& pb, const Correspondences& c,
                 }
             }
         };
-        add(ca, cb, pm.a, pm.b, pm.a_to_b, true);
-        add(cb, ca, pm.b, pm.a, pm.b_to_a, false);
+        add(pm.a, pm.b, pm.a_to_b, true);
+        add(pm.b, pm.a, pm.b_to_a, false);
         if (want) {
             g.H_ab = -g.H_aa;
             g.H_bb = g.H_aa;

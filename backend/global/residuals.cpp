@@ -8,9 +8,11 @@ namespace plumb::global {
 double fragResidual(const Eigen::Isometry3d& T_W_i, const Eigen::Isometry3d& T_W_j,
                     const Eigen::Vector3d& p_i, const Eigen::Vector3d& q_j,
                     const Eigen::Vector3d& n_q_j, RowJacobian* J_i, RowJacobian* J_j) {
-    const Eigen::Vector3d x_i = T_W_i * p_i;
-    const Eigen::Vector3d x_j = T_W_j * q_j;
-    const Eigen::Vector3d m = T_W_j.linear() * n_q_j;
+    return fragResidualWorld(T_W_i * p_i, T_W_j * q_j, T_W_j.linear() * n_q_j, J_i, J_j);
+}
+
+double fragResidualWorld(const Eigen::Vector3d& x_i, const Eigen::Vector3d& x_j,
+                         const Eigen::Vector3d& m, RowJacobian* J_i, RowJacobian* J_j) {
     // Eq. (9): r = (x_i - x_j)^T m.
     const double r = (x_i - x_j).dot(m);
     if (J_i != nullptr || J_j != nullptr) {

@@ -28,6 +28,12 @@ double fragResidual(const Eigen::Isometry3d& T_W_i, const Eigen::Isometry3d& T_W
                     const Eigen::Vector3d& p_i, const Eigen::Vector3d& q_j,
                     const Eigen::Vector3d& n_q_j, RowJacobian* J_i = nullptr,
                     RowJacobian* J_j = nullptr);
+/// The same from the world points x_i = T_i p, x_j = T_j q and normal m = R_j n_q (computed once
+/// per point when a point has several correspondences); fragResidual is this at T_i p, T_j q,
+/// R_j n_q.
+double fragResidualWorld(const Eigen::Vector3d& x_i, const Eigen::Vector3d& x_j,
+                         const Eigen::Vector3d& m, RowJacobian* J_i = nullptr,
+                         RowJacobian* J_j = nullptr);
 
 /// E_layout, paper Eq. (8): distance of x = T_i p from a layout plane (n_L, d_L) in the world
 /// frame. The paper writes (x - q)^T m with the virtual point q = x - (n_L.x + d_L) n_L on the
