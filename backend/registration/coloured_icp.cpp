@@ -18,20 +18,23 @@ std::vector<float> intensitiesOf(const std::vector<Color3u8>& colors) {
     return out;
 }
 
-std::vector<Eigen::Vector3f> intensityGradients(const PointCloud& cloud,
-                                                const std::vector<float>& intensity,
-                                                double radius_m, int max_nn, int num_threads) {
+namespace {
+
+/// intensityGradients over `cloud`, its neighbours from knn(q, k, radius_sq, indices, dists_sq)
+/// (KdTree3::knnWithin's contract).
+template <typename Knn>
+std::vector<Eigen::Vector3f> fitGradients(const PointCloud& cloud,
+                                          const std::vector<float>& intensity, double radius_m,
+                                          int max_nn, int num_threads, const Knn& knn) {
     const size_t n = cloud.size();
     std::vector<Eigen::Vector3f> gradient(n, Eigen::Vector3f::Zero());
-    if (n == 0 || !cloud.hasNormals() || intensity.size() != n) return gradient;
-    const detail::KdTree3 tree(cloud.points);
     const float r2 = static_cast<float>(radius_m * radius_m);
     const size_t k = static_cast<size_t>(std::max(4, max_nn));
     // A neighbourhood spans the tangent plane when the smaller eigenvalue of its second moment
     // (per point) is at least this: nearly collinear neighbours leave one direction unfitted.
     const double min_moment = 0.01 * radius_m * radius_m;
     const auto fit = [&](size_t i, uint32_t* idx, float* d2) {
-        const size_t m = tree.knnWithin(cloud.points[i], k, r2, idx, d2);
+        const size_t m = knn(cloud.points[i], k, r2, idx, d2);
         if (m < 4) return;  // the point and at least 3 others
         const Eigen::Vector3d p = cloud.points[i].cast<double>();
         const Eigen::Vector3d normal = cloud.normals[i].cast<double>().normalized();
@@ -74,6 +77,30 @@ std::vector<Eigen::Vector3f> intensityGradients(const PointCloud& cloud,
         for (size_t i = c * kPointsPerChunk; i < end; ++i) fit(i, idx.data(), d2.data());
     });
     return gradient;
+}
+
+}  // namespace
+
+std::vector<Eigen::Vector3f> intensityGradients(const PointCloud& cloud,
+                                                const std::vector<float>& intensity,
+                                                double radius_m, int max_nn, int num_threads) {
+    if (cloud.empty() || !cloud.hasNormals() || intensity.size() != cloud.size())
+        return std::vector<Eigen::Vector3f>(cloud.size(), Eigen::Vector3f::Zero());
+    const detail::KdTree3 tree(cloud.points);
+    return fitGradients(cloud, intensity, radius_m, max_nn, num_threads,
+                        [&tree](const Eigen::Vector3f& q, size_t k, float r2, uint32_t* idx,
+                                float* d2) { return tree.knnWithin(q, k, r2, idx, d2); });
+}
+
+std::vector<Eigen::Vector3f> intensityGradients(const IndexedCloud& cloud,
+                                                const std::vector<float>& intensity,
+                                                double radius_m, int max_nn, int num_threads) {
+    const PointCloud& points = cloud.cloud();
+    if (points.empty() || !points.hasNormals() || intensity.size() != points.size())
+        return std::vector<Eigen::Vector3f>(points.size(), Eigen::Vector3f::Zero());
+    return fitGradients(points, intensity, radius_m, max_nn, num_threads,
+                        [&cloud](const Eigen::Vector3f& q, size_t k, float r2, uint32_t* idx,
+                                 float* d2) { return cloud.knnWithin(q, k, r2, idx, d2); });
 }
 
 double colourResidual(const Eigen::Vector3d& p, const Eigen::Vector3d& n_p, double c_p,

@@ -48,6 +48,10 @@ std::vector<float> intensitiesOf(const std::vector<Color3u8>& colors);
 std::vector<Eigen::Vector3f> intensityGradients(const PointCloud& cloud,
                                                 const std::vector<float>& intensity,
                                                 double radius_m, int max_nn, int num_threads);
+/// The same over an indexed cloud, with its k-d tree (the same neighbours, the same result).
+std::vector<Eigen::Vector3f> intensityGradients(const IndexedCloud& cloud,
+                                                const std::vector<float>& intensity,
+                                                double radius_m, int max_nn, int num_threads);
 
 /// The colour residual of one correspondence and its Jacobian with respect to a left
 /// perturbation T <- Exp(ξ) T, ξ = (ω, υ) (rotation first):

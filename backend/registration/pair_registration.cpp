@@ -94,6 +94,10 @@ bool IndexedCloud::nearest(const Eigen::Vector3f& q, float max_dist_sq, uint32_t
                            float* dist_sq) const {
     return impl_->tree.nearest(q, max_dist_sq, index, dist_sq);
 }
+size_t IndexedCloud::knnWithin(const Eigen::Vector3f& q, size_t k, float radius_sq,
+                               uint32_t* indices, float* dists_sq) const {
+    return impl_->tree.knnWithin(q, k, radius_sq, indices, dists_sq);
+}
 
 FragmentIndex buildFragmentIndex(const Fragment& fragment, const PreparedFragment& prepared,
                                  const IcpConfig& config) {
@@ -112,15 +116,16 @@ FragmentIndex buildFragmentIndex(const Fragment& fragment, const PreparedFragmen
             level.normals = estimateNormals(level.points, 2.0 * v, 30, Eigen::Vector3f::Zero(),
                                             config.num_threads);
         }
+        index.levels.emplace_back(std::move(level));
         if (with_colour) {
+            const IndexedCloud& indexed = index.levels.back();
             LevelColour colour;
-            colour.intensity = intensitiesOf(level.colors);
-            colour.gradient = intensityGradients(level, colour.intensity,
+            colour.intensity = intensitiesOf(indexed.cloud().colors);
+            colour.gradient = intensityGradients(indexed, colour.intensity,
                                                  config.colour_gradient_radius_factor * v,
                                                  config.colour_gradient_max_nn, config.num_threads);
             index.level_colours.push_back(std::move(colour));
         }
-        index.levels.emplace_back(std::move(level));
     }
     const size_t n = prepared.fpfh.size();
     index.features.resize(33, static_cast<Eigen::Index>(n));

@@ -98,8 +98,9 @@ TEST(ColouredIcp, GradientsRecoverALinearRampOnAPlane) {
     EXPECT_LT(worst, 1e-3 * 0.1 * expected.norm());
     EXPECT_LT(worst_normal, 1e-6);
     for (size_t i = 900; i < cloud.size(); ++i) EXPECT_EQ(g[i], Eigen::Vector3f::Zero()) << i;
-    // Thread count does not matter.
+    // Thread count does not matter, nor whose k-d tree finds the neighbours.
     EXPECT_EQ(g, intensityGradients(cloud, intensity, 0.035, 30, 1));
+    EXPECT_EQ(g, intensityGradients(IndexedCloud(cloud), intensity, 0.035, 30, 0));
 }
 
 /// Texture of the corridor surfaces in [0.1, 0.9]: smooth stripes along and across, wavelengths
