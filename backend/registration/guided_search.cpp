@@ -207,17 +207,19 @@ std::vector<GuidedCandidate> guidedCandidates(const FragmentIndex& source,
     }
 
     // Peaks, strongest first; equal scores go to the smaller offset (closer to the odometry).
-    std::vector<size_t> order(smooth.size());
-    for (size_t k = 0; k < order.size(); ++k) order[k] = k;
+    // A peak needs half the strongest's score: only those bins are ordered.
+    std::vector<GuidedCandidate> out;
+    const float best = *std::max_element(smooth.begin(), smooth.end());
+    if (!(best > 0.0f)) return out;
+    std::vector<size_t> order;
+    for (size_t k = 0; k < smooth.size(); ++k)
+        if (smooth[k] >= 0.5f * best) order.push_back(k);
     std::sort(order.begin(), order.end(), [&](size_t a, size_t b) {
         if (smooth[a] != smooth[b]) return smooth[a] > smooth[b];
         const int na = offset(a).squaredNorm(), nb = offset(b).squaredNorm();
         return na != nb ? na < nb : a < b;
     });
-    std::vector<GuidedCandidate> out;
     std::vector<Eigen::Vector3i> taken;
-    const float best = smooth[order.front()];
-    if (!(best > 0.0f)) return out;
     for (size_t k : order) {
         if (static_cast<int>(out.size()) >= config.max_peaks || smooth[k] < 0.5f * best) break;
         const Eigen::Vector3i o = offset(k);
