@@ -15,7 +15,22 @@ KdTree3::KdTree3(const std::vector<Eigen::Vector3f>& points) : tree_(points) {}
 
 bool KdTree3::nearest(const Eigen::Vector3f& q, float max_dist_sq, uint32_t* index,
                       float* dist_sq) const {
+    return nearest(q, max_dist_sq, std::numeric_limits<uint32_t>::max(), index, dist_sq);
+}
+
+bool KdTree3::nearest(const Eigen::Vector3f& q, float max_dist_sq, uint32_t hint, uint32_t* index,
+                      float* dist_sq) const {
     if (size() == 0) return false;
+    float bound = max_dist_sq;
+    if (hint < size()) {
+        // nanoflann's L2_Simple_Adaptor: ((q - p)_x^2 + (q - p)_y^2) + (q - p)_z^2.
+        const Eigen::Vector3f& p = tree_.point(hint);
+        const float dx = q.x() - p.x(), dy = q.y() - p.y(), dz = q.z() - p.z();
+        float to_hint = dx * dx;
+        to_hint += dy * dy;
+        to_hint += dz * dz;
+        bound = std::min(bound, to_hint);
+    }
     uint32_t idx = 0;
     float d = 0.0f;
     nanoflann::KNNResultSet<float, uint32_t, size_t> result(1);
@@ -23,7 +38,7 @@ bool KdTree3::nearest(const Eigen::Vector3f& q, float max_dist_sq, uint32_t* ind
     // Starting the search at the radius prunes every branch beyond it: most queries of a
     // partial overlap have no neighbour within it, and an unbounded search would walk the tree
     // far for a point it then discards (same neighbour when there is one).
-    d = std::nextafter(max_dist_sq, std::numeric_limits<float>::infinity());
+    d = std::nextafter(bound, std::numeric_limits<float>::infinity());
     tree_.index().findNeighbors(result, q.data(), nanoflann::SearchParams());
     if (result.size() == 0 || d > max_dist_sq) return false;
     *index = idx;

@@ -29,6 +29,14 @@ class KdTree3 {
     /// Nearest point to `q`; false when the tree is empty or it is farther than sqrt(max_dist_sq).
     bool nearest(const Eigen::Vector3f& q, float max_dist_sq, uint32_t* index,
                  float* dist_sq) const;
+    /// The same, given a point `hint` (an index; out of range: none) that may be near `q`, as
+    /// the previous iteration's nearest point is in ICP: the search starts from the hint's
+    /// distance (when within the limit) rather than the limit, and prunes what lies beyond.
+    /// The result is nearest()'s: the points at the smallest distance are met in the same order
+    /// (the tree's branches are visited in an order that depends on `q` only) and the first is
+    /// kept either way.
+    bool nearest(const Eigen::Vector3f& q, float max_dist_sq, uint32_t hint, uint32_t* index,
+                 float* dist_sq) const;
     /// Up to `k` nearest points within sqrt(radius_sq), closest first; returns the count.
     size_t knnWithin(const Eigen::Vector3f& q, size_t k, float radius_sq, uint32_t* indices,
                      float* dists_sq) const;

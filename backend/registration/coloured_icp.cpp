@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <string>
 
 #include "backend/registration/cloud_ops.hpp"
@@ -164,6 +165,10 @@ PairResult icpColoured(const IndexedCloud& source, const std::vector<float>& sou
     double prev_fitness = -1.0, prev_rmse = -1.0, prev_colour_rmse = -1.0;
     Vector6d prev_xi = Vector6d::Zero();
     const ColouredAcc zero;
+    // Each target point's nearest source point of the previous iteration: the next search
+    // starts from it (IndexedCloud::nearest with a hint; the same correspondences).
+    constexpr uint32_t kNoHint = std::numeric_limits<uint32_t>::max();
+    std::vector<uint32_t> previous(target.size(), kNoHint);
     for (int it = 0; it < max_iterations; ++it) {
         const Eigen::Matrix3f R = T.rotation().cast<float>();
         const Eigen::Vector3f t = T.translation().cast<float>();
@@ -173,7 +178,12 @@ PairResult icpColoured(const IndexedCloud& source, const std::vector<float>& sou
                 const Eigen::Vector3f x = R * target.points[i] + t;
                 uint32_t j = 0;
                 float d2 = 0.0f;
-                if (!source.nearest(x, max_d2, &j, &d2)) return;
+                uint32_t& hint = previous[i];  // this iteration's chunk of i alone writes it
+                if (!source.nearest(x, max_d2, hint, &j, &d2)) {
+                    hint = kNoHint;
+                    return;
+                }
+                hint = j;
                 const Eigen::Vector3d p = src.points[j].cast<double>();
                 const Eigen::Vector3d n = src.normals[j].cast<double>();
                 const Eigen::Vector3d xd = x.cast<double>();

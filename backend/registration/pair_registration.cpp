@@ -94,6 +94,10 @@ bool IndexedCloud::nearest(const Eigen::Vector3f& q, float max_dist_sq, uint32_t
                            float* dist_sq) const {
     return impl_->tree.nearest(q, max_dist_sq, index, dist_sq);
 }
+bool IndexedCloud::nearest(const Eigen::Vector3f& q, float max_dist_sq, uint32_t hint,
+                           uint32_t* index, float* dist_sq) const {
+    return impl_->tree.nearest(q, max_dist_sq, hint, index, dist_sq);
+}
 size_t IndexedCloud::knnWithin(const Eigen::Vector3f& q, size_t k, float radius_sq,
                                uint32_t* indices, float* dists_sq) const {
     return impl_->tree.knnWithin(q, k, radius_sq, indices, dists_sq);
@@ -183,6 +187,10 @@ PairResult icpPointToPlane(const IndexedCloud& source, const PointCloud& target,
     Eigen::Isometry3d T = init;
     double prev_fitness = -1.0, prev_rmse = -1.0;
     const IcpAcc zero;
+    // Each target point's nearest source point of the previous iteration: the next search
+    // starts from it (IndexedCloud::nearest with a hint; the same correspondences).
+    constexpr uint32_t kNoHint = std::numeric_limits<uint32_t>::max();
+    std::vector<uint32_t> previous(target.size(), kNoHint);
     for (int it = 0; it < max_iterations; ++it) {
         const Eigen::Matrix3f R = T.rotation().cast<float>();
         const Eigen::Vector3f t = T.translation().cast<float>();
@@ -192,7 +200,12 @@ PairResult icpPointToPlane(const IndexedCloud& source, const PointCloud& target,
                 const Eigen::Vector3f x = R * target.points[i] + t;
                 uint32_t j = 0;
                 float d2 = 0.0f;
-                if (!source.nearest(x, max_d2, &j, &d2)) return;
+                uint32_t& hint = previous[i];  // this iteration's chunk of i alone writes it
+                if (!source.nearest(x, max_d2, hint, &j, &d2)) {
+                    hint = kNoHint;
+                    return;
+                }
+                hint = j;
                 const Eigen::Vector3d n = src.normals[j].cast<double>();
                 const Eigen::Vector3d xd = x.cast<double>();
                 const double r = n.dot(xd - src.points[j].cast<double>());

@@ -101,6 +101,9 @@ class IndexedCloud {
     /// Nearest point within sqrt(max_dist_sq); false when none. Thread-safe.
     bool nearest(const Eigen::Vector3f& q, float max_dist_sq, uint32_t* index,
                  float* dist_sq) const;
+    /// The same, starting from a point that may be near (KdTree3::nearest with a hint).
+    bool nearest(const Eigen::Vector3f& q, float max_dist_sq, uint32_t hint, uint32_t* index,
+                 float* dist_sq) const;
     /// Up to `k` nearest points within sqrt(radius_sq), closest first; returns the count.
     /// Thread-safe.
     size_t knnWithin(const Eigen::Vector3f& q, size_t k, float radius_sq, uint32_t* indices,

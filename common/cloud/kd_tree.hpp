@@ -48,6 +48,8 @@ class PointKdTree {
 
     const Index& index() const { return index_; }
     size_t size() const { return adaptor_.count; }
+    /// Point i of the tree's buffer.
+    const Eigen::Matrix<Scalar, 3, 1>& point(size_t i) const { return adaptor_.points[i]; }
 
   private:
     Adaptor adaptor_;

@@ -350,5 +350,40 @@ TEST(PairRegistration, NearestWithinARadiusIsTheBruteForceNearest) {
     EXPECT_GT(missed, 1000);
 }
 
+TEST(PairRegistration, ANearestSearchFromAHintFindsWhatTheSearchWithoutOneFinds) {
+    // Points on an exact lattice (so that many queries have several equidistant nearest points)
+    // and queries near it, each searched from hints near, far, beyond the radius and out of
+    // range: the same point and distance every time, ties included.
+    PointCloud cloud;
+    for (int x = 0; x < 12; ++x)
+        for (int y = 0; y < 12; ++y)
+            for (int z = 0; z < 4; ++z) cloud.points.emplace_back(0.25f * x, 0.25f * y, 0.25f * z);
+    const IndexedCloud indexed{PointCloud(cloud)};
+    std::mt19937 rng(9);
+    std::uniform_int_distribution<int> cell(0, 24);
+    std::uniform_int_distribution<uint32_t> any(0, static_cast<uint32_t>(cloud.size()) + 5);
+    int ties = 0;
+    for (int k = 0; k < 3000; ++k) {
+        // Half-cell positions are equidistant from two to eight lattice points.
+        const Eigen::Vector3f q(0.125f * cell(rng), 0.125f * cell(rng), 0.125f * (cell(rng) % 8));
+        uint32_t index = 0;
+        float d2 = 0.0f;
+        const float r2 = 0.04f;
+        const bool hit = indexed.nearest(q, r2, &index, &d2);
+        int equidistant = 0;
+        for (const Eigen::Vector3f& p : cloud.points) equidistant += (p - q).squaredNorm() == d2;
+        ties += hit && equidistant > 1;
+        for (const uint32_t hint : {index, any(rng), any(rng), uint32_t{0}, uint32_t{1u << 31}}) {
+            uint32_t hinted_index = 0;
+            float hinted_d2 = 0.0f;
+            ASSERT_EQ(indexed.nearest(q, r2, hint, &hinted_index, &hinted_d2), hit);
+            if (!hit) continue;
+            EXPECT_EQ(hinted_index, index) << q.transpose() << " hint " << hint;
+            EXPECT_EQ(hinted_d2, d2);
+        }
+    }
+    EXPECT_GT(ties, 300);
+}
+
 }  // namespace
 }  // namespace plumb::registration
