@@ -29,7 +29,9 @@ bool KdTree3::nearest(const Eigen::Vector3f& q, float max_dist_sq, uint32_t hint
         float to_hint = dx * dx;
         to_hint += dy * dy;
         to_hint += dz * dz;
-        bound = std::min(bound, to_hint);
+        // Widened by far more than the rounding of nanoflann's incremental box distances
+        // (a few ulps), so that no branch holding the nearest point is pruned for them.
+        bound = std::min(bound, to_hint * (1.0f + 1e-4f) + 1e-12f);
     }
     uint32_t idx = 0;
     float d = 0.0f;

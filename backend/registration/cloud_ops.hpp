@@ -31,10 +31,11 @@ class KdTree3 {
                  float* dist_sq) const;
     /// The same, given a point `hint` (an index; out of range: none) that may be near `q`, as
     /// the previous iteration's nearest point is in ICP: the search starts from the hint's
-    /// distance (when within the limit) rather than the limit, and prunes what lies beyond.
-    /// The result is nearest()'s: the points at the smallest distance are met in the same order
-    /// (the tree's branches are visited in an order that depends on `q` only) and the first is
-    /// kept either way.
+    /// distance (when within the limit; widened by 1e-4 of itself, far beyond the rounding of
+    /// the tree's box distances) rather than the limit, and prunes what lies beyond. The result
+    /// is nearest()'s: the points at the smallest distance are met in the same order (the
+    /// tree's branches are visited in an order that depends on `q` only) and the first is kept
+    /// either way.
     bool nearest(const Eigen::Vector3f& q, float max_dist_sq, uint32_t hint, uint32_t* index,
                  float* dist_sq) const;
     /// Up to `k` nearest points within sqrt(radius_sq), closest first; returns the count.

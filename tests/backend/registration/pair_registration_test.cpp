@@ -383,6 +383,26 @@ TEST(PairRegistration, ANearestSearchFromAHintFindsWhatTheSearchWithoutOneFinds)
         }
     }
     EXPECT_GT(ties, 300);
+
+    // Random points and queries, each searched from its own nearest point: the hint's exact
+    // distance must not let the search prune the branch that holds it.
+    std::uniform_real_distribution<float> u(0.0f, 3.0f);
+    PointCloud random;
+    for (int k = 0; k < 20000; ++k) random.points.emplace_back(u(rng), u(rng), u(rng));
+    const IndexedCloud random_indexed{PointCloud(random)};
+    std::normal_distribution<float> offset(0.0f, 0.002f);
+    for (int k = 0; k < 200000; ++k) {
+        const Eigen::Vector3f q =
+            random.points[static_cast<size_t>(k) % random.points.size()] +
+            (k % 2 == 0 ? Eigen::Vector3f(offset(rng), offset(rng), offset(rng))
+                        : Eigen::Vector3f(u(rng), u(rng), u(rng)) * 0.01f);
+        uint32_t index = 0, hinted_index = 0;
+        float d2 = 0.0f, hinted_d2 = 0.0f;
+        if (!random_indexed.nearest(q, 0.01f, &index, &d2)) continue;
+        ASSERT_TRUE(random_indexed.nearest(q, 0.01f, index, &hinted_index, &hinted_d2)) << k;
+        ASSERT_EQ(hinted_index, index) << k;
+        ASSERT_EQ(hinted_d2, d2) << k;
+    }
 }
 
 }  // namespace
