@@ -21,8 +21,10 @@ Status checkFinite(const std::vector<Eigen::Vector3f>& points, const char* what)
     return Status::ok();
 }
 
-/// Linear interpolation between order statistics of a sorted list, q in [0, 1].
-double percentileOfSorted(const std::vector<double>& sorted, double q) {
+/// Linear interpolation between order statistics, q in [0, 1], of a list whose entries at the
+/// two ranks around q (n - 1) hold those order statistics (a sorted list, or one partitioned
+/// there).
+double percentileOfOrdered(const std::vector<double>& sorted, double q) {
     if (sorted.empty()) return 0.0;
     const double pos = q * static_cast<double>(sorted.size() - 1);
     const auto lo = static_cast<size_t>(std::floor(pos));
@@ -87,11 +89,28 @@ DistanceStats summarize(const std::vector<double>& distances_m) {
     const auto n = static_cast<double>(distances_m.size());
     s.mean_m = sum / n;
     s.rms_m = std::sqrt(sum_sq / n);
-    std::vector<double> sorted = distances_m;
-    std::sort(sorted.begin(), sorted.end());
-    s.median_m = percentileOfSorted(sorted, 0.5);
-    s.p90_m = percentileOfSorted(sorted, 0.9);
-    s.max_m = sorted.back();
+    // Only the order statistics the percentiles interpolate between are put in place (each
+    // nth_element in the part after the previous one): the values a full sort leaves there.
+    std::vector<double> ordered = distances_m;
+    const double last = static_cast<double>(ordered.size() - 1);
+    std::vector<size_t> ranks;
+    for (const double q : {0.5, 0.9}) {
+        const auto lo = static_cast<size_t>(std::floor(q * last));
+        ranks.push_back(lo);
+        ranks.push_back(std::min(lo + 1, ordered.size() - 1));
+    }
+    ranks.push_back(ordered.size() - 1);
+    std::sort(ranks.begin(), ranks.end());
+    auto from = ordered.begin();
+    for (const size_t r : ranks) {
+        const auto nth = ordered.begin() + static_cast<std::ptrdiff_t>(r);
+        if (nth < from) continue;  // already in place (a repeated rank)
+        std::nth_element(from, nth, ordered.end());
+        from = nth + 1;
+    }
+    s.median_m = percentileOfOrdered(ordered, 0.5);
+    s.p90_m = percentileOfOrdered(ordered, 0.9);
+    s.max_m = ordered.back();
     return s;
 }
 

@@ -2,6 +2,7 @@
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
@@ -154,6 +155,27 @@ TEST(ReconMetrics, SummaryStatisticsAreExact) {
     EXPECT_DOUBLE_EQ(e.median_m, 3.0);
     EXPECT_DOUBLE_EQ(e.p90_m, 4.0 + 0.7 * 4.0);
     EXPECT_EQ(eval::summarize({}).count, 0u);
+    EXPECT_DOUBLE_EQ(eval::summarize({7.0}).median_m, 7.0);
+    EXPECT_DOUBLE_EQ(eval::summarize({7.0}).p90_m, 7.0);
+    // Random lists with repeats, of every length up to 60: the percentiles a full sort gives.
+    std::mt19937 rng(3);
+    std::uniform_int_distribution<int> value(0, 20);
+    for (size_t n = 1; n <= 60; ++n) {
+        std::vector<double> list;
+        for (size_t i = 0; i < n; ++i) list.push_back(0.01 * value(rng));
+        std::vector<double> sorted = list;
+        std::sort(sorted.begin(), sorted.end());
+        const auto at = [&](double q) {
+            const double pos = q * static_cast<double>(n - 1);
+            const auto lo = static_cast<size_t>(std::floor(pos));
+            const size_t hi = std::min(lo + 1, n - 1);
+            return sorted[lo] + (pos - static_cast<double>(lo)) * (sorted[hi] - sorted[lo]);
+        };
+        const eval::DistanceStats r = eval::summarize(list);
+        EXPECT_EQ(r.median_m, at(0.5)) << n;
+        EXPECT_EQ(r.p90_m, at(0.9)) << n;
+        EXPECT_EQ(r.max_m, sorted.back()) << n;
+    }
 }
 
 TEST(ReconMetrics, MeshSamplingIsDenseAndOnTheSurface) {
