@@ -113,6 +113,8 @@ Result<AlternationResult> alternate(const std::vector<GlobalCloud>& clouds,
     result.stop_reason = "max_outer_iterations";
     Layout previous;
     GlobalConfig previous_gc;
+    // Each registration's last correspondences start the next one's searches (same results).
+    MatchHints hints;
     for (int outer = 0; outer < config.max_outer_iterations; ++outer) {
         OuterIteration rec;
         rec.iteration = outer;
@@ -147,8 +149,8 @@ Result<AlternationResult> alternate(const std::vector<GlobalCloud>& clouds,
         std::optional<GlobalResult> step;
         if (outer > 0 && config.monotone_layout_steps) {
             // Block-coordinate descent: the layout step must not raise E_R at these poses.
-            Result<LayoutStepOutcome> o =
-                refinePosesAfterLayoutStep(clouds, result.T_W_F, priors, previous, rec.layout, gc);
+            Result<LayoutStepOutcome> o = refinePosesAfterLayoutStep(
+                clouds, result.T_W_F, priors, previous, rec.layout, gc, &hints);
             if (!o.isOk()) return failed(o.status());
             rec.energy_previous_layout = o->energies[0].total;
             rec.energy_new_layout = o->energies[1].total;
@@ -158,7 +160,8 @@ Result<AlternationResult> alternate(const std::vector<GlobalCloud>& clouds,
             }
             step = std::move(o->step);
         } else {
-            Result<GlobalResult> r = refinePoses(clouds, result.T_W_F, priors, rec.layout, gc);
+            Result<GlobalResult> r =
+                refinePoses(clouds, result.T_W_F, priors, rec.layout, gc, &hints);
             if (!r.isOk()) return failed(r.status());
             step = std::move(r).value();
         }

@@ -126,11 +126,23 @@ bool GlobalCloud::nearest(const Eigen::Vector3d& query, uint32_t* index,
 }
 
 bool GlobalCloud::nearestWithin(const Eigen::Vector3d& query, double max_distance_sq,
-                                uint32_t* index, double* distance_sq) const {
+                                uint32_t* index, double* distance_sq, uint32_t hint) const {
     if (points_.empty() || !tree_) return false;
+    double bound = max_distance_sq;
+    if (hint < points_.size()) {
+        // nanoflann's L2_Simple_Adaptor: ((q - p)_x^2 + (q - p)_y^2) + (q - p)_z^2. Widened by
+        // far more than the rounding of its incremental box distances (a few ulps), so that no
+        // branch holding the nearest point is pruned for them.
+        const Eigen::Vector3d& p = points_[hint];
+        const double dx = query.x() - p.x(), dy = query.y() - p.y(), dz = query.z() - p.z();
+        double to_hint = dx * dx;
+        to_hint += dy * dy;
+        to_hint += dz * dz;
+        bound = std::min(bound, to_hint * (1.0 + 1e-4) + 1e-24);
+    }
     nanoflann::KNNResultSet<double, uint32_t, size_t> result(1);
     result.init(index, distance_sq);
-    *distance_sq = max_distance_sq;  // the search keeps only points closer than this
+    *distance_sq = bound;  // the search keeps only points closer than this
     tree_->index().findNeighbors(result, query.data(), nanoflann::SearchParams());
     return result.size() == 1 && *distance_sq < max_distance_sq;
 }
@@ -327,6 +339,10 @@ Result<PreparedLayout> prepareLayout(const Layout& layout, const GlobalConfig& c
 // ---------------------------------------------------------------------------------------------
 // Correspondences
 
+}  // namespace
+
+// The pairs' correspondences are kept between calls (MatchHints), so their types are not local
+// to this file's anonymous namespace.
 struct FragMatch {
     uint32_t p = 0;  // point index in the source cloud (pair.from)
     uint32_t q = 0;  // point index in the target cloud (pair.to)
@@ -340,6 +356,16 @@ struct PairMatches {
     std::vector<FragMatch> b_to_a;
     bool from_prior = false;
 };
+
+struct MatchHints::Pairs {
+    std::vector<PairMatches> pairs;  ///< in (a, b) order
+};
+MatchHints::MatchHints() = default;
+MatchHints::~MatchHints() = default;
+MatchHints::MatchHints(MatchHints&&) noexcept = default;
+MatchHints& MatchHints::operator=(MatchHints&&) noexcept = default;
+
+namespace {
 
 struct LayoutMatch {
     uint32_t p = 0;
@@ -425,11 +451,14 @@ size_t pointsNear(const Occupancy& from, const Occupancy& to) {
 
 /// Correspondences from -> to: each point of `from` with its nearest point of `to` within
 /// frag_max_distance_m and frag_max_normal_angle_deg, in point order. Only points in cells near
-/// `to` (the occupancies) are searched for: the others have no point of `to` that close.
+/// `to` (the occupancies) are searched for: the others have no point of `to` that close. The
+/// `previous` matches of this direction (in point order; may be null), from poses a step away,
+/// start each point's search at its previous partner's distance: the same matches, sooner.
 void matchDirection(const GlobalCloud& from, const GlobalCloud& to,
                     const Eigen::Isometry3d& T_W_from, const Eigen::Isometry3d& T_W_to,
                     const Occupancy& from_cells, const Occupancy& to_cells,
-                    const GlobalConfig& config, std::vector<FragMatch>* out) {
+                    const GlobalConfig& config, const std::vector<FragMatch>* previous,
+                    std::vector<FragMatch>* out) {
     out->clear();
     if (from.size() == 0 || to.size() == 0) return;
     std::vector<char> near(from.size(), 0);
@@ -440,12 +469,20 @@ void matchDirection(const GlobalCloud& from, const GlobalCloud& to,
     const Eigen::Matrix3d R = T_to_from.linear();
     const double max_sq = config.frag_max_distance_m * config.frag_max_distance_m;
     const double cos_gate = std::cos(config.frag_max_normal_angle_deg * kDegToRad);
+    size_t next_previous = 0;  // previous matches are in point order
     for (size_t k = 0; k < from.size(); ++k) {
         if (!near[k]) continue;
+        uint32_t hint = std::numeric_limits<uint32_t>::max();
+        if (previous != nullptr) {
+            while (next_previous < previous->size() && (*previous)[next_previous].p < k)
+                ++next_previous;
+            if (next_previous < previous->size() && (*previous)[next_previous].p == k)
+                hint = (*previous)[next_previous].q;
+        }
         const Eigen::Vector3d query = T_to_from * from.points()[k];
         uint32_t idx = 0;
         double d_sq = 0.0;
-        if (!to.nearestWithin(query, max_sq, &idx, &d_sq)) continue;
+        if (!to.nearestWithin(query, max_sq, &idx, &d_sq, hint)) continue;
         if ((R * from.normals()[k]).dot(to.normals()[idx]) < cos_gate) continue;
         out->push_back({static_cast<uint32_t>(k), idx});
     }
@@ -488,7 +525,8 @@ std::vector<std::vector<LayoutMatch>> establishLayout(const std::vector<GlobalCl
 std::vector<PairMatches> establishPairs(const std::vector<GlobalCloud>& clouds,
                                         const std::vector<Eigen::Isometry3d>& T_W_F,
                                         const std::vector<PairPrior>& priors,
-                                        const GlobalConfig& config) {
+                                        const GlobalConfig& config,
+                                        const std::vector<PairMatches>* previous = nullptr) {
     const size_t n = clouds.size();
     std::vector<PairMatches> kept;
     // C_ij: candidate pairs = the priors' pairs plus pairs whose bounding spheres meet and whose
@@ -540,10 +578,22 @@ std::vector<PairMatches> establishPairs(const std::vector<GlobalCloud>& clouds,
     }
     parallelFor(config.num_threads, all.size(), [&](size_t k) {
         PairMatches& pm = all[k];
+        // The pair's matches of the previous call, if it was kept (they are in (a, b) order).
+        const PairMatches* before = nullptr;
+        if (previous != nullptr) {
+            const auto it =
+                std::lower_bound(previous->begin(), previous->end(), pm,
+                                 [](const PairMatches& x, const PairMatches& y) {
+                                     return std::make_pair(x.a, x.b) < std::make_pair(y.a, y.b);
+                                 });
+            if (it != previous->end() && it->a == pm.a && it->b == pm.b) before = &*it;
+        }
         matchDirection(clouds[pm.a], clouds[pm.b], T_W_F[pm.a], T_W_F[pm.b], occupancy[pm.a],
-                       occupancy[pm.b], config, &pm.a_to_b);
+                       occupancy[pm.b], config, before != nullptr ? &before->a_to_b : nullptr,
+                       &pm.a_to_b);
         matchDirection(clouds[pm.b], clouds[pm.a], T_W_F[pm.b], T_W_F[pm.a], occupancy[pm.b],
-                       occupancy[pm.a], config, &pm.b_to_a);
+                       occupancy[pm.a], config, before != nullptr ? &before->b_to_a : nullptr,
+                       &pm.b_to_a);
     });
     for (PairMatches& pm : all) {
         if (pm.a_to_b.empty() && pm.b_to_a.empty()) continue;
@@ -560,13 +610,16 @@ std::vector<PairMatches> establishPairs(const std::vector<GlobalCloud>& clouds,
     return kept;
 }
 
+/// C at T_W_F; `previous` (may be null): the pairs' correspondences at nearby poses, which
+/// only speed the search up.
 Correspondences establish(const std::vector<GlobalCloud>& clouds,
                           const std::vector<Eigen::Isometry3d>& T_W_F,
                           const std::vector<PairPrior>& priors, const PreparedLayout* layout,
-                          const GlobalConfig& config) {
+                          const GlobalConfig& config,
+                          const std::vector<PairMatches>* previous = nullptr) {
     Correspondences c;
     c.layout = establishLayout(clouds, T_W_F, layout, config);
-    c.pairs = establishPairs(clouds, T_W_F, priors, config);
+    c.pairs = establishPairs(clouds, T_W_F, priors, config, previous);
     return c;
 }
 
@@ -885,17 +938,20 @@ namespace {
 /// refinePoses() of problem `pb` from T_W_F (more than one fragment); `first`, when given, are
 /// the correspondences the first round would establish at T_W_F.
 GlobalResult refineRounds(const Problem& pb, std::vector<Eigen::Isometry3d> T_W_F,
-                          std::optional<Correspondences> first) {
+                          std::optional<Correspondences> first, MatchHints* hints) {
     const std::vector<GlobalCloud>& clouds = *pb.clouds;
     const GlobalConfig& config = *pb.config;
     const size_t n = clouds.size();
     GlobalResult result;
+    // The last search's pairs: hints for the next one.
+    std::vector<PairMatches> previous;
+    if (hints != nullptr && hints->pairs) previous = std::move(hints->pairs->pairs);
     for (int round = 0; round < config.rounds; ++round) {
         Correspondences corr;
         if (round == 0 && first) {
             corr = std::move(*first);
         } else {
-            corr = establish(clouds, T_W_F, *pb.priors, pb.layout, config);
+            corr = establish(clouds, T_W_F, *pb.priors, pb.layout, config, &previous);
         }
         std::vector<GroupSystem> system;
         EnergyTerms energy = evaluate(pb, corr, T_W_F, &system);
@@ -953,6 +1009,11 @@ GlobalResult refineRounds(const Problem& pb, std::vector<Eigen::Isometry3d> T_W_
         result.lambda2 = energy.num_pair > 0
                              ? config.pair_weight * nl / static_cast<double>(energy.num_pair)
                              : 0.0;
+        previous = std::move(corr.pairs);
+    }
+    if (hints != nullptr) {
+        if (!hints->pairs) hints->pairs = std::make_unique<MatchHints::Pairs>();
+        hints->pairs->pairs = std::move(previous);
     }
     result.T_W_F = std::move(T_W_F);
     return result;
@@ -965,11 +1026,12 @@ Result<std::array<EnergyTerms, 2>> evaluateTwo(const std::vector<GlobalCloud>& c
                                                const std::vector<PairPrior>& priors,
                                                const Layout& first, const Layout& second,
                                                const GlobalConfig& config,
-                                               Correspondences* second_corr) {
+                                               Correspondences* second_corr,
+                                               const std::vector<PairMatches>* hints = nullptr) {
     PLUMB_RETURN_IF_ERROR(validateInputs(clouds.size(), T_W_F, priors, config));
     std::array<EnergyTerms, 2> energies;
     Correspondences corr;
-    corr.pairs = establishPairs(clouds, T_W_F, priors, config);
+    corr.pairs = establishPairs(clouds, T_W_F, priors, config, hints);
     const std::array<const Layout*, 2> layouts{&first, &second};
     for (size_t k = 0; k < layouts.size(); ++k) {
         std::optional<PreparedLayout> prepared;
@@ -987,7 +1049,8 @@ Result<std::array<EnergyTerms, 2>> evaluateTwo(const std::vector<GlobalCloud>& c
 Result<GlobalResult> refineFrom(const std::vector<GlobalCloud>& clouds,
                                 std::vector<Eigen::Isometry3d> T_W_F,
                                 const std::vector<PairPrior>& priors, const Layout& layout,
-                                const GlobalConfig& config, std::optional<Correspondences> first) {
+                                const GlobalConfig& config, std::optional<Correspondences> first,
+                                MatchHints* hints) {
     PLUMB_RETURN_IF_ERROR(validateInputs(clouds.size(), T_W_F, priors, config));
     if (clouds.size() <= 1) {
         GlobalResult result;
@@ -998,7 +1061,7 @@ Result<GlobalResult> refineFrom(const std::vector<GlobalCloud>& clouds,
     std::optional<PreparedLayout> prepared;
     Result<Problem> problem = makeProblem(clouds, priors, layout, config, &prepared);
     if (!problem.isOk()) return problem.status();
-    return refineRounds(problem.value(), std::move(T_W_F), std::move(first));
+    return refineRounds(problem.value(), std::move(T_W_F), std::move(first), hints);
 }
 
 }  // namespace
@@ -1006,23 +1069,27 @@ Result<GlobalResult> refineFrom(const std::vector<GlobalCloud>& clouds,
 Result<GlobalResult> refinePoses(const std::vector<GlobalCloud>& clouds,
                                  std::vector<Eigen::Isometry3d> T_W_F,
                                  const std::vector<PairPrior>& priors, const Layout& layout,
-                                 const GlobalConfig& config) {
-    return refineFrom(clouds, std::move(T_W_F), priors, layout, config, std::nullopt);
+                                 const GlobalConfig& config, MatchHints* hints) {
+    return refineFrom(clouds, std::move(T_W_F), priors, layout, config, std::nullopt, hints);
 }
 
 Result<LayoutStepOutcome> refinePosesAfterLayoutStep(const std::vector<GlobalCloud>& clouds,
                                                      const std::vector<Eigen::Isometry3d>& T_W_F,
                                                      const std::vector<PairPrior>& priors,
                                                      const Layout& previous, const Layout& layout,
-                                                     const GlobalConfig& config) {
+                                                     const GlobalConfig& config,
+                                                     MatchHints* hints) {
     LayoutStepOutcome out;
     Correspondences corr;
+    const std::vector<PairMatches>* before =
+        hints != nullptr && hints->pairs ? &hints->pairs->pairs : nullptr;
     Result<std::array<EnergyTerms, 2>> e =
-        evaluateTwo(clouds, T_W_F, priors, previous, layout, config, &corr);
+        evaluateTwo(clouds, T_W_F, priors, previous, layout, config, &corr, before);
     if (!e.isOk()) return e.status();
     out.energies = e.value();
     if (out.energies[1].total > out.energies[0].total) return out;
-    Result<GlobalResult> step = refineFrom(clouds, T_W_F, priors, layout, config, std::move(corr));
+    Result<GlobalResult> step =
+        refineFrom(clouds, T_W_F, priors, layout, config, std::move(corr), hints);
     if (!step.isOk()) return step.status();
     out.step = std::move(step).value();
     return out;

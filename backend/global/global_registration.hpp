@@ -45,6 +45,7 @@
 #include <Eigen/Geometry>
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <vector>
@@ -201,8 +202,11 @@ class GlobalCloud {
     bool nearest(const Eigen::Vector3d& query, uint32_t* index, double* distance_sq) const;
     /// Nearest subsampled point closer to `query` than sqrt(max_distance_sq); false when there is
     /// none. The same point as nearest() when it is that close, found without searching beyond.
+    /// A `hint` (a point index, or any larger value for none) bounds the search by its own
+    /// distance: the result is the same, found sooner when the hint is near the nearest point.
     bool nearestWithin(const Eigen::Vector3d& query, double max_distance_sq, uint32_t* index,
-                       double* distance_sq) const;
+                       double* distance_sq,
+                       uint32_t hint = std::numeric_limits<uint32_t>::max()) const;
 
   private:
     friend Result<std::vector<GlobalCloud>> prepareClouds(const std::vector<Fragment>&,
@@ -220,14 +224,31 @@ class GlobalCloud {
 Result<std::vector<GlobalCloud>> prepareClouds(const std::vector<Fragment>& fragments,
                                                const GlobalConfig& config);
 
+/// The fragment pairs' correspondences of a previous refinement, kept by a caller that refines
+/// the same clouds again (Algorithm 1's outer iterations) and handed to the next call: each
+/// point's nearest-neighbour search then starts at the distance of its previous partner, which
+/// bounds the nearest one's. Results never depend on it (any hint is a valid bound). One object
+/// per sequence of calls; it is not shared between threads.
+class MatchHints {
+  public:
+    MatchHints();
+    ~MatchHints();
+    MatchHints(MatchHints&&) noexcept;
+    MatchHints& operator=(MatchHints&&) noexcept;
+
+    struct Pairs;  ///< the correspondences (global_registration.cpp)
+    std::unique_ptr<Pairs> pairs;
+};
+
 /// Refines T_W_F by minimising E_R (see the header comment). T_W_F[0] is held fixed. `layout`
 /// is ignored when config.use_layout is false or it has no planes. Errors (kInvalidArgument):
 /// size mismatch, an invalid pose, a prior with an index out of range, i == j, or a non-finite
 /// or non-symmetric information matrix, a layout plane with a non-unit normal, a bad config.
+/// `hints` (may be null) are read and then replaced by this call's last correspondences.
 Result<GlobalResult> refinePoses(const std::vector<GlobalCloud>& clouds,
                                  std::vector<Eigen::Isometry3d> T_W_F,
                                  const std::vector<PairPrior>& priors, const Layout& layout,
-                                 const GlobalConfig& config);
+                                 const GlobalConfig& config, MatchHints* hints = nullptr);
 
 /// E_R at `T_W_F` with correspondences established there (no optimisation); the same gates,
 /// weights and errors as refinePoses().
@@ -256,12 +277,13 @@ struct LayoutStepOutcome {
 /// evaluateEnergies(previous, layout) at `T_W_F`, then, unless the new layout raised E_R,
 /// refinePoses() with it from `T_W_F`, whose first round takes the correspondences the evaluation
 /// just established there (the same ones) instead of establishing them again. The results of
-/// those two calls, bit for bit.
+/// those two calls, bit for bit. `hints` as for refinePoses().
 Result<LayoutStepOutcome> refinePosesAfterLayoutStep(const std::vector<GlobalCloud>& clouds,
                                                      const std::vector<Eigen::Isometry3d>& T_W_F,
                                                      const std::vector<PairPrior>& priors,
                                                      const Layout& previous, const Layout& layout,
-                                                     const GlobalConfig& config);
+                                                     const GlobalConfig& config,
+                                                     MatchHints* hints = nullptr);
 
 /// Convenience: prepareClouds() then refinePoses().
 Result<GlobalResult> refinePoses(const std::vector<Fragment>& fragments,

@@ -6,6 +6,8 @@
 #include <gtest/gtest.h>
 
 #include <cstdio>
+#include <limits>
+#include <random>
 
 #include "drivers/sim/scene.hpp"
 #include "tests/backend/global/global_test_util.hpp"
@@ -406,6 +408,72 @@ TEST(GlobalRegistration, TheRegistrationStepAfterALayoutStepIsTheTestThenRefineP
     ASSERT_TRUE(refused.isOk()) << refused.status().toString();
     EXPECT_GT(refused->energies[1].total, refused->energies[0].total);
     EXPECT_FALSE(refused->step.has_value());
+}
+
+TEST(GlobalRegistration, ANearestSearchFromAnyHintFindsWhatTheSearchWithoutOneFinds) {
+    // A hint only bounds the search by its own distance: from the true nearest point, from a
+    // neighbour of it, from a far point, or out of range, the same point and distance.
+    const GlobalCloud& to = livingRoomClouds()[1];
+    const GlobalCloud& from = livingRoomClouds()[0];
+    const double max_sq = 0.05 * 0.05;
+    std::mt19937 rng(7);
+    std::uniform_int_distribution<uint32_t> any(0, static_cast<uint32_t>(to.size() - 1));
+    size_t found = 0;
+    for (size_t k = 0; k < from.size(); ++k) {
+        const Eigen::Vector3d q = from.points()[k] + Eigen::Vector3d(0.01, -0.02, 0.005);
+        uint32_t idx = 0;
+        double d_sq = 0.0;
+        const bool ok = to.nearestWithin(q, max_sq, &idx, &d_sq);
+        uint32_t exact = 0;
+        double exact_sq = 0.0;
+        ASSERT_TRUE(to.nearest(q, &exact, &exact_sq));
+        const uint32_t neighbour =
+            std::min<uint32_t>(exact + 1, static_cast<uint32_t>(to.size() - 1));
+        for (const uint32_t hint :
+             {exact, neighbour, any(rng), std::numeric_limits<uint32_t>::max()}) {
+            uint32_t h_idx = 0;
+            double h_sq = 0.0;
+            ASSERT_EQ(to.nearestWithin(q, max_sq, &h_idx, &h_sq, hint), ok) << k << " " << hint;
+            if (!ok) continue;
+            ASSERT_EQ(h_idx, idx) << k << " " << hint;
+            ASSERT_EQ(h_sq, d_sq) << k << " " << hint;
+        }
+        if (ok) {
+            ++found;
+            EXPECT_EQ(idx, exact);
+        }
+    }
+    EXPECT_GT(found, from.size() / 10);
+}
+
+TEST(GlobalRegistration, HintsCarriedBetweenRefinementsChangeNothing) {
+    // Algorithm 1 hands each registration the last one's correspondences (MatchHints): the
+    // second refinement from the first one's poses gives the same poses and energies with the
+    // hints as without, and a hint object from other poses is as good as none.
+    const TwoLayouts in;
+    const auto& [sim, cl, T, priors, moved, cfg] = in;
+    MatchHints hints;
+    Result<GlobalResult> first = refinePoses(cl, T, priors, sim.layout_gt, cfg, &hints);
+    ASSERT_TRUE(first.isOk());
+    ASSERT_NE(hints.pairs, nullptr);
+    Result<GlobalResult> plain = refinePoses(cl, first->T_W_F, priors, moved, cfg);
+    Result<GlobalResult> hinted = refinePoses(cl, first->T_W_F, priors, moved, cfg, &hints);
+    ASSERT_TRUE(plain.isOk() && hinted.isOk());
+    ASSERT_EQ(hinted->iterations.size(), plain->iterations.size());
+    for (size_t k = 0; k < plain->iterations.size(); ++k)
+        EXPECT_EQ(hinted->iterations[k].energy.total, plain->iterations[k].energy.total) << k;
+    for (size_t i = 0; i < T.size(); ++i)
+        EXPECT_TRUE(hinted->T_W_F[i].matrix() == plain->T_W_F[i].matrix()) << i;
+    Result<LayoutStepOutcome> step =
+        refinePosesAfterLayoutStep(cl, T, priors, moved, sim.layout_gt, cfg, &hints);
+    Result<LayoutStepOutcome> step_plain =
+        refinePosesAfterLayoutStep(cl, T, priors, moved, sim.layout_gt, cfg);
+    ASSERT_TRUE(step.isOk() && step_plain.isOk());
+    EXPECT_EQ(step->energies[0].total, step_plain->energies[0].total);
+    EXPECT_EQ(step->energies[1].total, step_plain->energies[1].total);
+    ASSERT_TRUE(step->step.has_value() && step_plain->step.has_value());
+    for (size_t i = 0; i < T.size(); ++i)
+        EXPECT_TRUE(step->step->T_W_F[i].matrix() == step_plain->step->T_W_F[i].matrix()) << i;
 }
 
 TEST(GlobalRegistration, BadInputGivesSpecificErrors) {
