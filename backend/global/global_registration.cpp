@@ -128,21 +128,10 @@ bool GlobalCloud::nearest(const Eigen::Vector3d& query, uint32_t* index,
 bool GlobalCloud::nearestWithin(const Eigen::Vector3d& query, double max_distance_sq,
                                 uint32_t* index, double* distance_sq, uint32_t hint) const {
     if (points_.empty() || !tree_) return false;
-    double bound = max_distance_sq;
-    if (hint < points_.size()) {
-        // nanoflann's L2_Simple_Adaptor: ((q - p)_x^2 + (q - p)_y^2) + (q - p)_z^2. Widened by
-        // far more than the rounding of its incremental box distances (a few ulps), so that no
-        // branch holding the nearest point is pruned for them.
-        const Eigen::Vector3d& p = points_[hint];
-        const double dx = query.x() - p.x(), dy = query.y() - p.y(), dz = query.z() - p.z();
-        double to_hint = dx * dx;
-        to_hint += dy * dy;
-        to_hint += dz * dz;
-        bound = std::min(bound, to_hint * (1.0 + 1e-4) + 1e-24);
-    }
     nanoflann::KNNResultSet<double, uint32_t, size_t> result(1);
     result.init(index, distance_sq);
-    *distance_sq = bound;  // the search keeps only points closer than this
+    // The search keeps only points closer than this.
+    *distance_sq = tree_->searchBound(query, hint, max_distance_sq);
     tree_->index().findNeighbors(result, query.data(), nanoflann::SearchParams());
     return result.size() == 1 && *distance_sq < max_distance_sq;
 }

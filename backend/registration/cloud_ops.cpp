@@ -21,18 +21,7 @@ bool KdTree3::nearest(const Eigen::Vector3f& q, float max_dist_sq, uint32_t* ind
 bool KdTree3::nearest(const Eigen::Vector3f& q, float max_dist_sq, uint32_t hint, uint32_t* index,
                       float* dist_sq) const {
     if (size() == 0) return false;
-    float bound = max_dist_sq;
-    if (hint < size()) {
-        // nanoflann's L2_Simple_Adaptor: ((q - p)_x^2 + (q - p)_y^2) + (q - p)_z^2.
-        const Eigen::Vector3f& p = tree_.point(hint);
-        const float dx = q.x() - p.x(), dy = q.y() - p.y(), dz = q.z() - p.z();
-        float to_hint = dx * dx;
-        to_hint += dy * dy;
-        to_hint += dz * dz;
-        // Widened by far more than the rounding of nanoflann's incremental box distances
-        // (a few ulps), so that no branch holding the nearest point is pruned for them.
-        bound = std::min(bound, to_hint * (1.0f + 1e-4f) + 1e-12f);
-    }
+    const float bound = tree_.searchBound(q, hint, max_dist_sq);
     uint32_t idx = 0;
     float d = 0.0f;
     nanoflann::KNNResultSet<float, uint32_t, size_t> result(1);

@@ -51,6 +51,24 @@ class PointKdTree {
     /// Point i of the tree's buffer.
     const Eigen::Matrix<Scalar, 3, 1>& point(size_t i) const { return adaptor_.points[i]; }
 
+    /// Where a nearest-point search for `query` limited to `max_dist_sq` can start, given a
+    /// `hint` (a point index, any larger value for none) known to be near: the hint's squared
+    /// distance, summed in nanoflann's order ((x^2 + y^2) + z^2) and widened by far more than
+    /// the rounding of nanoflann's incremental box distances (a few ulps), so that no branch
+    /// holding the nearest point is pruned for them. The nearest point is the one a search
+    /// from `max_dist_sq` finds. `max_dist_sq` when that is smaller or there is no hint.
+    Scalar searchBound(const Eigen::Matrix<Scalar, 3, 1>& query, uint32_t hint,
+                       Scalar max_dist_sq) const {
+        if (hint >= size()) return max_dist_sq;
+        const Eigen::Matrix<Scalar, 3, 1>& p = point(hint);
+        const Scalar dx = query.x() - p.x(), dy = query.y() - p.y(), dz = query.z() - p.z();
+        Scalar to_hint = dx * dx;
+        to_hint += dy * dy;
+        to_hint += dz * dz;
+        const Scalar widened = to_hint * (Scalar(1) + Scalar(1e-4)) + Scalar(1e-12);
+        return widened < max_dist_sq ? widened : max_dist_sq;
+    }
+
   private:
     Adaptor adaptor_;
     Index index_;
