@@ -106,6 +106,8 @@ TEST(PlumbReconstructCli, SelfCalibrateLearnsTheTableFromTheRawDepthAndReportsBe
     EXPECT_TRUE(fs::exists(out / "self_calibration" / "first" / "trajectory.txt"));
     // The first reconstruction used the bend learned from the frames' planes.
     EXPECT_EQ(sc.at("first_table"), "self_calibration/planar_table.txt");
+    // The alternation started from the planar table, not from the neutral one.
+    EXPECT_TRUE(sc.at("warm_start").get<bool>());
     EXPECT_TRUE(DistortionTable::load(out / "self_calibration" / "planar_table.txt").isOk());
     EXPECT_GE(sc.at("planar").at("iterations").size(), 1U);
     EXPECT_EQ(sc.at("planar").at("frames").get<int>(), 600);
@@ -140,6 +142,7 @@ TEST(PlumbReconstructCli, SelfCalibrateReadsTheScanOnceAndLearnsWhatReadingItAga
     const auto [kept, kept_out] = run("plumb_self_calibrate_once_kept", "4096");
     const auto [read, read_out] = run("plumb_self_calibrate_once_read", "0");
     EXPECT_NE(kept.err.find("raw frames are kept for every pass"), std::string::npos) << kept.err;
+    EXPECT_NE(kept.err.find("starting from the planar table"), std::string::npos) << kept.err;
     EXPECT_NE(read.err.find("every pass reads the scan again"), std::string::npos) << read.err;
     // The passes saw the same frames: the same planar, refined and final tables, trajectory.
     for (const char* file :

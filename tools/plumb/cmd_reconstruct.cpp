@@ -64,6 +64,11 @@ struct SelfCalibrateConfig {
     /// (median error at 3 m 0.66 % against 0.60 % with the reconstruction's poses) at 5x the
     /// time of the estimate (BENCHMARKS.md).
     bool refine_poses = false;
+    /// The alternation starts from the table the first reconstruction was made with (the
+    /// planar stage's, when it determined one) instead of the neutral table. On nine 600-frame
+    /// simulated loops it then stops after 4 iterations instead of 5-8, with less ATE on eight
+    /// of them (BENCHMARKS.md, "Self-calibration from the planar table").
+    bool warm_start = true;
     /// The first reconstruction's final mesh integrates every k-th raw frame only: the estimate
     /// uses its poses, and its mesh gives the "before" figure alone.
     int first_model_frame_stride = 4;
@@ -84,6 +89,9 @@ void describe(config::Schema& s, SelfCalibrateConfig& c) {
         .min(0);
     s.field("refine_poses", c.refine_poses,
             "re-align every compared frame to each iteration's model by frame-to-model ICP");
+    s.field("warm_start", c.warm_start,
+            "the alternation starts from the table the first reconstruction was made with (the "
+            "planar stage's) instead of the neutral table");
     s.field("first_model_frame_stride", c.first_model_frame_stride,
             "the first reconstruction's final mesh integrates every k-th raw frame (its poses "
             "are what the estimate uses)")
@@ -409,7 +417,8 @@ Result<PlanarStage> planarStage(const ScanCache& scan, const SelfCalibrateConfig
 }
 
 /// The refinement of `--self-calibrate`: the table estimated at the poses of the
-/// reconstruction in `recon_dir` (reference §7c), written to `refined_path`, then the bend left
+/// reconstruction in `recon_dir` (reference §7c), starting from `initial` (null: the neutral
+/// table), written to `refined_path`, then the bend left
 /// in the frames it undistorts learned from the planes (self_calibration.planar) and composed
 /// with it; the resulting table (the product, or the refined table when the planes do not
 /// determine the bend) is written to `table_path`.
@@ -423,7 +432,7 @@ struct Refinement {
 };
 
 Result<Refinement> refineAtPoses(const ScanCache& scan, const SelfCalibrateConfig& sc,
-                                 const PinholeCamera& camera,
+                                 const PinholeCamera& camera, const DistortionTable* initial,
                                  const std::filesystem::path& recon_dir,
                                  const std::filesystem::path& refined_path,
                                  const std::filesystem::path& table_path,
@@ -446,8 +455,9 @@ Result<Refinement> refineAtPoses(const ScanCache& scan, const SelfCalibrateConfi
     out.frames = depth.size();
     log::info(
         "self-calibration {}: estimating the depth distortion table from {} frames (frame step "
-        "{}) at the poses of {}",
-        step_refine, depth.size(), out.frame_step, recon_dir.string());
+        "{}) at the poses of {}, starting from the {} table",
+        step_refine, depth.size(), out.frame_step, recon_dir.string(),
+        initial != nullptr ? "planar" : "neutral");
     auto observe = [&](const calibration::CalibrationIteration& it) {
         const calibration::DistortionEstimate& e = it.estimate;
         log::info(
@@ -463,7 +473,7 @@ Result<Refinement> refineAtPoses(const ScanCache& scan, const SelfCalibrateConfi
         sc.refine_poses ? icpFrameAligner(CalibrationAlignerConfig{}, &out.unaligned)
                         : calibration::FrameAligner{};
     Result<calibration::SelfCalibrationResult> learned = calibration::selfCalibrate(
-        depth, camera, posed->T_W_C, sc.estimate, nullptr, observe, aligner);
+        depth, camera, posed->T_W_C, sc.estimate, initial, observe, aligner);
     if (!learned.isOk()) return prefixed(learned.status(), "self-calibration");
     out.learned = std::move(*learned);
     std::error_code ec;
@@ -572,9 +582,9 @@ Result<backend::PipelineResult> selfCalibratedRun(FrameSource& raw_source, const
 
     const std::filesystem::path table_path = o.out / "depth_calibration.txt";
     const std::string refine_step = next();
-    Result<Refinement> refined =
-        refineAtPoses(*scan, sc, base.camera, folder / "first", folder / "refined_table.txt",
-                      table_path, refine_step, next());
+    Result<Refinement> refined = refineAtPoses(
+        *scan, sc, base.camera, sc.warm_start && planar ? &planar->table : nullptr,
+        folder / "first", folder / "refined_table.txt", table_path, refine_step, next());
     if (!refined.isOk()) return refined.status();
     const calibration::DistortionEstimate& last = refined->learned.iterations.back().estimate;
 
@@ -586,6 +596,7 @@ Result<backend::PipelineResult> selfCalibratedRun(FrameSource& raw_source, const
         {"frames", refined->frames},
         {"frame_step", refined->frame_step},
         {"refine_poses", sc.refine_poses},
+        {"warm_start", sc.warm_start && planar},
         {"frames_not_aligned", refined->unaligned},
         {"iterations", refined->iterations},
         {"converged", refined->learned.converged},
