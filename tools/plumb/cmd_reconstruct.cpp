@@ -418,10 +418,10 @@ Result<PlanarStage> planarStage(const ScanCache& scan, const SelfCalibrateConfig
 
 /// The refinement of `--self-calibrate`: the table estimated at the poses of the
 /// reconstruction in `recon_dir` (reference §7c), starting from `initial` (null: the neutral
-/// table), written to `refined_path`, then the bend left
-/// in the frames it undistorts learned from the planes (self_calibration.planar) and composed
-/// with it; the resulting table (the product, or the refined table when the planes do not
-/// determine the bend) is written to `table_path`.
+/// table), written to `refined_path`, then the bend left in the frames it undistorts learned
+/// from the planes (self_calibration.planar) and composed with it; the resulting table (the
+/// product, or the refined table when the planes do not determine the bend) is written to
+/// `table_path`.
 struct Refinement {
     calibration::SelfCalibrationResult learned;
     nlohmann::json iterations = nlohmann::json::array();
@@ -582,9 +582,10 @@ Result<backend::PipelineResult> selfCalibratedRun(FrameSource& raw_source, const
 
     const std::filesystem::path table_path = o.out / "depth_calibration.txt";
     const std::string refine_step = next();
-    Result<Refinement> refined = refineAtPoses(
-        *scan, sc, base.camera, sc.warm_start && planar ? &planar->table : nullptr,
-        folder / "first", folder / "refined_table.txt", table_path, refine_step, next());
+    const DistortionTable* refine_start = sc.warm_start && planar ? &planar->table : nullptr;
+    Result<Refinement> refined =
+        refineAtPoses(*scan, sc, base.camera, refine_start, folder / "first",
+                      folder / "refined_table.txt", table_path, refine_step, next());
     if (!refined.isOk()) return refined.status();
     const calibration::DistortionEstimate& last = refined->learned.iterations.back().estimate;
 
@@ -596,7 +597,7 @@ Result<backend::PipelineResult> selfCalibratedRun(FrameSource& raw_source, const
         {"frames", refined->frames},
         {"frame_step", refined->frame_step},
         {"refine_poses", sc.refine_poses},
-        {"warm_start", sc.warm_start && planar},
+        {"warm_start", refine_start != nullptr},
         {"frames_not_aligned", refined->unaligned},
         {"iterations", refined->iterations},
         {"converged", refined->learned.converged},
