@@ -414,6 +414,28 @@ void damageIdat(const fs::path& path) {
     std::ofstream(path, std::ios::binary | std::ios::trunc) << bytes;
 }
 
+TEST(PlumbCli, SimQuietPrintsNothingAndWritesTheSameDataset) {
+    const fs::path logs = testing::freshTempDir("plumb_cli_sim_quiet");
+    const std::vector<std::string> scan = {"living_room", "--frames", "3",    "--intrinsics",
+                                           "ci",          "--noise",  "off",  "--no-gray",
+                                           "--no-clean",  "--no-rgb", "--out"};
+    std::vector<std::string> loud = scan, quiet = scan;
+    loud.push_back((logs / "loud").string());
+    quiet.push_back((logs / "quiet").string());
+    quiet.emplace_back("--quiet");
+    const ProcessRun said = plumb(logs, "sim", loud);
+    ASSERT_EQ(said.exit_code, 0) << said.err;
+    EXPECT_TRUE(contains(said.out, "plumb sim: wrote 3 frames")) << said.out;
+    const ProcessRun silent = plumb(logs, "sim", quiet);
+    ASSERT_EQ(silent.exit_code, 0) << silent.err;
+    EXPECT_EQ(silent.out, "");
+    EXPECT_EQ(silent.err, "");
+    for (const char* file : {"groundtruth.txt", "depth.txt", "depth/00002.png"}) {
+        EXPECT_EQ(slurp(logs / "quiet" / file), slurp(logs / "loud" / file)) << file;
+        EXPECT_FALSE(slurp(logs / "quiet" / file).empty()) << file;
+    }
+}
+
 TEST(PlumbCli, DamagedPngGetsPlumbsMessageWithoutARawLibpngLine) {
     const fs::path logs = testing::freshTempDir("plumb_cli_png");
     const fs::path scan = logs / "scan";

@@ -46,6 +46,7 @@ constexpr const char* kUsage =
     "  --gt-spacing M       spacing of gt_points.ply samples in metres (default 0.01)\n"
     "  --no-clean           do not write depth_clean/ (default: written)\n"
     "  --no-gray            do not write gray/ (default: written)\n"
+    "  --quiet              print nothing on success (default: the scene and a summary line)\n"
     "  -h, --help           this text\n"
     "\n"
     "colour camera (rgb/):\n"
@@ -84,6 +85,7 @@ int runSim(const std::vector<std::string>& args) {
     std::string out_dir;
     std::string scene;
     uint64_t frames = 600;
+    bool quiet = false;
     for (size_t i = 0; i < args.size(); ++i) {
         const std::string& a = args[i];
         auto value = [&](std::string* v) {
@@ -191,6 +193,8 @@ int runSim(const std::vector<std::string>& args) {
                                   "--exposure-jump needs FRAME:FACTOR (e.g. 30:0.6, factor > 0)");
             }
             config.colour.exposure_jumps.push_back(jump);
+        } else if (a == "--quiet") {
+            quiet = true;
         } else if (a == "--no-rgb") {
             config.colour.enabled = false;
             options.write_rgb = false;
@@ -211,12 +215,13 @@ int runSim(const std::vector<std::string>& args) {
 
     auto source = sim::SimSource::create(config);
     if (!source.isOk()) return failure(kCommand, source.status());
-    std::printf("plumb sim: %s\n", (*source)->description().c_str());
+    if (!quiet) std::printf("plumb sim: %s\n", (*source)->description().c_str());
     const auto start = std::chrono::steady_clock::now();
     const Status written = sim::writeSimDataset(**source, out_dir, options);
     if (!written.isOk()) return failure(kCommand, written);
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    if (quiet) return kExitOk;
     std::printf("plumb sim: wrote %zu frames to %s in %.1f s\n", *(*source)->size(),
                 out_dir.c_str(), seconds);
     return kExitOk;
