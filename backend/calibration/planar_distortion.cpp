@@ -359,6 +359,61 @@ void removeDisparityAffine(const std::vector<int>& estimated, PlanarDistortion* 
     }
 }
 
+/// The bins not estimated copy the nearest estimated one (flat in depth beyond the data).
+void copyToUnestimatedBins(const std::vector<int>& estimated, PlanarDistortion* model) {
+    for (int b = 0; b < kBins; ++b) {
+        if (std::find(estimated.begin(), estimated.end(), b) != estimated.end()) continue;
+        int nearest = estimated.front();
+        for (int e : estimated) {
+            if (std::abs(e - b) < std::abs(nearest - b)) nearest = e;
+        }
+        model->c[static_cast<size_t>(b)] = model->c[static_cast<size_t>(nearest)];
+    }
+}
+
+/// The depth-proportional scale b of the least-squares fit f - 1 = a + z (b + c u + d v) of the
+/// model's factors at the estimated bins' centres z over the cells with data (Eq. 3), removed
+/// as (z - z_first) b from each estimated bin's constant term. Returns b; 0 when fewer than two
+/// bins were estimated or too few cells have data.
+double removeDepthScaleOverData(const std::vector<int>& estimated, const std::vector<bool>& data,
+                                PlanarDistortion* model) {
+    constexpr int n = DistortionTable::kCellsPerSide;
+    if (estimated.size() < 2) return 0.0;
+    Eigen::Matrix4d ata = Eigen::Matrix4d::Zero();
+    Eigen::Vector4d atb = Eigen::Vector4d::Zero();
+    size_t rows = 0;
+    for (int y = 0; y < n; ++y) {
+        for (int x = 0; x < n; ++x) {
+            if (!data[static_cast<size_t>(y) * n + x]) continue;
+            const double u = (x + 0.5) / (n / 2.0) - 1.0, v = (y + 0.5) / (n / 2.0) - 1.0;
+            for (int e : estimated) {
+                const double z = DistortionTable::binCentreM(e);
+                const Eigen::Vector4d a(1.0, z, z * u, z * v);
+                ata += a * a.transpose();
+                atb += a * (model->factor(u, v, z) - 1.0);
+                ++rows;
+            }
+        }
+    }
+    if (rows < 8 * estimated.size()) return 0.0;
+    const double b = ata.ldlt().solve(atb)[1];
+    const double z_first = DistortionTable::binCentreM(estimated.front());
+    for (int e : estimated) {
+        model->c[static_cast<size_t>(e)][kCurvedTerms] -=
+            (DistortionTable::binCentreM(e) - z_first) * b;
+    }
+    copyToUnestimatedBins(estimated, model);
+    return b;
+}
+
+std::vector<int> binsOf(unsigned mask) {
+    std::vector<int> bins;
+    for (int b = 0; b < kBins; ++b) {
+        if ((mask >> b) & 1U) bins.push_back(b);
+    }
+    return bins;
+}
+
 }  // namespace
 
 std::array<double, PlanarDistortion::kTerms> PlanarDistortion::terms(double u, double v) {
@@ -456,6 +511,13 @@ void describe(config::Schema& s, PlanarDistortionConfig& c) {
     s.field("estimate_affine", c.estimate_affine,
             "also estimate each bin's affine terms, less the part that keeps planes planes (a + z "
             "(b + c u + d v)); off: they stay neutral");
+    s.field("scale_gauge_over_data", c.scale_gauge_over_data,
+            "set the model's scale growing with depth (b of a + z (b + c u + d v)) to 0 over the "
+            "cells with data instead of over the whole image");
+    s.field("min_cell_valid", c.min_cell_valid,
+            "a table cell has data when at least this share of its pixels over the frames hold "
+            "depth")
+        .range(0.0, 1.0);
     s.field("frame_step", c.frame_step, "every frame_step-th frame is used").min(1);
     s.field("num_threads", c.num_threads, "worker threads (0 = TBB default)").min(0);
 }
@@ -494,6 +556,9 @@ Status validate(const PlanarDistortionConfig& c) {
     if (!(c.damping >= 0.0 && c.max_split_disagreement >= 0.0)) {
         return bad("damping and max_split_disagreement must not be negative");
     }
+    if (!(c.min_cell_valid >= 0.0 && c.min_cell_valid <= 1.0)) {
+        return bad("min_cell_valid not in [0, 1]");
+    }
     if (c.frame_step < 1) return bad("frame_step must be at least 1");
     if (c.num_threads < 0) return bad("num_threads must not be negative");
     return Status::ok();
@@ -504,7 +569,31 @@ PlanarDistortionEstimator::PlanarDistortionEstimator(const PinholeCamera& camera
     : camera_(camera),
       config_(config),
       columns_(std::max(1, std::min(config.grid_columns, camera.width / 4))),
-      rows_(std::max(1, std::min(config.grid_rows, camera.height / 4))) {}
+      rows_(std::max(1, std::min(config.grid_rows, camera.height / 4))) {
+    constexpr int n = DistortionTable::kCellsPerSide;
+    cell_pixels_.assign(static_cast<size_t>(n) * n, 0);
+    cell_valid_.assign(static_cast<size_t>(n) * n, 0);
+    for (int y = 0; y < camera_.height; ++y) {
+        for (int x = 0; x < camera_.width; ++x) ++cell_pixels_[cellOf(x, y)];
+    }
+}
+
+size_t PlanarDistortionEstimator::cellOf(int x, int y) const {
+    constexpr int n = DistortionTable::kCellsPerSide;
+    const int cx = std::min(n - 1, x * n / std::max(1, camera_.width));
+    const int cy = std::min(n - 1, y * n / std::max(1, camera_.height));
+    return static_cast<size_t>(cy) * n + static_cast<size_t>(cx);
+}
+
+std::vector<bool> PlanarDistortionEstimator::cellsWithData() const {
+    std::vector<bool> data(cell_valid_.size(), false);
+    for (size_t i = 0; i < data.size(); ++i) {
+        const double pixels = static_cast<double>(cell_pixels_[i]) * frames_.size();
+        data[i] = pixels > 0.0 && cell_valid_[i] > 0 &&
+                  static_cast<double>(cell_valid_[i]) >= config_.min_cell_valid * pixels;
+    }
+    return data;
+}
 
 Status PlanarDistortionEstimator::addFrame(const DepthImage& raw) {
     if (raw.width() != camera_.width || raw.height() != camera_.height) {
@@ -527,6 +616,7 @@ Status PlanarDistortionEstimator::addFrame(const DepthImage& raw) {
                 for (int x = x0; x < x1; ++x) {
                     const float z = raw(x, y);
                     if (!(z > 0.0F) || !std::isfinite(z)) continue;
+                    ++cell_valid_[cellOf(x, y)];
                     const int xo = config_.at_block_origin ? x - x % 2 : x;
                     const int yo = config_.at_block_origin ? y - y % 2 : y;
                     p += camera_.unproject(xo, yo, z);
@@ -553,7 +643,19 @@ Status PlanarDistortionEstimator::addFrame(const DepthImage& raw) {
 
 Result<PlanarEstimate> PlanarDistortionEstimator::estimate(const Observer& observer) const {
     Result<PlanarEstimate> all = fit(0, frames_.size(), observer);
-    if (!all.isOk() || config_.max_split_disagreement <= 0.0) return all;
+    if (!all.isOk()) return all;
+    if (Status s = checkHalves(&*all); !s.isOk()) return s;
+    if (config_.scale_gauge_over_data) {
+        const std::vector<bool> data = cellsWithData();
+        all->cells_with_data = static_cast<size_t>(std::count(data.begin(), data.end(), true));
+        all->removed_depth_scale_per_m =
+            removeDepthScaleOverData(binsOf(all->estimated_bins), data, &all->model);
+    }
+    return all;
+}
+
+Status PlanarDistortionEstimator::checkHalves(PlanarEstimate* all) const {
+    if (config_.max_split_disagreement <= 0.0) return Status::ok();
     // The two halves of the scan, fitted apart, must agree: a scan whose planes do not
     // determine the bend (a few views of one corner, curved surfaces seen from one side) gives
     // halves that differ by far more than their noise.
@@ -581,7 +683,7 @@ Result<PlanarEstimate> PlanarDistortionEstimator::estimate(const Observer& obser
             "so that walls and floor cross the whole image",
             100.0 * all->split_disagreement, 100.0 * config_.max_split_disagreement));
     }
-    return all;
+    return Status::ok();
 }
 
 std::vector<std::vector<SegmentPlane>> PlanarDistortionEstimator::framePlanes(
@@ -694,14 +796,7 @@ Result<PlanarEstimate> PlanarDistortionEstimator::fit(size_t begin, size_t end,
             rec.max_change = std::max(rec.max_change, std::abs(step[a]));
         }
         if (config_.estimate_affine) removeDisparityAffine(estimated, &out.model);
-        for (int b = 0; b < kBins; ++b) {
-            if (std::find(estimated.begin(), estimated.end(), b) != estimated.end()) continue;
-            int nearest = estimated.front();
-            for (int e : estimated) {
-                if (std::abs(e - b) < std::abs(nearest - b)) nearest = e;
-            }
-            out.model.c[b] = out.model.c[nearest];
-        }
+        copyToUnestimatedBins(estimated, &out.model);
         out.iterations.push_back(rec);
         if (observer) observer(rec);
         if (rec.max_change < config_.change_tolerance) break;

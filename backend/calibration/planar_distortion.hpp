@@ -47,10 +47,22 @@
 // that gauge at the neutral factor. What is left is a tilt or scale that does not grow in
 // proportion to the depth, and that bends planes spanning depths.
 //
+// The depth-proportional scale (Eq. 3's b). The basis' gauge sets Eq. 3's part of the model to 0
+// over the whole image, but a sensor has no depth in some cells (a border of the image, where its
+// pattern does not reach), and over the cells where it has depth the curved terms still hold an
+// Eq. 3 part. Of it, the tilts (c, d) are observed later, slowly, by the estimate against the
+// reconstruction; the scale that grows with depth (b) is observed by nothing after this stage
+// (the alternation passes it on unchanged), and b alone changes a room's depth by tenths of a
+// per cent per metre. With scale_gauge_over_data, the fit of Eq. 3 to the model's factors over
+// the cells with data (at the estimated bins' centres) gives b, and z b is removed from each
+// estimated bin relative to the nearest one: the factors of the first estimated bin, and with
+// them the global scale, stay as they were.
+//
 // Thread-safety: const members may run concurrently; results never depend on num_threads.
 
 #include <array>
 #include <cstddef>
+#include <cstdint>
 #include <functional>
 #include <vector>
 
@@ -118,6 +130,12 @@ struct PlanarDistortionConfig {
     /// (Eq. 3): with two estimated bins that leaves one tilt along u and one along v, with three
     /// a scale curved in depth and two more tilts. Off: the affine terms stay 0.
     bool estimate_affine = false;
+    /// Sets the model's depth-proportional scale (Eq. 3's b) to 0 over the cells with data (see
+    /// above) instead of over the whole image.
+    bool scale_gauge_over_data = true;
+    /// A table cell has data when at least this share of its pixels, over the frames kept, hold
+    /// depth.
+    double min_cell_valid = 0.1;
     /// Only frames k with k % frame_step == 0 of those added are kept.
     int frame_step = 1;
     /// Worker threads (0 = TBB default). Results do not depend on it.
@@ -163,6 +181,11 @@ struct PlanarEstimate {
     unsigned estimated_bins = 0;
     /// How far the tables of the scan's two halves differ (see max_split_disagreement).
     double split_disagreement = 0.0;
+    /// The depth-proportional scale removed (Eq. 3's b over the cells with data, per metre; 0
+    /// when scale_gauge_over_data is off or one bin was estimated) and the cells it was fitted
+    /// over.
+    double removed_depth_scale_per_m = 0.0;
+    size_t cells_with_data = 0;
 };
 
 /// One planar segment of one frame, in the camera frame of the depth corrected by a model.
@@ -187,8 +210,9 @@ class PlanarDistortionEstimator {
 
     using Observer = std::function<void(const PlanarIteration&)>;
     /// The Gauss-Newton fit of Eq. 2 over the frames kept, starting from the neutral model, and
-    /// the check of its two halves. kFailedPrecondition when no frame holds a planar segment or
-    /// the halves disagree (the message says by how much).
+    /// the check of its two halves, then (scale_gauge_over_data) the depth-proportional scale
+    /// over the cells with data removed. kFailedPrecondition when no frame holds a planar
+    /// segment or the halves disagree (the message says by how much).
     Result<PlanarEstimate> estimate(const Observer& observer = {}) const;
 
     /// The planar segments of every frame kept, its depth corrected by `model`: segments grown
@@ -204,11 +228,22 @@ class PlanarDistortionEstimator {
   private:
     Result<PlanarEstimate> fit(size_t begin, size_t end, const Observer& observer) const;
 
+    /// The fits of the scan's two halves must agree (max_split_disagreement); sets
+    /// all->split_disagreement.
+    Status checkHalves(PlanarEstimate* all) const;
+    /// The table cell (y * 80 + x) of pixel (x, y).
+    size_t cellOf(int x, int y) const;
+    /// The table cells whose share of valid pixels over the frames kept reaches min_cell_valid.
+    std::vector<bool> cellsWithData() const;
+
     PinholeCamera camera_;
     PlanarDistortionConfig config_;
     int columns_, rows_;  ///< the grid
     size_t added_ = 0;
     std::vector<std::vector<Block>> frames_;  ///< grid_rows x grid_columns per frame
+    /// Per table cell (y * 80 + x): pixels of one frame, and valid pixels over the frames kept.
+    std::vector<uint32_t> cell_pixels_;
+    std::vector<uint64_t> cell_valid_;
 };
 
 }  // namespace plumb::calibration

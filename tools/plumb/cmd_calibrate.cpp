@@ -101,6 +101,15 @@ std::function<void(const calibration::PlanarIteration&)> planarPrinter(bool quie
     };
 }
 
+/// The planar stage's depth-proportional scale removed over the cells with data, for its
+/// summary line ("" when the gauge is over the whole image).
+std::string scaleGaugeText(const calibration::PlanarEstimate& e) {
+    if (e.cells_with_data == 0) return "";
+    return fmt::format(
+        "; scale growing with depth over the {} cells with depth {:+.4f} %/m, removed",
+        e.cells_with_data, 100.0 * e.removed_depth_scale_per_m);
+}
+
 /// The planar table covers every cell of the bins its frames reached.
 calibration::DistortionEstimate planarCoverage(const calibration::PlanarEstimate& e) {
     calibration::DistortionEstimate coverage;
@@ -244,9 +253,9 @@ int runPlanarOnly(FrameSource& source, const CalibrateArgs& a,
     if (!a.quiet) {
         std::printf(
             "the bend from the planes of %zu frames (the scan's halves agree within %.3f "
-            "%%); table written to %s\n",
+            "%%%s); table written to %s\n",
             planar->frames_read, 100.0 * planar->estimate.split_disagreement,
-            a.out.string().c_str());
+            scaleGaugeText(planar->estimate).c_str(), a.out.string().c_str());
     }
     if (reference) {
         return printComparison(planar->table, planarCoverage(planar->estimate), *reference,
@@ -303,8 +312,8 @@ Result<std::optional<DistortionTable>> planarStartingTable(
         if (!quiet) {
             std::printf(
                 "the alternation starts from the bend of the frames' planes (the scan's "
-                "halves agree within %.3f %%)\n",
-                100.0 * planar->split_disagreement);
+                "halves agree within %.3f %%%s)\n",
+                100.0 * planar->split_disagreement, scaleGaugeText(*planar).c_str());
         }
         return std::optional<DistortionTable>(planar->model.toTable());
     }

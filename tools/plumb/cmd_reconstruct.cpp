@@ -361,7 +361,9 @@ nlohmann::json planarFigures(const PlanarStage& p) {
     }
     nlohmann::json out = {{"frames", p.estimate.frames},
                           {"iterations", iterations},
-                          {"split_disagreement", p.estimate.split_disagreement}};
+                          {"split_disagreement", p.estimate.split_disagreement},
+                          {"cells_with_data", p.estimate.cells_with_data},
+                          {"removed_depth_scale_per_m", p.estimate.removed_depth_scale_per_m}};
     if (p.right_angles) {
         const calibration::RightAngleEstimate& r = *p.right_angles;
         const calibration::DisparityOffset& d = r.delta;

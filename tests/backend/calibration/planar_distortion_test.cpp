@@ -3,8 +3,9 @@
 // without any pose: on the simulated scanner with a smooth distortion table (the measured Redwood
 // table's degree-4 fit) the learned model matches it to a few hundredths of a per cent beyond the
 // part planarity cannot see (an inverse factor affine over the image); with the measured table
-// itself it removes most of the bend at 3 m; on undistorted depth it stays neutral; results do not
-// depend on the thread count; bad input gets specific errors.
+// itself it removes most of the bend at 3 m and holds no scale growing with depth over the cells
+// where the sensor has depth; on undistorted depth it stays neutral; results do not depend on the
+// thread count; bad input gets specific errors.
 
 #include <gtest/gtest.h>
 
@@ -74,6 +75,17 @@ Result<PlanarEstimate> learn(const std::vector<DepthImage>& depth, const Pinhole
         std::printf("  iteration %d: %zu segments, %zu blocks, residual %.2f sigmas, change %.5f\n",
                     it.iteration + 1, it.segments, it.blocks, it.rms_sigmas, it.max_change);
     });
+}
+
+/// 60 frames over the whole living-room loop (the two halves of a scan of half the loop
+/// disagree) by the simulated sensor with the measured table at `path`; simulated once.
+const std::vector<DepthImage>& measuredLoop(const std::filesystem::path& path,
+                                            PinholeCamera* camera) {
+    static PinholeCamera loop_camera;
+    static const std::vector<DepthImage> depth =
+        testing::simulateLivingRoom("redwood", path.string(), 600, 10, &loop_camera);
+    *camera = loop_camera;
+    return depth;
 }
 
 /// compareTables over every cell of the 1, 3 and 5 m bins.
@@ -201,9 +213,7 @@ TEST(PlanarDistortion, RemovesMostOfTheMeasuredTablesBendAtThreeMetres) {
     auto measured = Table::load(path);
     ASSERT_TRUE(measured.isOk()) << measured.status().toString();
     PinholeCamera camera;
-    // 60 frames over the whole loop (the two halves of a scan of half the loop disagree).
-    const std::vector<DepthImage> depth =
-        testing::simulateLivingRoom("redwood", path.string(), 600, 10, &camera);
+    const std::vector<DepthImage>& depth = measuredLoop(path, &camera);
     auto estimate = learn(depth, camera, PlanarDistortionConfig{});
     ASSERT_TRUE(estimate.isOk()) << estimate.status().toString();
     // The measured table holds cell-to-cell structure no smooth model has (0.26 % at 3 m around
@@ -215,6 +225,81 @@ TEST(PlanarDistortion, RemovesMostOfTheMeasuredTablesBendAtThreeMetres) {
                 100.0 * b.median_uncalibrated_beyond_projective);
     EXPECT_LT(b.median_error_beyond_projective, 0.45 * b.median_uncalibrated_beyond_projective);
     EXPECT_EQ(estimate->estimated_bins & 0b11U, 0b11U);
+}
+
+/// The depth-proportional scale b of the least-squares fit f = a + z (b + c u + d v) of the
+/// table's factors at 1 and 3 m over the cells valid in `mask` (per metre).
+double depthScaleOver(const Table& table, const Table& mask) {
+    const int n = Table::kCellsPerSide;
+    Eigen::Matrix4d ata = Eigen::Matrix4d::Zero();
+    Eigen::Vector4d atb = Eigen::Vector4d::Zero();
+    for (int bin : {0, 1}) {
+        const double z = Table::binCentreM(bin);
+        for (int y = 0; y < n; ++y) {
+            for (int x = 0; x < n; ++x) {
+                if (mask.cell(x, y)[0] <= 0.0F || mask.cell(x, y)[1] <= 0.0F) continue;
+                const double u = (x + 0.5) / (n / 2.0) - 1.0, v = (y + 0.5) / (n / 2.0) - 1.0;
+                const Eigen::Vector4d r(1.0, z, z * u, z * v);
+                ata += r * r.transpose();
+                atb += r * table.cell(x, y)[bin];
+            }
+        }
+    }
+    return ata.ldlt().solve(atb)[1];
+}
+
+TEST(PlanarDistortion, SetsTheScaleGrowingWithDepthToZeroOverTheCellsWithDepth) {
+    PLUMB_REQUIRE_SHARED_DATA(path, "redwood-noise/dist-model.txt");
+    auto measured = Table::load(path);
+    ASSERT_TRUE(measured.isOk()) << measured.status().toString();
+    // The simulated sensor has no depth where the measured table has no factor (a border of
+    // the image): planarity fixes nothing there, and the basis' gauge over the whole image
+    // leaves the model a scale growing with depth over the cells the sensor does see.
+    PinholeCamera camera;
+    const std::vector<DepthImage>& depth = measuredLoop(path, &camera);
+    PlanarDistortionConfig whole_image;
+    whole_image.scale_gauge_over_data = false;
+    auto over_data = learn(depth, camera, PlanarDistortionConfig{});
+    auto over_image = learn(depth, camera, whole_image);
+    ASSERT_TRUE(over_data.isOk()) << over_data.status().toString();
+    ASSERT_TRUE(over_image.isOk()) << over_image.status().toString();
+    const int n = Table::kCellsPerSide;
+    size_t valid = 0;
+    for (int y = 0; y < n; ++y) {
+        for (int x = 0; x < n; ++x) valid += measured->cell(x, y)[0] > 0.0F;
+    }
+    const Table on = over_data->model.toTable(), off = over_image->model.toTable();
+    const double b_on = depthScaleOver(on, *measured), b_off = depthScaleOver(off, *measured);
+    const double b_truth = depthScaleOver(*measured, *measured);
+    std::printf(
+        "%zu cells with depth (%zu valid in the measured table); scale growing with depth over "
+        "them: %+.4f %%/m gauged over them, %+.4f %%/m over the image, %+.4f %%/m in the "
+        "measured table; removed %+.4f %%/m\n",
+        over_data->cells_with_data, valid, 100.0 * b_on, 100.0 * b_off, 100.0 * b_truth,
+        100.0 * over_data->removed_depth_scale_per_m);
+    EXPECT_NEAR(static_cast<double>(over_data->cells_with_data), static_cast<double>(valid),
+                0.01 * valid);
+    EXPECT_LT(over_data->cells_with_data, static_cast<size_t>(n * n));
+    EXPECT_EQ(over_image->cells_with_data, 0U);
+    EXPECT_GT(std::abs(b_off), 3e-4);  // the bias is there without the gauge
+    EXPECT_LT(std::abs(b_on), 2e-5);
+    EXPECT_NEAR(over_data->removed_depth_scale_per_m, b_off, 2e-5);
+    // Only the scale growing with depth changes: the 1 m bin is untouched (and with it the
+    // global scale), the 3 m bin moves by the same 2 b in every cell.
+    double max_near = 0.0, max_far = 0.0;
+    const double two_b = 2.0 * over_data->removed_depth_scale_per_m;
+    for (int y = 0; y < n; ++y) {
+        for (int x = 0; x < n; ++x) {
+            const double near = on.cell(x, y)[0] - off.cell(x, y)[0];
+            const double far = on.cell(x, y)[1] - off.cell(x, y)[1] + two_b;
+            max_near = std::max(max_near, std::abs(near));
+            max_far = std::max(max_far, std::abs(far));
+        }
+    }
+    EXPECT_LT(max_near, 1e-6);
+    EXPECT_LT(max_far, 1e-6);
+    // On this sensor the gauge over the cells with depth is also the nearer to the truth.
+    EXPECT_LT(std::abs(b_on - b_truth), std::abs(b_off - b_truth));
 }
 
 TEST(PlanarDistortion, StaysNeutralOnUndistortedDepth) {
