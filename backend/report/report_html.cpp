@@ -245,6 +245,19 @@ std::string selfCalibrationSection(const nlohmann::json& metrics) {
         << (sc.value("converged", false) ? "converged" : "stopped at the iteration limit")
         << "); this reconstruction used it. Cells covered (of 6400) per depth bin 1/3/5/7/9 m:";
     for (const auto& c : sc.value("covered_cells", nlohmann::json::array())) out << " " << c;
+    out << ".";
+    // What the scan cannot observe is fixed, not learned: say how.
+    out << " The global scale is fixed by the mean factor of the "
+        << fmt::format("{:g}", sc.value("gauge_bin_m", 1.0)) << " m bin being 1";
+    const nlohmann::json planar = sc.value("planar", nlohmann::json::object());
+    if (planar.value("cells_with_data", 0) > 0) {
+        out << fmt::format(
+            "; the scale growing with depth, which neither the planes nor the views observe, was "
+            "set to 0 over the {} cells where the sensor has depth (the bend from the planes held "
+            "{:+.3f} % a metre there)",
+            planar.value("cells_with_data", 0),
+            100.0 * planar.value("removed_depth_scale_per_m", 0.0));
+    }
     out << ".</p>\n";
     const nlohmann::json before = sc.value("before", nlohmann::json::object());
     const nlohmann::json& variants = metrics.value("variants", nlohmann::json::object());
