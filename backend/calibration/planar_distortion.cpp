@@ -571,18 +571,19 @@ PlanarDistortionEstimator::PlanarDistortionEstimator(const PinholeCamera& camera
       columns_(std::max(1, std::min(config.grid_columns, camera.width / 4))),
       rows_(std::max(1, std::min(config.grid_rows, camera.height / 4))) {
     constexpr int n = DistortionTable::kCellsPerSide;
+    cell_column_.resize(static_cast<size_t>(std::max(0, camera_.width)));
+    cell_row_start_.resize(static_cast<size_t>(std::max(0, camera_.height)));
+    for (size_t x = 0; x < cell_column_.size(); ++x) {
+        cell_column_[x] = std::min<size_t>(n - 1, x * n / cell_column_.size());
+    }
+    for (size_t y = 0; y < cell_row_start_.size(); ++y) {
+        cell_row_start_[y] = std::min<size_t>(n - 1, y * n / cell_row_start_.size()) * n;
+    }
     cell_pixels_.assign(static_cast<size_t>(n) * n, 0);
     cell_valid_.assign(static_cast<size_t>(n) * n, 0);
     for (int y = 0; y < camera_.height; ++y) {
         for (int x = 0; x < camera_.width; ++x) ++cell_pixels_[cellOf(x, y)];
     }
-}
-
-size_t PlanarDistortionEstimator::cellOf(int x, int y) const {
-    constexpr int n = DistortionTable::kCellsPerSide;
-    const int cx = std::min(n - 1, x * n / std::max(1, camera_.width));
-    const int cy = std::min(n - 1, y * n / std::max(1, camera_.height));
-    return static_cast<size_t>(cy) * n + static_cast<size_t>(cx);
 }
 
 std::vector<bool> PlanarDistortionEstimator::cellsWithData() const {

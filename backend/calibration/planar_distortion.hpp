@@ -54,9 +54,9 @@
 // reconstruction; the scale that grows with depth (b) is observed by nothing after this stage
 // (the alternation passes it on unchanged), and b alone changes a room's depth by tenths of a
 // per cent per metre. With scale_gauge_over_data, the fit of Eq. 3 to the model's factors over
-// the cells with data (at the estimated bins' centres) gives b, and z b is removed from each
-// estimated bin relative to the nearest one: the factors of the first estimated bin, and with
-// them the global scale, stay as they were.
+// the cells with data (at the estimated bins' centres z) gives b, and (z - z_0) b is removed
+// from each estimated bin, z_0 the centre of the nearest estimated bin: that bin's factors, and
+// with them the global scale, stay as they were.
 //
 // Thread-safety: const members may run concurrently; results never depend on num_threads.
 
@@ -232,7 +232,9 @@ class PlanarDistortionEstimator {
     /// all->split_disagreement.
     Status checkHalves(PlanarEstimate* all) const;
     /// The table cell (y * 80 + x) of pixel (x, y).
-    size_t cellOf(int x, int y) const;
+    size_t cellOf(int x, int y) const {
+        return cell_row_start_[static_cast<size_t>(y)] + cell_column_[static_cast<size_t>(x)];
+    }
     /// The table cells whose share of valid pixels over the frames kept reaches min_cell_valid.
     std::vector<bool> cellsWithData() const;
 
@@ -241,6 +243,8 @@ class PlanarDistortionEstimator {
     int columns_, rows_;  ///< the grid
     size_t added_ = 0;
     std::vector<std::vector<Block>> frames_;  ///< grid_rows x grid_columns per frame
+    /// Per pixel column its table cell's column, per pixel row its cell row's first cell.
+    std::vector<size_t> cell_column_, cell_row_start_;
     /// Per table cell (y * 80 + x): pixels of one frame, and valid pixels over the frames kept.
     std::vector<uint32_t> cell_pixels_;
     std::vector<uint64_t> cell_valid_;

@@ -407,6 +407,12 @@ Result<PlanarStage> planarStage(const ScanCache& scan, const SelfCalibrateConfig
                 it.iteration + 1, it.segments, it.blocks, it.rms_sigmas, it.max_change);
         });
     if (!planar.isOk()) return prefixed(planar.status(), "self-calibration, planes");
+    if (planar->estimate.cells_with_data > 0) {
+        log::info(
+            "self-calibration, planes: the scale growing with depth over the {} cells with depth "
+            "was {:+.4f} %/m; removed (no later stage observes it)",
+            planar->estimate.cells_with_data, 100.0 * planar->estimate.removed_depth_scale_per_m);
+    }
     if (undistort != "none") {
         Result<DistortionTable> first = DistortionTable::load(undistort);
         if (!first.isOk()) return first.status();

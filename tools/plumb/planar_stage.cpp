@@ -54,12 +54,6 @@ Result<PlanarStage> learnPlanarTable(
     if (!estimate.isOk()) return estimate.status();
     out.estimate = std::move(*estimate);
     out.table = out.estimate.model.toTable();
-    if (config.scale_gauge_over_data) {
-        log::info(
-            "self-calibration, planes: the scale growing with depth over the {} cells with depth "
-            "was {:+.4f} %/m; removed (no later stage observes it)",
-            out.estimate.cells_with_data, 100.0 * out.estimate.removed_depth_scale_per_m);
-    }
     if (right_angles.enabled)
         removeRightAngleOffset(estimator, right_angles, source.camera(), &out);
     return out;
