@@ -137,37 +137,50 @@ Table tiltedNear(const Table& table, double tilt) {
     return Table::fromCells(std::move(cells));
 }
 
+/// The row (1, z, z u, z v) of a + z (b + c u + d v) at cell (x, y) of bin `bin`.
+Eigen::Vector4d disparityAffineRow(int x, int y, int bin) {
+    const int n = Table::kCellsPerSide;
+    const double u = (x + 0.5) / (n / 2.0) - 1.0, v = (y + 0.5) / (n / 2.0) - 1.0;
+    const double z = Table::binCentreM(bin);
+    return Eigen::Vector4d(1.0, z, z * u, z * v);
+}
+
+/// The least-squares (a, b, c, d) of a + z (b + c u + d v) through value(x, y, bin) over the
+/// 1 and 3 m bins, at the cells where `mask` has a factor in that bin.
+template <class Value>
+Eigen::Vector4d fitDisparityAffine(const Table& mask, const Value& value) {
+    const int n = Table::kCellsPerSide;
+    Eigen::Matrix4d ata = Eigen::Matrix4d::Zero();
+    Eigen::Vector4d atb = Eigen::Vector4d::Zero();
+    for (int bin : {0, 1}) {
+        for (int y = 0; y < n; ++y) {
+            for (int x = 0; x < n; ++x) {
+                if (mask.cell(x, y)[bin] <= 0.0F) continue;
+                const Eigen::Vector4d r = disparityAffineRow(x, y, bin);
+                ata += r * r.transpose();
+                atb += r * value(x, y, bin);
+            }
+        }
+    }
+    return ata.ldlt().solve(atb);
+}
+
 /// Per bin (1 and 3 m) the median over the image of |learned / truth - g|, g the least-squares
 /// fit of a + z (b + c u + d v) to that ratio over both bins: the error beyond the part that
 /// keeps planes planes.
 std::array<double, 2> errorBeyondPlanePreserving(const Table& learned, const Table& truth) {
     const int n = Table::kCellsPerSide;
-    Eigen::Matrix4d ata = Eigen::Matrix4d::Zero();
-    Eigen::Vector4d atb = Eigen::Vector4d::Zero();
-    auto row = [&](int x, int y, int bin) {
-        const double u = (x + 0.5) / (n / 2.0) - 1.0, v = (y + 0.5) / (n / 2.0) - 1.0;
-        const double z = Table::binCentreM(bin);
-        return Eigen::Vector4d(1.0, z, z * u, z * v);
+    auto ratio = [&](int x, int y, int bin) {
+        return learned.cell(x, y)[bin] / truth.cell(x, y)[bin];
     };
-    for (int bin : {0, 1}) {
-        for (int y = 0; y < n; ++y) {
-            for (int x = 0; x < n; ++x) {
-                if (truth.cell(x, y)[bin] <= 0.0F) continue;
-                const Eigen::Vector4d r = row(x, y, bin);
-                ata += r * r.transpose();
-                atb += r * (learned.cell(x, y)[bin] / truth.cell(x, y)[bin]);
-            }
-        }
-    }
-    const Eigen::Vector4d g = ata.ldlt().solve(atb);
+    const Eigen::Vector4d g = fitDisparityAffine(truth, ratio);
     std::array<double, 2> out{};
     for (int bin : {0, 1}) {
         std::vector<double> e;
         for (int y = 0; y < n; ++y) {
             for (int x = 0; x < n; ++x) {
                 if (truth.cell(x, y)[bin] <= 0.0F) continue;
-                e.push_back(std::abs(learned.cell(x, y)[bin] / truth.cell(x, y)[bin] -
-                                     row(x, y, bin).dot(g)));
+                e.push_back(std::abs(ratio(x, y, bin) - disparityAffineRow(x, y, bin).dot(g)));
             }
         }
         std::nth_element(e.begin(), e.begin() + static_cast<long>(e.size() / 2), e.end());
@@ -230,22 +243,8 @@ TEST(PlanarDistortion, RemovesMostOfTheMeasuredTablesBendAtThreeMetres) {
 /// The depth-proportional scale b of the least-squares fit f = a + z (b + c u + d v) of the
 /// table's factors at 1 and 3 m over the cells valid in `mask` (per metre).
 double depthScaleOver(const Table& table, const Table& mask) {
-    const int n = Table::kCellsPerSide;
-    Eigen::Matrix4d ata = Eigen::Matrix4d::Zero();
-    Eigen::Vector4d atb = Eigen::Vector4d::Zero();
-    for (int bin : {0, 1}) {
-        const double z = Table::binCentreM(bin);
-        for (int y = 0; y < n; ++y) {
-            for (int x = 0; x < n; ++x) {
-                if (mask.cell(x, y)[0] <= 0.0F || mask.cell(x, y)[1] <= 0.0F) continue;
-                const double u = (x + 0.5) / (n / 2.0) - 1.0, v = (y + 0.5) / (n / 2.0) - 1.0;
-                const Eigen::Vector4d r(1.0, z, z * u, z * v);
-                ata += r * r.transpose();
-                atb += r * table.cell(x, y)[bin];
-            }
-        }
-    }
-    return ata.ldlt().solve(atb)[1];
+    return fitDisparityAffine(mask,
+                              [&](int x, int y, int bin) { return table.cell(x, y)[bin]; })[1];
 }
 
 TEST(PlanarDistortion, SetsTheScaleGrowingWithDepthToZeroOverTheCellsWithDepth) {
