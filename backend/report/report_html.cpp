@@ -242,8 +242,15 @@ std::string selfCalibrationSection(const nlohmann::json& metrics) {
                 ? ", from the raw depth"
                 : ", with the bend learned from each frame's planes")
         << ") in " << sc.value("iterations", nlohmann::json::array()).size() << " iterations ("
-        << (sc.value("converged", false) ? "converged" : "stopped at the iteration limit")
-        << "); this reconstruction used it. Cells covered (of 6400) per depth bin 1/3/5/7/9 m:";
+        << (sc.value("converged", false) ? "converged" : "stopped at the iteration limit") << ")";
+    const int rounds = sc.value("rounds", 1);
+    if (rounds > 1) {
+        out << ", refined in " << rounds
+            << " rounds: each round after the first estimated it again, from the last round's "
+               "table, at the poses of a reconstruction made with that table (the iterations are "
+               "the last round's)";
+    }
+    out << "; this reconstruction used it. Cells covered (of 6400) per depth bin 1/3/5/7/9 m:";
     for (const auto& c : sc.value("covered_cells", nlohmann::json::array())) out << " " << c;
     out << ".";
     // What the scan cannot observe is fixed, not learned: say how.
@@ -271,6 +278,13 @@ std::string selfCalibrationSection(const nlohmann::json& metrics) {
         row(sc.value("first_table", std::string("none")) == "none" ? "raw depth"
                                                                    : "bend from the planes",
             before.value("ate_rmse_m", 0.0), before.value("recon_mean_m", 0.0));
+        for (const nlohmann::json& r : sc.value("round_results", nlohmann::json::array())) {
+            const int round = r.value("round", 0);
+            const nlohmann::json f = r.value("reconstruction_figures", nlohmann::json::object());
+            if (round < 2 || !f.contains("ate_rmse_m")) continue;
+            const std::string name = fmt::format("round {}: round {}'s table", round, round - 1);
+            row(name.c_str(), f.value("ate_rmse_m", 0.0), f.value("recon_mean_m", 0.0));
+        }
         const nlohmann::json& m = *main;
         row("self-calibrated", m.contains("ate") ? m["ate"].value("rmse_m", 0.0) : 0.0,
             m.contains("recon") ? m["recon"].value("mean_m", 0.0) : 0.0);

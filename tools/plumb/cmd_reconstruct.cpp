@@ -72,6 +72,14 @@ struct SelfCalibrateConfig {
     /// The first reconstruction's final mesh integrates every k-th raw frame only: the estimate
     /// uses its poses, and its mesh gives the "before" figure alone.
     int first_model_frame_stride = 4;
+    /// Rounds of reconstruction and refinement before the final reconstruction. Round 1
+    /// reconstructs with the planar table (self_calibration/first) and refines the table at its
+    /// poses; each further round reconstructs with the last round's table (into
+    /// self_calibration/roundK, like the first: no baseline, the coarser mesh) and refines the
+    /// table at those poses, starting from it. A learned table tracks better than the planar
+    /// one, and the table refined at better poses learns less of their error. Each round costs
+    /// about one reconstruction and a shorter estimate more (BENCHMARKS.md, "a second round").
+    int rounds = 1;
     /// The estimator and its alternation (as `plumb calibrate`).
     calibration::SelfCalibrationConfig estimate;
 };
@@ -96,6 +104,11 @@ void describe(config::Schema& s, SelfCalibrateConfig& c) {
             "the first reconstruction's final mesh integrates every k-th raw frame (its poses "
             "are what the estimate uses)")
         .min(1);
+    s.field("rounds", c.rounds,
+            "rounds of reconstruction and refinement: each round after the first reconstructs "
+            "with the last round's table (into self_calibration/roundK) and refines the table at "
+            "those poses; each costs about one reconstruction and a shorter estimate more")
+        .range(1, 4);
     s.section("estimate", c.estimate, "the table estimate and its alternation (reference §7c)");
 }
 
@@ -108,7 +121,7 @@ struct ReconstructConfig {
     /// re-integrates them without reading (decoding, rendering) them again: about 2.4 MB a
     /// 640x480 frame with colour, 4096 MB holds a 1700-frame scan. A longer scan is read again;
     /// 0 always reads again. The result is the same either way. `--self-calibrate` keeps the raw
-    /// frames within the same budget for its five passes (tools/plumb/scan_cache.hpp).
+    /// frames within the same budget for all its passes (tools/plumb/scan_cache.hpp).
     int keep_frames_mb = 4096;
 };
 
@@ -426,10 +439,10 @@ Result<PlanarStage> planarStage(const ScanCache& scan, const SelfCalibrateConfig
 
 /// The refinement of `--self-calibrate`: the table estimated at the poses of the
 /// reconstruction in `recon_dir` (reference §7c), starting from `initial` (null: the neutral
-/// table), written to `refined_path`, then the bend left in the frames it undistorts learned
-/// from the planes (self_calibration.planar) and composed with it; the resulting table (the
-/// product, or the refined table when the planes do not determine the bend) is written to
-/// `table_path`.
+/// table; `initial_name` names it in the log), written to `refined_path`, then the bend left in
+/// the frames it undistorts learned from the planes (self_calibration.planar) and composed with
+/// it; the resulting table (the product, or the refined table when the planes do not determine
+/// the bend) is written to `table_path`.
 struct Refinement {
     calibration::SelfCalibrationResult learned;
     nlohmann::json iterations = nlohmann::json::array();
@@ -444,7 +457,8 @@ Result<Refinement> refineAtPoses(const ScanCache& scan, const SelfCalibrateConfi
                                  const std::filesystem::path& recon_dir,
                                  const std::filesystem::path& refined_path,
                                  const std::filesystem::path& table_path,
-                                 const std::string& step_refine, const std::string& step_planar) {
+                                 const std::string& step_refine, const std::string& step_planar,
+                                 const std::string& initial_name) {
     Refinement out;
     Result<PoseLookup> poses = PoseLookup::read(recon_dir / "trajectory.txt");
     if (!poses.isOk()) return poses.status();
@@ -463,9 +477,9 @@ Result<Refinement> refineAtPoses(const ScanCache& scan, const SelfCalibrateConfi
     out.frames = depth.size();
     log::info(
         "self-calibration {}: estimating the depth distortion table from {} frames (frame step "
-        "{}) at the poses of {}, starting from the {} table",
+        "{}) at the poses of {}, starting from {}",
         step_refine, depth.size(), out.frame_step, recon_dir.string(),
-        initial != nullptr ? "planar" : "neutral");
+        initial != nullptr ? initial_name : "the neutral table");
     auto observe = [&](const calibration::CalibrationIteration& it) {
         const calibration::DistortionEstimate& e = it.estimate;
         log::info(
@@ -527,12 +541,15 @@ Result<backend::PipelineResult> selfCalibratedRun(FrameSource& raw_source, const
     const SelfCalibrateConfig& sc = cfg.self_calibration;
     const std::filesystem::path folder = o.out / "self_calibration";
     int step = 0;
-    auto next = [&step] { return fmt::format("{}/5", ++step); };
+    // The passes: the planes, three per round (reconstruction, estimate, planes again), the
+    // final reconstruction.
+    const int passes = 2 + 3 * sc.rounds;
+    auto next = [&step, passes] { return fmt::format("{}/{}", ++step, passes); };
     SourceOptions raw_options = o.source_options;
     raw_options.depth_calibration = "none";
     // Every pass below reads the scan: the raw frames are read once and replayed to each.
-    log::info("self-calibration: reading the scan once for its five passes (at most {} MB kept)",
-              cfg.keep_frames_mb);
+    log::info("self-calibration: reading the scan once for its {} passes (at most {} MB kept)",
+              passes, cfg.keep_frames_mb);
     Result<ScanCache> scan = ScanCache::read(raw_source, uri, raw_options,
                                              static_cast<size_t>(cfg.keep_frames_mb) * 1000000,
                                              InterruptScope::requested);
@@ -581,21 +598,73 @@ Result<backend::PipelineResult> selfCalibratedRun(FrameSource& raw_source, const
     first.compare_baseline = false;
     first.final_model.frame_stride =
         std::max(first.final_model.frame_stride, sc.first_model_frame_stride);
-    log::info("self-calibration {}: reconstructing from the {} depth into {}", next(),
-              planar ? "planar-corrected" : "raw", (folder / "first").string());
-    Result<backend::PipelineResult> before =
-        reconstructOnce(*first_source, uri, first_options, cfg, first, base, folder / "first", o);
-    if (!before.isOk()) return prefixed(before.status(), "self-calibration, first reconstruction");
-    const double first_seconds = seconds();
-
     const std::filesystem::path table_path = o.out / "depth_calibration.txt";
-    const std::string refine_step = next();
-    const DistortionTable* refine_start = sc.warm_start && planar ? &planar->table : nullptr;
-    Result<Refinement> refined =
-        refineAtPoses(*scan, sc, base.camera, refine_start, folder / "first",
-                      folder / "refined_table.txt", table_path, refine_step, next());
-    if (!refined.isOk()) return refined.status();
+    // Round r reconstructs with `recon_options`' table into its folder, refines the table at
+    // those poses from `refine_from` and learns the bend left from the planes; the last round's
+    // table is the result.
+    SourceOptions recon_options = first_options;
+    std::unique_ptr<FrameSource> recon_source = std::move(first_source);
+    std::optional<DistortionTable> last_table;
+    const DistortionTable* refine_from = sc.warm_start && planar ? &planar->table : nullptr;
+    std::optional<backend::PipelineResult> before;
+    double first_seconds = 0.0;
+    std::optional<Refinement> refined;
+    nlohmann::json rounds = nlohmann::json::array();
+    for (int round = 1; round <= sc.rounds; ++round) {
+        const bool last_round = round == sc.rounds;
+        const std::string name = round == 1 ? "first" : fmt::format("round{}", round);
+        const std::filesystem::path recon_dir = folder / name;
+        if (!recon_source) {
+            opened = scan->open(recon_options.depth_calibration);
+            if (!opened.isOk()) return opened.status();
+            recon_source = std::move(*opened);
+        }
+        log::info("self-calibration {}: reconstructing {} into {}", next(),
+                  round == 1 ? (planar ? "from the planar-corrected depth" : "from the raw depth")
+                             : fmt::format("with round {}'s table", round - 1),
+                  recon_dir.string());
+        Result<backend::PipelineResult> recon =
+            reconstructOnce(*recon_source, uri, recon_options, cfg, first, base, recon_dir, o);
+        recon_source.reset();
+        if (!recon.isOk())
+            return prefixed(recon.status(),
+                            round == 1 ? std::string("self-calibration, first reconstruction")
+                                       : fmt::format("self-calibration, round {}", round));
+        const nlohmann::json figures = mainFigures(*recon);
+        if (round == 1) {
+            before = std::move(*recon);
+            first_seconds = seconds();
+        }
+        const std::string prefix = round == 1 ? "" : fmt::format("round{}_", round);
+        const std::filesystem::path refined_path = folder / (prefix + "refined_table.txt");
+        const std::filesystem::path round_table =
+            last_round ? table_path : folder / fmt::format("round{}_table.txt", round);
+        const std::string refine_step = next();
+        const std::string planar_step = next();
+        Result<Refinement> r = refineAtPoses(
+            *scan, sc, base.camera, refine_from, recon_dir, refined_path, round_table, refine_step,
+            planar_step,
+            round == 1 ? "the planar table" : fmt::format("round {}'s table", round - 1));
+        if (!r.isOk()) return r.status();
+        refined = std::move(*r);
+        Result<DistortionTable> learned = DistortionTable::load(round_table.string());
+        if (!learned.isOk()) return learned.status();
+        last_table = std::move(*learned);
+        refine_from = &*last_table;
+        recon_options.depth_calibration = round_table.string();
+        auto relative = [&o](const std::filesystem::path& p) {
+            return p.lexically_relative(o.out).generic_string();
+        };
+        rounds.push_back({{"round", round},
+                          {"reconstruction", relative(recon_dir)},
+                          {"reconstruction_figures", figures},
+                          {"iterations", refined->iterations.size()},
+                          {"converged", refined->learned.converged},
+                          {"refined_table", relative(refined_path)},
+                          {"table", relative(round_table)}});
+    }
     const calibration::DistortionEstimate& last = refined->learned.iterations.back().estimate;
+    const std::string last_prefix = sc.rounds == 1 ? "" : fmt::format("round{}_", sc.rounds);
 
     log::info("self-calibration {}: reconstructing with the learned table", next());
     backend::PipelineInput input = base;
@@ -605,8 +674,10 @@ Result<backend::PipelineResult> selfCalibratedRun(FrameSource& raw_source, const
         {"frames", refined->frames},
         {"frame_step", refined->frame_step},
         {"refine_poses", sc.refine_poses},
-        {"warm_start", refine_start != nullptr},
+        {"warm_start", sc.warm_start && planar},
         {"frames_not_aligned", refined->unaligned},
+        {"rounds", sc.rounds},
+        {"round_results", rounds},
         {"iterations", refined->iterations},
         {"converged", refined->learned.converged},
         {"covered_cells", last.covered_cells},
@@ -614,7 +685,7 @@ Result<backend::PipelineResult> selfCalibratedRun(FrameSource& raw_source, const
         {"gauge_scale", last.gauge_scale},
         {"first_table", planar ? "self_calibration/planar_table.txt" : "none"},
         {"planar", planar ? planarFigures(*planar) : nlohmann::json(nullptr)},
-        {"refined_table", "self_calibration/refined_table.txt"},
+        {"refined_table", "self_calibration/" + last_prefix + "refined_table.txt"},
         {"final_planar",
          refined->planar ? planarFigures(*refined->planar) : nlohmann::json(nullptr)},
         {"first_reconstruction", "self_calibration/first"},
@@ -820,6 +891,21 @@ int runReconstruct(const std::vector<std::string>& arguments) {
                                      100.0 * before.value("recon_mean_m", 0.0));
         }
         std::cout << " (" << (o.out / "self_calibration" / "first").string() << ")\n";
+        for (const nlohmann::json& r : sc.value("round_results", nlohmann::json::array())) {
+            const int round = r.value("round", 0);
+            if (round < 2) continue;
+            const nlohmann::json f = r.value("reconstruction_figures", nlohmann::json::object());
+            std::cout << fmt::format(
+                "self-calibration: round {} reconstructed with round {}'s table", round, round - 1);
+            if (f.contains("ate_rmse_m"))
+                std::cout << fmt::format(": ATE RMSE {:.2f} cm",
+                                         100.0 * f.value("ate_rmse_m", 0.0));
+            if (f.contains("recon_mean_m"))
+                std::cout << fmt::format(", recon error mean {:.2f} cm",
+                                         100.0 * f.value("recon_mean_m", 0.0));
+            std::cout << " (" << (o.out / r.value("reconstruction", std::string())).string()
+                      << ")\n";
+        }
     }
     std::cout << backend::summarize(*result);
     std::cout << "output: " << std::filesystem::absolute(o.out).string()
