@@ -185,6 +185,7 @@ TEST(PlumbReconstructCli, ASecondRoundRefinesTheTableAtThePosesOfAReconstruction
         EXPECT_TRUE(fs::exists(out / r.at("reconstruction").get<std::string>() / "trajectory.txt"));
         EXPECT_TRUE(DistortionTable::load(out / r.at("table").get<std::string>()).isOk());
         EXPECT_GE(r.at("iterations").get<int>(), 1);
+        EXPECT_GT(r.at("seconds").get<double>(), 0.0);
     }
     // The second round's reconstruction, made with the first round's table, is far better than
     // the first, made with the bend from the planes alone: its poses are what round 2 refines at.
