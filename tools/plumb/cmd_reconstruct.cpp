@@ -614,7 +614,11 @@ Result<backend::PipelineResult> selfCalibratedRun(FrameSource& raw_source, const
     std::optional<backend::PipelineResult> before;
     double first_seconds = 0.0;
     std::optional<Refinement> refined;
+    std::filesystem::path refined_path;  // the last round's refined table
     nlohmann::json rounds = nlohmann::json::array();
+    auto relative = [&o](const std::filesystem::path& p) {
+        return p.lexically_relative(o.out).generic_string();
+    };
     for (int round = 1; round <= sc.rounds; ++round) {
         const bool last_round = round == sc.rounds;
         const std::string name = round == 1 ? "first" : fmt::format("round{}", round);
@@ -642,7 +646,7 @@ Result<backend::PipelineResult> selfCalibratedRun(FrameSource& raw_source, const
             first_seconds = seconds();
         }
         const std::string prefix = round == 1 ? "" : fmt::format("round{}_", round);
-        const std::filesystem::path refined_path = folder / (prefix + "refined_table.txt");
+        refined_path = folder / (prefix + "refined_table.txt");
         const std::filesystem::path round_table =
             last_round ? table_path : folder / fmt::format("round{}_table.txt", round);
         const std::string refine_step = next();
@@ -658,9 +662,6 @@ Result<backend::PipelineResult> selfCalibratedRun(FrameSource& raw_source, const
         last_table = std::move(*learned);
         refine_from = &*last_table;
         recon_options.depth_calibration = round_table.string();
-        auto relative = [&o](const std::filesystem::path& p) {
-            return p.lexically_relative(o.out).generic_string();
-        };
         rounds.push_back({{"round", round},
                           {"reconstruction", relative(recon_dir)},
                           {"reconstruction_figures", figures},
@@ -671,7 +672,6 @@ Result<backend::PipelineResult> selfCalibratedRun(FrameSource& raw_source, const
                           {"seconds", seconds() - round_start}});
     }
     const calibration::DistortionEstimate& last = refined->learned.iterations.back().estimate;
-    const std::string last_prefix = sc.rounds == 1 ? "" : fmt::format("round{}_", sc.rounds);
 
     log::info("self-calibration {}: reconstructing with the learned table", next());
     backend::PipelineInput input = base;
@@ -692,7 +692,7 @@ Result<backend::PipelineResult> selfCalibratedRun(FrameSource& raw_source, const
         {"gauge_scale", last.gauge_scale},
         {"first_table", planar ? "self_calibration/planar_table.txt" : "none"},
         {"planar", planar ? planarFigures(*planar) : nlohmann::json(nullptr)},
-        {"refined_table", "self_calibration/" + last_prefix + "refined_table.txt"},
+        {"refined_table", relative(refined_path)},
         {"final_planar",
          refined->planar ? planarFigures(*refined->planar) : nlohmann::json(nullptr)},
         {"first_reconstruction", "self_calibration/first"},
