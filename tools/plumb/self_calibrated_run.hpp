@@ -27,29 +27,25 @@
 
 namespace plumb::tools {
 
-/// `--self-calibrate`: how the depth distortion table is learned from the scan.
+/// `--self-calibrate`: how the depth distortion table is learned from the scan. The defaults
+/// are measured in BENCHMARKS.md's "Self-calibration" sections.
 struct SelfCalibrateConfig {
     /// First learn the bend of the depth from each frame's planes, without poses
     /// (estimate.planar), and make the first reconstruction with that table; off: the first
-    /// reconstruction is from the raw depth. On 600-frame simulated scans the planar table
-    /// alone takes the raw depth's ATE from 13.8 to 3.2 cm (BENCHMARKS.md).
+    /// reconstruction is from the raw depth, and the scan's planes are not required to
+    /// determine the bend.
     bool planar = true;
     /// Every frame_step-th frame of the scan is compared with the model (each frame is held in
-    /// memory twice, with up to 8 bytes per compared pixel). Every frame: on 600-frame
-    /// simulated scans of three rooms, every second frame gave 15-51 % more ATE (BENCHMARKS.md).
+    /// memory twice, with up to 8 bytes per compared pixel).
     int frame_step = 1;
     /// ... but at most this many frames: a longer scan is compared at the smallest larger step
     /// that keeps it within (about 5 MB a 640x480 frame, 4.4 GB for 900; 0 = no limit).
     int max_frames = 900;
     /// Re-align every compared frame to each iteration's model by frame-to-model ICP before
-    /// comparing it. Off: on a 600-frame living_room scan it made the learned table no better
-    /// (median error at 3 m 0.66 % against 0.60 % with the reconstruction's poses) at 5x the
-    /// time of the estimate (BENCHMARKS.md).
+    /// comparing it (about 5x the time of the estimate); off: the reconstruction's poses.
     bool refine_poses = false;
     /// The alternation starts from the table the first reconstruction was made with (the
-    /// planar stage's, when it determined one) instead of the neutral table. On nine 600-frame
-    /// simulated loops it then stops after 4 iterations instead of 5-8, with less ATE on eight
-    /// of them (BENCHMARKS.md, "Self-calibration from the planar table").
+    /// planar stage's, when it determined one) instead of the neutral table.
     bool warm_start = true;
     /// The first reconstruction's final mesh integrates every k-th raw frame only: the estimate
     /// uses its poses, and its mesh gives the "before" figure alone.
@@ -59,10 +55,8 @@ struct SelfCalibrateConfig {
     /// poses; each further round reconstructs with the last round's table (into
     /// self_calibration/roundK, like the first: no baseline, the coarser mesh) and refines the
     /// table at those poses, starting from it. A learned table tracks better than the planar
-    /// one, and the table refined at better poses learns less of their error: on nine 600-frame
-    /// simulated loops two rounds gave 14 % less ATE and 8 % less reconstruction error than
-    /// one, at 3.96x a plain run's time against 2.89x; a third helped only the L-shaped room
-    /// (BENCHMARKS.md, "Self-calibration in two rounds").
+    /// one, and the table refined at better poses learns less of their error; each round costs
+    /// about one reconstruction and an estimate more.
     int rounds = 1;
     /// The estimator and its alternation (as `plumb calibrate`).
     calibration::SelfCalibrationConfig estimate;
