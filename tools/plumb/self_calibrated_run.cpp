@@ -245,10 +245,9 @@ Result<ScanCache> readScan(FrameSource& raw_source, const SelfCalibratedRunInput
     return scan;
 }
 
-/// What the rounds leave: the first reconstruction (the "before" figures), the last round's
-/// refinement and refined table, and a record of every round for metrics.json.
+/// What the rounds leave: the last round's refinement and refined table, and a record of every
+/// round for metrics.json (the first's reconstruction figures are the "before" ones).
 struct Rounds {
-    std::optional<backend::PipelineResult> before;
     double first_seconds = 0.0;  ///< from the start of the run to the first reconstruction's end
     std::optional<Refinement> refined;
     std::filesystem::path refined_path;
@@ -303,10 +302,7 @@ Result<Rounds> runRounds(const ScanCache& scan, const SelfCalibrateConfig& sc,
                             round == 1 ? std::string("self-calibration, first reconstruction")
                                        : fmt::format("self-calibration, round {}", round));
         const nlohmann::json figures = mainFigures(*recon);
-        if (round == 1) {
-            out.before = std::move(*recon);
-            out.first_seconds = seconds();
-        }
+        if (round == 1) out.first_seconds = seconds();
         const std::string prefix = round == 1 ? "" : fmt::format("round{}_", round);
         out.refined_path = folder / (prefix + "refined_table.txt");
         const std::filesystem::path round_table =
@@ -363,7 +359,7 @@ nlohmann::json learnedFigures(const SelfCalibrateConfig& sc, const SelfCalibrate
         {"refined_table", rounds.refined_path.lexically_relative(run.out).generic_string()},
         {"final_planar", refined.planar ? planarFigures(*refined.planar) : nlohmann::json(nullptr)},
         {"first_reconstruction", "self_calibration/first"},
-        {"before", mainFigures(*rounds.before)},
+        {"before", rounds.results.front().at("reconstruction_figures")},
         {"first_reconstruction_seconds", rounds.first_seconds},
         {"estimate_seconds", seconds - rounds.first_seconds}};
 }
