@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cerrno>
 #include <chrono>
+#include <fstream>
 #include <random>
 #include <set>
 
@@ -80,6 +81,27 @@ Result<std::vector<uint8_t>> readKeyFile(const std::filesystem::path& path) {
     return key;
 }
 
+/// `url` with recv_buf_size=`bytes` added when it is a udpm URL without one (bytes > 0). Logs
+/// when the kernel will cap the request (net.core.rmem_max).
+std::string withReceiveBuffer(const std::string& url, int64_t bytes) {
+    if (bytes <= 0) return url;
+    auto parsed = parseLcmUrl(url);
+    if (!parsed.isOk() || parsed->provider != "udpm" || parsed->options.count("recv_buf_size"))
+        return url;
+    std::ifstream limit_file("/proc/sys/net/core/rmem_max");
+    int64_t limit = 0;
+    if (limit_file >> limit && limit < bytes) {
+        log::debug(
+            "LCM: the kernel caps the receive buffer at {} bytes (net.core.rmem_max), "
+            "below the {} asked for; raw frames streamed at full rate may be lost "
+            "(sysctl -w net.core.rmem_max={} raises it)",
+            limit, bytes, bytes);
+    }
+    return fmt::format("{}{}recv_buf_size={}", url,
+                       parsed->options.empty() && url.find('?') == std::string::npos ? "?" : "&",
+                       bytes);
+}
+
 int64_t randomSenderId() {
     std::random_device rd;
     const uint64_t t =
@@ -106,7 +128,8 @@ Result<std::unique_ptr<LcmLink>> LcmLink::open(const LinkOptions& options) {
     auth.key_id = options.key_id;
     auth.sender_id = randomSenderId();
     std::unique_ptr<LcmLink> link(new LcmLink());
-    auto lcm = LcmTransport::create(options.url);
+    const std::string url = withReceiveBuffer(options.url, options.recv_buffer_bytes);
+    auto lcm = LcmTransport::create(url);
     if (!lcm.isOk()) return lcm.status();
     link->lcm_ = std::move(lcm).value();
     link->auth_ = std::make_unique<AuthenticatedTransport>(*link->lcm_, std::move(auth));

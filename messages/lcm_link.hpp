@@ -30,6 +30,11 @@ struct LinkOptions {
     int32_t key_id = 1;
     /// Allow a URL that can send packets off this machine (udpm with ttl > 0, udp, tcpq).
     bool allow_remote = false;
+    /// udpm URLs without a recv_buf_size option get this one, bytes (0: the system's default,
+    /// often 208 KiB). A raw VGA frame is about 0.7 MB in 64 KiB datagrams, so a buffer smaller
+    /// than a few frames loses whole messages under load. The kernel caps the request at
+    /// net.core.rmem_max; LcmLink::open logs when that is below it.
+    int64_t recv_buffer_bytes = 0;
 };
 
 /// A key needs at least this many distinct byte values (16 random bytes have about 15).

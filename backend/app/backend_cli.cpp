@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "backend/ingest/ingest_run.hpp"
+#include "backend/ingest/raw_frame_store.hpp"
 #include "common/camera/pinhole.hpp"
 #include "common/config/config.hpp"
 #include "common/core/logging.hpp"
@@ -45,12 +46,19 @@ constexpr const char* kUsage =
     "  --no-finalise        stop after ingest (no reconstruction)\n"
     "  --gt DIR             ground truth to score against (groundtruth.txt or trajectory.log,\n"
     "                       gt_points.ply, layout.json)\n"
-    "  --lcm-url URL        LCM URL (default udpm://239.255.76.67:7667?ttl=0, stays on host)\n"
+    "  --lcm-url URL        LCM URL (default udpm://239.255.76.67:7667?ttl=0, stays on host);\n"
+    "                       udpm URLs without recv_buf_size get recv_buf_size=4194304\n"
     "  --allow-remote       allow an LCM URL that can leave this machine\n"
     "  --key-file FILE      shared key (hex): only authenticated messages are accepted\n"
     "  --key-id N           identifier of the key (default 1)\n"
     "  --config FILE        pipeline configuration (TOML); --set KEY=VALUE overrides\n"
-    "  --log-level L        trace|debug|info|warn|error|off (default info)\n";
+    "  --log-level L        trace|debug|info|warn|error|off (default info)\n"
+    "\n"
+    "The ingest keeps the raw frames a device streams (plumb-device --set\n"
+    "stream.raw_frame_every=1; about 0.7 MB a VGA frame with colour) in <fragments>/raw_frames.\n"
+    "The final model re-integrates them at the optimised poses when every fragment has at least\n"
+    "final_model.min_raw_frame_share of its tracked frames among them; else it fuses the\n"
+    "fragments' surfaces (less accurate: BENCHMARKS.md). The log says which.\n";
 
 std::atomic<int> g_stop_requests{0};
 extern "C" void onSignal(int) { g_stop_requests.fetch_add(1); }
@@ -70,7 +78,13 @@ struct BackendArgs {
     bool live = false, finalise = true;
     std::string log_path, fragments_dir, out_dir, gt_dir;
     backend::IngestRunOptions options;
-    messages::LinkOptions link_options;
+    /// A receive buffer of a few raw frames (stream.raw_frame_every = 1 at VGA: about 0.7 MB
+    /// each), capped by the kernel at net.core.rmem_max.
+    messages::LinkOptions link_options = [] {
+        messages::LinkOptions o;
+        o.recv_buffer_bytes = int64_t{4} << 20;
+        return o;
+    }();
     std::optional<log::Level> level;  // unset: the level the process already runs at
 };
 
@@ -205,6 +219,58 @@ int ingest(const BackendArgs& a) {
 }
 
 #ifdef PLUMB_BACKEND_HAS_PIPELINE
+/// Lets the final model re-integrate the raw frames the ingest kept for the fragments of
+/// `input` (backend/ingest/raw_frame_store.hpp) when every fragment has at least `min_share` of
+/// its tracked frames among them and they are of the camera's size; else it fuses the fragment
+/// surfaces, and the log says why.
+void attachRawFrames(const std::filesystem::path& fragments_dir, double min_share,
+                     backend::PipelineInput* input) {
+    auto stored = backend::listRawFrames(backend::rawFramesDir(fragments_dir));
+    if (!stored.isOk()) {
+        log::warn("{}; the final model fuses the fragment surfaces", stored.status().message());
+        return;
+    }
+    if (stored->empty()) {
+        log::info(
+            "final model: from the fragment surfaces (no raw frames were kept; "
+            "plumb-device --set stream.raw_frame_every=1 streams them)");
+        return;
+    }
+    backend::RawFrameCoverage coverage = backend::rawFrameCoverage(*stored, input->fragments);
+    if (coverage.min_fragment_share < min_share) {
+        log::info(
+            "final model: from the fragment surfaces: {} of the {} tracked frames have a "
+            "raw frame, fragment {} only {:.1f} % of its own (final_model."
+            "min_raw_frame_share is {:.1f} %)",
+            coverage.matched, coverage.tracked_frames, coverage.min_fragment_id,
+            100.0 * coverage.min_fragment_share, 100.0 * min_share);
+        return;
+    }
+    // A frame of another size than the camera (camera_info.json missing) would be left out one
+    // by one: check the first.
+    auto first = backend::openRawFrameSource({coverage.frames.front()}, input->camera)->next();
+    if (!first.isOk()) {
+        log::warn(
+            "final model: from the fragment surfaces: the raw frames do not read as the "
+            "camera's ({})",
+            first.status().message());
+        return;
+    }
+    log::info("final model: re-integrating the raw frames kept, {} of the {} tracked frames",
+              coverage.matched, coverage.tracked_frames);
+    if (coverage.matched < coverage.tracked_frames) {
+        log::info(
+            "final model: if the device streamed every frame (stream.raw_frame_every = "
+            "1), the others were lost on the network: udpm drops whole frames when the "
+            "receive buffer overflows (sysctl net.core.rmem_max of at least 4194304 keeps "
+            "them)");
+    }
+    input->open_raw_frames = [frames = std::move(coverage.frames),
+                              camera = input->camera]() -> Result<std::unique_ptr<FrameSource>> {
+        return backend::openRawFrameSource(frames, camera);
+    };
+}
+
 /// Reconstructs one session of the store (chooseSession) into the output directory; returns
 /// the exit status.
 int finalise(const BackendArgs& a, const backend::PipelineConfig& pipeline_config) {
@@ -247,6 +313,7 @@ int finalise(const BackendArgs& a, const backend::PipelineConfig& pipeline_confi
         log::warn("{}; assuming the primesense intrinsics", camera.status().toString());
         input.camera = *cameraPreset("primesense");
     }
+    attachRawFrames(options.fragments_dir, pipeline_config.final_model.min_raw_frame_share, &input);
     auto ran = backend::runPipeline(input, pipeline_config, a.out_dir, true);
     if (!ran.isOk()) {
         log::error("{}", ran.status().toString());

@@ -5,7 +5,8 @@
 // log or from a fragment store (backend/ingest/ingest_run.hpp), then the reconstruction
 // pipeline when this build has one. Installs SIGINT/SIGTERM handlers that stop a live ingest.
 //
-// Thread-safety: call from the main thread, once: it installs process-wide signal handlers.
+// Thread-safety: call from the main thread, one call at a time: it installs process-wide signal
+// handlers (again on every call).
 
 #include <string>
 #include <vector>

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 
+#include "backend/ingest/raw_frame_store.hpp"
 #include "common/core/logging.hpp"
 #include "messages/channels.hpp"
 #include "messages/files.hpp"
@@ -15,6 +16,10 @@
 namespace plumb::backend {
 
 using Key = std::pair<int64_t, uint32_t>;
+
+std::filesystem::path rawFramesDir(const std::filesystem::path& fragments_dir) {
+    return fragments_dir / "raw_frames";
+}
 
 // Forwards the assembler's messages and remembers which chunks it asked for again, so the
 // metrics can say how many chunks were lost and how many of those were recovered.
@@ -47,6 +52,7 @@ Result<std::unique_ptr<Ingestor>> Ingestor::open(const std::filesystem::path& fr
     std::unique_ptr<Ingestor> in(new Ingestor());
     in->config_ = config;
     in->sidecar_dir_ = sidecar_dir;
+    in->raw_frames_dir_ = rawFramesDir(fragments_dir);
     auto store = messages::FragmentStore::open(fragments_dir);
     if (!store.isOk()) return store.status();
     in->store_ = std::move(store).value();
@@ -135,7 +141,31 @@ void Ingestor::onRawFrame(std::span<const uint8_t> bytes) {
     }
     ++counters_.raw_frames;
     if (!frame->colour.empty()) ++counters_.raw_frames_colour;
+    if (config_.keep_raw_frames) keepRawFrame(*frame, bytes);
     last_raw_ = std::move(frame).value();
+}
+
+void Ingestor::keepRawFrame(const messages::RawRgbdFrame& frame, std::span<const uint8_t> bytes) {
+    Status kept = Status::ok();
+    if (raw_store_ == nullptr) {
+        auto store = RawFrameStore::open(raw_frames_dir_);
+        if (store.isOk()) {
+            raw_store_ = std::move(store).value();
+        } else {
+            kept = store.status();
+        }
+    }
+    if (kept.isOk()) kept = raw_store_->put(frame.utime, frame.frame_index, bytes);
+    if (kept.isOk()) {
+        ++counters_.raw_frames_kept;
+        return;
+    }
+    if (counters_.raw_frames_not_kept++ == 0) {
+        log::warn(
+            "ingest: {} (raw frames that cannot be kept are counted; the final model "
+            "re-integrates the raw frames only where every fragment has enough of them)",
+            kept.message());
+    }
 }
 
 void Ingestor::onCameraInfo(std::span<const uint8_t> bytes) {
@@ -341,7 +371,9 @@ nlohmann::json Ingestor::metrics(const messages::AuthStats& auth) const {
     j["retransmit_requests"] = a.requests_sent;
     j["acks_sent"] = a.acks_sent;
     j["raw_frames"] = {{"received", counters_.raw_frames},
-                       {"with_colour", counters_.raw_frames_colour}};
+                       {"with_colour", counters_.raw_frames_colour},
+                       {"kept", counters_.raw_frames_kept},
+                       {"not_kept", counters_.raw_frames_not_kept}};
     j["messages_accepted"] = auth.accepted;
     j["messages_rejected"] = {
         {"unsigned", auth.rejected_unsigned},

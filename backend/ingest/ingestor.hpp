@@ -11,8 +11,9 @@
 // acknowledged again when announced and never stored twice. It also keeps the device's latest
 // heartbeat, camera info and configuration snapshot, and notices the end of a scan (a heartbeat
 // with TRACKING_STOPPED carries the final fragment count). Raw frames (depth_frame2_t on
-// PLUMB_RGBD, with colour; depth_frame_t on PLUMB_DEPTH from older devices) are decoded and
-// counted, and the latest one is kept.
+// PLUMB_RGBD, with colour; depth_frame_t on PLUMB_DEPTH from older devices) are decoded,
+// counted and kept in `<fragments_dir>/raw_frames` (backend/ingest/raw_frame_store.hpp), where the
+// final model finds them; the latest one is also kept in memory.
 //
 // Pure apart from the store: no threads, no clock (time is passed in, seconds), no LCM; the owner
 // routes messages (already authenticated) to onMessage() and calls poll(). Not thread-safe.
@@ -29,6 +30,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "backend/ingest/raw_frame_store.hpp"
 #include "common/fragment/fragment.hpp"
 #include "messages/auth.hpp"
 #include "messages/conversions.hpp"
@@ -37,6 +39,9 @@
 #include "messages/transport.hpp"
 
 namespace plumb::backend {
+
+/// Where the ingest keeps the raw frames of the fragment store in `fragments_dir`.
+std::filesystem::path rawFramesDir(const std::filesystem::path& fragments_dir);
 
 struct IngestConfig {
     /// Reassembly limits and the retransmission request interval.
@@ -48,6 +53,10 @@ struct IngestConfig {
     /// failure up to max_cannot_store_backoff_s, reset by the next fragment stored.
     double cannot_store_backoff_s = 2.0;
     double max_cannot_store_backoff_s = 30.0;
+    /// Keep the raw frames that decode in `<fragments_dir>/raw_frames`, for the final model
+    /// (about 0.7 MB a VGA frame with colour). A frame that cannot be written is counted
+    /// (raw_frames.not_kept) and left out; raw frames are never acknowledged.
+    bool keep_raw_frames = true;
 };
 
 struct IngestCounters {
@@ -64,6 +73,8 @@ struct IngestCounters {
     uint64_t raw_frames = 0;            ///< raw frames decoded (depth_frame2_t and depth_frame_t)
     uint64_t raw_frames_colour = 0;     ///< of these, with colour
     uint64_t raw_frames_malformed = 0;  ///< raw frames that did not decode
+    uint64_t raw_frames_kept = 0;       ///< raw frames written to the raw frame store
+    uint64_t raw_frames_not_kept = 0;   ///< raw frames the raw frame store failed to write
 };
 
 /// What the ingest knows about one device session (a run of plumb-device).
@@ -131,6 +142,7 @@ class Ingestor {
     void onCameraInfo(std::span<const uint8_t> bytes);
     void onConfig(std::span<const uint8_t> bytes);
     void onRawFrame(std::span<const uint8_t> bytes);
+    void keepRawFrame(const messages::RawRgbdFrame& frame, std::span<const uint8_t> bytes);
     void noteRequest(const std::pair<int64_t, uint32_t>& key, const std::vector<int32_t>& chunks);
 
     IngestConfig config_;
@@ -150,6 +162,8 @@ class Ingestor {
     int64_t backoff_seq_ = 0;
     std::optional<messages::CameraInfo> camera_;
     std::optional<messages::RawRgbdFrame> last_raw_;
+    std::filesystem::path raw_frames_dir_;
+    std::unique_ptr<RawFrameStore> raw_store_;  ///< opened at the first raw frame
     std::string device_config_;
 };
 

@@ -27,6 +27,9 @@ Status FinalModelConfig::validate() const {
     if (frame_stride < 1) return invalidArgument("final_model.frame_stride must be >= 1");
     if (surface_frame_stride < 1)
         return invalidArgument("final_model.surface_frame_stride must be >= 1");
+    if (!(min_raw_frame_share > 0.0 && min_raw_frame_share <= 1.0))
+        return invalidArgument(fmt::format(
+            "final_model.min_raw_frame_share must be in (0, 1], got {}", min_raw_frame_share));
     if (allocation_stride_px < 1 || allocation_stride_px > 8)
         return invalidArgument("final_model.allocation_stride_px must be in [1, 8]");
     if (splat_radius_px < 0 || splat_radius_px > 8)
@@ -48,6 +51,12 @@ void describe(config::Schema& s, FinalModelConfig& c) {
             "fragment surfaces only: every k-th tracked frame of each fragment (its first "
             "included) is rendered and integrated")
         .min(1);
+    s.field("min_raw_frame_share", c.min_raw_frame_share,
+            "plumb-backend: the stored raw frames are re-integrated when every fragment has at "
+            "least this share of its tracked frames among them; else the fragment surfaces are "
+            "fused")
+        .positive()
+        .max(1.0);
     s.field("allocation_stride_px", c.allocation_stride_px,
             "pixel stride of block allocation (1 = every pixel)", "px")
         .range(1, 8);

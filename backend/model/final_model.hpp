@@ -47,6 +47,11 @@ struct FinalModelConfig {
     /// surface, not independent measurements, so most of them repeat each other: 4 loses no
     /// accuracy against 1 on the simulated scans (BENCHMARKS.md) at a quarter of the work.
     int surface_frame_stride = 4;
+    /// plumb-backend: the raw frames the device streamed (stream.raw_frame_every) and the ingest
+    /// kept are re-integrated instead of the fragment surfaces when every fragment has at least
+    /// this share of its tracked frames among them (1 = all; 0.25 admits raw_frame_every = 4,
+    /// the fragment surfaces' own stride); else the surfaces are fused and the log says why.
+    double min_raw_frame_share = 0.25;
     /// Pixel stride of block allocation. The final volume's blocks are 8 cm wide, where a pixel
     /// spans 2 to 8 mm at 1 to 4 m: every fourth pixel still samples each block the surface
     /// passes through, and the allocation walk costs a quarter of every pixel's.

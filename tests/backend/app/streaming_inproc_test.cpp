@@ -11,11 +11,13 @@
 #include <algorithm>
 #include <chrono>
 #include <filesystem>
+#include <fstream>
 #include <lcm/lcm-cpp.hpp>
 #include <mutex>
 #include <random>
 #include <thread>
 
+#include "backend/app/backend_cli.hpp"
 #include "backend/ingest/ingest_run.hpp"
 #include "backend/ingest/ingestor.hpp"
 #include "device/fusion/fuse_frames.hpp"
@@ -403,6 +405,31 @@ class RecordingTransport final : public messages::Transport {
     std::vector<std::pair<std::string, std::vector<uint8_t>>> sent;
 };
 
+/// The device's options of these tests: fragments of 8 frames at 2 cm voxels, a short wait for
+/// acknowledgements that never come, and `session`.
+device::DeviceRunOptions testDeviceOptions(int64_t session) {
+    device::DeviceRunOptions options;
+    options.config.fusion.frames_per_fragment = 8;
+    options.config.fusion.voxel_size_m = 0.02;
+    options.config.stream.ack_wait_s = 0.1;
+    options.session_id = session;
+    return options;
+}
+
+/// Runs the device over `source` with every message it publishes kept in `transport`.
+Result<device::DeviceRunReport> runRecordedDevice(FrameSource& source,
+                                                  const device::DeviceRunOptions& options,
+                                                  RecordingTransport& transport) {
+    device::DeviceLink link;
+    link.transport = &transport;
+    link.pump = [](int timeout_ms) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(timeout_ms));
+        return Status::ok();
+    };
+    const std::atomic<int> stop{0};
+    return device::runDevice(source, options, link, stop);
+}
+
 TEST(StreamingInProcess, UnpluggedCameraIsInTheHeartbeatAndTheScanResumes) {
     SourceOptions so;
     so.intrinsics = "ci";
@@ -411,21 +438,10 @@ TEST(StreamingInProcess, UnpluggedCameraIsInTheHeartbeatAndTheScanResumes) {
     ASSERT_TRUE(sim.isOk()) << sim.status().toString();
     UnpluggingSource source(std::move(sim).value(), 10, 30, std::chrono::milliseconds(20));
 
-    device::DeviceRunOptions options;
-    options.config.fusion.frames_per_fragment = 8;
-    options.config.fusion.voxel_size_m = 0.02;
+    device::DeviceRunOptions options = testDeviceOptions(77);
     options.config.stream.status_period_s = 0.05;
-    options.config.stream.ack_wait_s = 0.1;
-    options.session_id = 77;
     RecordingTransport transport;
-    device::DeviceLink link;
-    link.transport = &transport;
-    link.pump = [](int timeout_ms) {
-        std::this_thread::sleep_for(std::chrono::milliseconds(timeout_ms));
-        return Status::ok();
-    };
-    const std::atomic<int> stop{0};
-    Result<device::DeviceRunReport> report = device::runDevice(source, options, link, stop);
+    Result<device::DeviceRunReport> report = runRecordedDevice(source, options, transport);
     ASSERT_TRUE(report.isOk()) << report.status().toString();
     EXPECT_EQ(report->frames_captured, 24);  // every frame, the ones after the outage too
     EXPECT_EQ(report->frames_processed, 24);
@@ -487,21 +503,10 @@ TEST(StreamingInProcess, RawFramesCarryColourToTheIngest) {
     ASSERT_EQ(expected.size(), 16u);
     ColourCamera source(std::move(sim).value());
 
-    device::DeviceRunOptions options;
-    options.config.fusion.frames_per_fragment = 8;
-    options.config.fusion.voxel_size_m = 0.02;
-    options.config.stream.ack_wait_s = 0.1;
+    device::DeviceRunOptions options = testDeviceOptions(78);
     options.config.stream.raw_frame_every = 5;  // frames 0, 5, 10, 15
-    options.session_id = 78;
     RecordingTransport transport;
-    device::DeviceLink link;
-    link.transport = &transport;
-    link.pump = [](int timeout_ms) {
-        std::this_thread::sleep_for(std::chrono::milliseconds(timeout_ms));
-        return Status::ok();
-    };
-    const std::atomic<int> stop{0};
-    auto report = device::runDevice(source, options, link, stop);
+    auto report = runRecordedDevice(source, options, transport);
     ASSERT_TRUE(report.isOk()) << report.status().toString();
     EXPECT_EQ(report->raw_frames_published, 4);
     EXPECT_EQ(report->raw_frames_dropped, 0);  // a recorded source waits for the network thread
@@ -551,6 +556,86 @@ TEST(StreamingInProcess, RawFramesCarryColourToTheIngest) {
     EXPECT_EQ(m["raw_frames"]["with_colour"], 4);
     EXPECT_EQ((*ingestor)->counters().raw_frames_malformed, 1u);
     EXPECT_GE(m["messages_rejected"]["malformed"].get<uint64_t>(), 1u);
+    // Every frame that decoded is kept for the final model, the old depth-only one too.
+    EXPECT_EQ(m["raw_frames"]["kept"], 5);
+    EXPECT_EQ(m["raw_frames"]["not_kept"], 0);
+    auto kept = listRawFrames(rawFramesDir(dir / "fragments"));
+    ASSERT_TRUE(kept.isOk()) << kept.status().toString();
+    ASSERT_EQ(kept->size(), 5u);
+    EXPECT_EQ(std::count_if(kept->begin(), kept->end(),
+                            [](const StoredRawFrame& f) { return f.frame_index == 99; }),
+              1);
+    fs::remove_all(dir);
+}
+
+std::string readText(const fs::path& p) {
+    std::ifstream in(p);
+    return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+TEST(StreamingInProcess, TheFinalModelReintegratesTheRawFramesTheIngestKept) {
+    SourceOptions so;
+    so.intrinsics = "ci";
+    so.max_frames = 24;
+    auto sim = openFrameSource("sim:living_room", so);
+    ASSERT_TRUE(sim.isOk()) << sim.status().toString();
+    device::DeviceRunOptions options = testDeviceOptions(79);
+    options.config.stream.raw_frame_every = 1;
+    RecordingTransport transport;
+    auto report = runRecordedDevice(**sim, options, transport);
+    ASSERT_TRUE(report.isOk()) << report.status().toString();
+    ASSERT_EQ(report->raw_frames_published, 24);
+
+    // plumb-backend's ingest: fragments into the store, raw frames beside it, the camera info
+    // beside both (where the reconstruction of the store looks for it).
+    const fs::path dir = tempDir("raw_final");
+    const fs::path store = dir / "fragments";
+    {
+        LossyHub hub;
+        auto ingestor = Ingestor::open(store, dir, IngestConfig{}, hub);
+        ASSERT_TRUE(ingestor.isOk()) << ingestor.status().toString();
+        for (const auto& [channel, bytes] : transport.sent)
+            (*ingestor)->onMessage(channel, bytes, 1.0);
+        (*ingestor)->poll(2.0);
+        EXPECT_EQ((*ingestor)->fragmentsInStore(), 3u);
+        EXPECT_EQ((*ingestor)->counters().raw_frames_kept, 24u);
+        auto fragments = loadStoredFragments((*ingestor)->store());
+        ASSERT_TRUE(fragments.isOk()) << fragments.status().toString();
+        auto kept = listRawFrames(rawFramesDir(store));
+        ASSERT_TRUE(kept.isOk());
+        const RawFrameCoverage coverage = rawFrameCoverage(*kept, *fragments);
+        EXPECT_EQ(coverage.tracked_frames, 24u);
+        EXPECT_EQ(coverage.matched, 24u);
+        EXPECT_EQ(coverage.min_fragment_share, 1.0);
+    }
+    ASSERT_TRUE(fs::exists(dir / "camera_info.json"));
+
+    // Reconstructing the store re-integrates the raw frames ...
+    ASSERT_EQ(runBackendCommand({"--fragments", store.string(), "--out", (dir / "raw").string()},
+                                "plumb-backend"),
+              0);
+    auto metrics = nlohmann::json::parse(readText(dir / "raw" / "metrics.json"));
+    EXPECT_EQ(metrics["final_model"], "raw frames re-integrated");
+
+    // ... but not when a fragment has too few of its frames among them: frames 8-14 of the
+    // second fragment (8-15) are gone, 1 of its 8 is left, under the default share of 25 %.
+    auto stored = listRawFrames(rawFramesDir(store));
+    ASSERT_TRUE(stored.isOk());
+    for (const StoredRawFrame& f : *stored) {
+        if (f.frame_index >= 8 && f.frame_index <= 14) fs::remove(f.path);
+    }
+    ASSERT_EQ(runBackendCommand({"--fragments", store.string(), "--out", (dir / "surf").string()},
+                                "plumb-backend"),
+              0);
+    metrics = nlohmann::json::parse(readText(dir / "surf" / "metrics.json"));
+    EXPECT_EQ(metrics["final_model"], "fragment surfaces fused");
+    // Allowing one frame in eight, the rest of the raw frames are re-integrated.
+    ASSERT_EQ(runBackendCommand({"--fragments", store.string(), "--out", (dir / "eighth").string(),
+                                 "--set", "final_model.min_raw_frame_share=0.125"},
+                                "plumb-backend"),
+              0);
+    metrics = nlohmann::json::parse(readText(dir / "eighth" / "metrics.json"));
+    EXPECT_EQ(metrics["final_model"], "raw frames re-integrated");
     fs::remove_all(dir);
 }
 
