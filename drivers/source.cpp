@@ -116,21 +116,28 @@ Status checkDepthCalibration(const std::string& value) {
                     "' is neither 'sensor', 'none' nor an existing dist-model.txt file");
 }
 
+Result<std::unique_ptr<FrameSource>> withDepthCalibration(std::unique_ptr<FrameSource> raw,
+                                                          const std::string& choice,
+                                                          const std::string& sensor_table) {
+    PLUMB_RETURN_IF_ERROR(checkDepthCalibration(choice));
+    const std::string path = choice.empty() || choice == "sensor" ? sensor_table
+                             : choice == "none"                   ? std::string()
+                                                                  : choice;
+    if (path.empty()) return raw;
+    auto calibration = DepthCalibration::load(path);
+    if (!calibration.isOk()) return calibration.status();
+    return std::unique_ptr<FrameSource>(
+        std::make_unique<CalibratedSource>(std::move(raw), std::move(calibration).value()));
+}
+
 Result<std::unique_ptr<FrameSource>> openFrameSource(const std::string& uri,
                                                      const SourceOptions& options) {
     PLUMB_RETURN_IF_ERROR(checkDepthCalibration(options.depth_calibration));
     std::string sensor_calibration;
     auto source = openRawSource(uri, options, &sensor_calibration);
     if (!source.isOk()) return source.status();
-    const std::string& choice = options.depth_calibration;
-    const std::string path = choice.empty() || choice == "sensor" ? sensor_calibration
-                             : choice == "none"                   ? std::string()
-                                                                  : choice;
-    if (path.empty()) return source;
-    auto calibration = DepthCalibration::load(path);
-    if (!calibration.isOk()) return calibration.status();
-    return std::unique_ptr<FrameSource>(std::make_unique<CalibratedSource>(
-        std::move(source).value(), std::move(calibration).value()));
+    return withDepthCalibration(std::move(source).value(), options.depth_calibration,
+                                sensor_calibration);
 }
 
 Status checkSourceArguments(const std::string& uri, const SourceOptions& options) {

@@ -53,6 +53,13 @@ struct SourceOptions {
 Result<std::unique_ptr<FrameSource>> openFrameSource(const std::string& uri,
                                                      const SourceOptions& options = {});
 
+/// Wraps `raw` as SourceOptions::depth_calibration `choice` says (`sensor_table`: the sensor's
+/// own table file, empty when it has none): in a CalibratedSource, or not at all. For sources
+/// opened elsewhere (e.g. `plumb`'s store: frames). Errors: checkDepthCalibration's, and a table
+/// that does not load.
+Result<std::unique_ptr<FrameSource>> withDepthCalibration(std::unique_ptr<FrameSource> raw,
+                                                          const std::string& choice,
+                                                          const std::string& sensor_table = {});
 /// Checks a --depth-calibration value: "", "sensor", "none" or an existing file.
 Status checkDepthCalibration(const std::string& value);
 

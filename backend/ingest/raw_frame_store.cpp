@@ -10,9 +10,11 @@
 #include <deque>
 #include <future>
 #include <map>
+#include <set>
 #include <system_error>
 #include <utility>
 
+#include "backend/ingest/ingestor.hpp"  // chooseSession, loadStoredFragments, readCameraInfo
 #include "common/core/logging.hpp"
 #include "messages/conversions.hpp"
 #include "messages/files.hpp"
@@ -48,15 +50,28 @@ bool parseFileName(const std::string& name, int64_t* utime, int64_t* frame_index
     return true;
 }
 
+/// How RawFrameSource presents the frames.
+struct RawFrameView {
+    /// Frame::index is the frame's position among the source's frames instead of its capture
+    /// index (kept in Frame::name).
+    bool renumber = false;
+    bool colour = true;       ///< false: colour dropped
+    std::string description;  ///< empty: "N stored raw frames (WxH)"
+};
+
 class RawFrameSource final : public FrameSource {
   public:
     RawFrameSource(std::vector<StoredRawFrame> frames, const PinholeCamera& camera,
-                   std::function<bool()> stop_requested)
-        : frames_(std::move(frames)), camera_(camera), stop_(std::move(stop_requested)) {}
+                   std::function<bool()> stop_requested, RawFrameView view = {})
+        : frames_(std::move(frames)),
+          camera_(camera),
+          stop_(std::move(stop_requested)),
+          view_(std::move(view)) {}
 
     const PinholeCamera& camera() const override { return camera_; }
     std::optional<size_t> size() const override { return frames_.size(); }
     std::string description() const override {
+        if (!view_.description.empty()) return view_.description;
         return fmt::format("{} stored raw frames ({}x{})", frames_.size(), camera_.width,
                            camera_.height);
     }
@@ -65,9 +80,11 @@ class RawFrameSource final : public FrameSource {
         while (true) {
             if (stop_ && stop_()) return cancelled("stopped while reading the raw frames");
             while (ahead_.size() < kReadAhead && next_ < frames_.size()) {
-                const StoredRawFrame* stored = &frames_[next_++];
-                ahead_.push_back(
-                    std::async(std::launch::async, [this, stored] { return read(*stored); }));
+                const StoredRawFrame* stored = &frames_[next_];
+                const auto position = static_cast<int64_t>(next_++);
+                ahead_.push_back(std::async(std::launch::async, [this, stored, position] {
+                    return read(*stored, position);
+                }));
             }
             if (ahead_.empty())
                 return Status(StatusCode::kOutOfRange, "end of the stored raw frames");
@@ -92,7 +109,7 @@ class RawFrameSource final : public FrameSource {
 
   private:
     /// Thread-safe: reads only `stored` and the camera.
-    Result<Frame> read(const StoredRawFrame& stored) const {
+    Result<Frame> read(const StoredRawFrame& stored, int64_t position) const {
         const std::string name = stored.path.filename().string();
         auto bytes = messages::readFile(stored.path, kMaxFileBytes);
         if (!bytes.isOk()) return bytes.status();
@@ -105,17 +122,18 @@ class RawFrameSource final : public FrameSource {
                             raw->depth.height(), camera_.width, camera_.height));
         }
         Frame frame;
-        frame.index = raw->frame_index;
+        frame.index = view_.renumber ? position : raw->frame_index;
         frame.timestamp_s = static_cast<double>(raw->utime) * 1e-6;
         frame.depth = toMetres(raw->depth, raw->depth_scale);
-        frame.colour = std::move(raw->colour);
-        frame.name = stored.path.filename().string();
+        if (view_.colour) frame.colour = std::move(raw->colour);
+        frame.name = view_.renumber ? fmt::format("capture frame {}", raw->frame_index) : name;
         return frame;
     }
 
     std::vector<StoredRawFrame> frames_;
     PinholeCamera camera_;
     std::function<bool()> stop_;
+    RawFrameView view_;
     size_t next_ = 0;                               ///< the next frame to start reading
     std::deque<std::future<Result<Frame>>> ahead_;  ///< frames being read, in order
 };
@@ -237,6 +255,79 @@ std::unique_ptr<FrameSource> openRawFrameSource(std::vector<StoredRawFrame> fram
                                                 const PinholeCamera& camera,
                                                 std::function<bool()> stop_requested) {
     return std::make_unique<RawFrameSource>(std::move(frames), camera, std::move(stop_requested));
+}
+
+Result<StoredScan> openStoredScan(const fs::path& fragments_dir, const StoredScanOptions& options) {
+    std::error_code ec;
+    if (!fs::is_directory(fragments_dir, ec)) {
+        return Status(StatusCode::kNotFound,
+                      fmt::format("no fragment store at {}", fragments_dir.string()));
+    }
+    auto store = messages::FragmentStore::open(fragments_dir);
+    if (!store.isOk()) return store.status();
+    StoredScan scan;
+    std::set<int64_t> wanted;
+    if (options.session) wanted.insert(*options.session);
+    auto session = chooseSession(**store, wanted, &scan.note);
+    if (!session.isOk()) return session.status();
+    scan.session = *session;
+    auto fragments = loadStoredFragments(**store, *session);
+    if (!fragments.isOk()) return fragments.status();
+    double first_s = 0.0, last_s = 0.0;
+    bool any = false;
+    for (const Fragment& fragment : *fragments) {
+        for (const FragmentFrame& frame : fragment.frames) {
+            first_s = any ? std::min(first_s, frame.timestamp_s) : frame.timestamp_s;
+            last_s = any ? std::max(last_s, frame.timestamp_s) : frame.timestamp_s;
+            any = true;
+        }
+    }
+    auto stored = listRawFrames(rawFramesDir(fragments_dir));
+    if (!stored.isOk()) return stored.status();
+    std::vector<StoredRawFrame> frames;
+    const int64_t from = messages::toUtime(first_s - 1.0), to = messages::toUtime(last_s + 1.0);
+    for (const StoredRawFrame& f : *stored) {
+        if (any && f.utime >= from && f.utime <= to) frames.push_back(f);
+    }
+    if (frames.empty()) {
+        return Status(
+            StatusCode::kNotFound,
+            fmt::format("{} holds no raw frame of session {} (plumb-device --set "
+                        "stream.raw_frame_every=1 streams every frame to the backend, "
+                        "which keeps them in {})",
+                        fragments_dir.string(), *session, rawFramesDir(fragments_dir).string()));
+    }
+    const RawFrameCoverage coverage = rawFrameCoverage(frames, *fragments);
+    scan.fragment_frames = coverage.tracked_frames;
+    scan.fragment_frames_with_raw = coverage.matched;
+    if (coverage.matched < coverage.tracked_frames) {
+        if (!scan.note.empty()) scan.note += "; ";
+        scan.note += fmt::format(
+            "{} of the {} frames session {} tracked have a raw frame (the device streamed every "
+            "k-th frame, or frames were lost on the network)",
+            coverage.matched, coverage.tracked_frames, *session);
+    }
+    if (options.max_frames > 0 && frames.size() > options.max_frames)
+        frames.resize(options.max_frames);
+    scan.frames = frames.size();
+    PinholeCamera camera;
+    if (options.camera) {
+        camera = *options.camera;
+    } else {
+        auto read = readCameraInfo(
+            {fragments_dir.parent_path() / "camera_info.json", fragments_dir / "camera_info.json"});
+        if (!read.isOk()) return read.status();
+        camera = *read;
+    }
+    RawFrameView view;
+    view.renumber = true;
+    view.colour = options.colour;
+    view.description = fmt::format(
+        "raw frames of session {} in the fragment store {} ({} frames, {}x{} fx={:.1f})", *session,
+        fragments_dir.string(), frames.size(), camera.width, camera.height, camera.fx);
+    scan.source =
+        std::make_unique<RawFrameSource>(std::move(frames), camera, nullptr, std::move(view));
+    return scan;
 }
 
 }  // namespace plumb::backend

@@ -26,6 +26,7 @@
 #include "tools/plumb/command.hpp"
 #include "tools/plumb/planar_stage.hpp"
 #include "tools/plumb/pose_lookup.hpp"
+#include "tools/plumb/scan_source.hpp"
 
 namespace plumb::tools {
 namespace {
@@ -54,6 +55,9 @@ constexpr const char* kUsage =
     "                     truth (detected); its raw depth is used (no depth calibration)\n"
     "  sim:SCENE          the simulated scanner (living_room, weak_manhattan, l_shape,\n"
     "                     corridor, or a scene .toml file), raw depth with the Redwood table\n"
+    "  store:DIR[?session=ID]  the raw frames plumb-backend kept of a live scan in its\n"
+    "                     fragment store DIR (streamed with plumb-device --set\n"
+    "                     stream.raw_frame_every=1; the newest session unless named)\n"
     "\n"
     "options:\n"
     "  --out TABLE        the table file to write (required)\n"
@@ -412,14 +416,11 @@ int runCalibrate(const std::vector<std::string>& arguments) {
                              static_cast<size_t>(a.threads));
     }
 
-    const std::string uri =
-        (a.source_uri.rfind("sim:", 0) == 0 || a.source_uri.rfind("dataset:", 0) == 0)
-            ? a.source_uri
-            : "dataset:" + a.source_uri;
+    const std::string uri = normaliseScanUri(a.source_uri);
     if (!source_options.sim_noise.empty() && uri.rfind("sim:", 0) != 0) {
         return usageError(kCommand, "--noise applies to sim: sources only");
     }
-    if (Status s = checkSourceArguments(uri, source_options); !s.isOk())
+    if (Status s = checkScanSourceArguments(uri, source_options); !s.isOk())
         return usageError(kCommand, s.message());
     std::optional<PoseLookup> pose_file;
     if (a.poses_path) {
@@ -434,7 +435,7 @@ int runCalibrate(const std::vector<std::string>& arguments) {
     // --planar-only --initial TABLE: the bend left in the depth undistorted by TABLE.
     if (a.planar_only && a.initial_path)
         source_options.depth_calibration = a.initial_path->string();
-    Result<std::unique_ptr<FrameSource>> opened = openFrameSource(uri, source_options);
+    Result<std::unique_ptr<FrameSource>> opened = openScanSource(uri, source_options);
     if (!opened.isOk()) return failure(kCommand, opened.status());
     std::unique_ptr<FrameSource> source = std::move(opened).value();
     const PinholeCamera camera = source->camera();

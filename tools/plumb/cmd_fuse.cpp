@@ -45,6 +45,7 @@
 #include "tools/plumb/interrupt.hpp"
 #include "tools/plumb/output_folder.hpp"
 #include "tools/plumb/run_record.hpp"
+#include "tools/plumb/scan_source.hpp"
 #include "tools/plumb/source_arguments.hpp"
 
 namespace plumb::tools {
@@ -101,6 +102,9 @@ constexpr const char* kUsage =
     "  DIR | dataset:DIR  a TUM, ICL-NUIM, Redwood, 7-Scenes or plumb-sim folder (detected)\n"
     "  sim:SCENE          the simulated scanner (living_room, weak_manhattan, l_shape,\n"
     "                     corridor, or a scene .toml file)\n"
+    "  store:DIR[?session=ID]  the raw frames plumb-backend kept of a live scan in its\n"
+    "                     fragment store DIR (streamed with plumb-device --set\n"
+    "                     stream.raw_frame_every=1; the newest session unless named)\n"
     "\n"
     "options:\n"
     "  --out DIR          output folder (required; created when missing). A folder that is\n"
@@ -880,13 +884,11 @@ int runFuse(const std::vector<std::string>& arguments) {
     }
     log::setupLogging("plumb fuse");
 
-    const std::string uri = (o.source.rfind("sim:", 0) == 0 || o.source.rfind("dataset:", 0) == 0)
-                                ? o.source
-                                : "dataset:" + o.source;
+    const std::string uri = normaliseScanUri(o.source);
     if (!o.source_options.sim_noise.empty() && uri.rfind("sim:", 0) != 0) {
         return usageError(kCommand, "--noise applies to sim: sources only");
     }
-    if (Status s = checkSourceArguments(uri, o.source_options); !s.isOk()) {
+    if (Status s = checkScanSourceArguments(uri, o.source_options); !s.isOk()) {
         return usageError(kCommand, s.message());
     }
     const std::string config_toml = config::toToml(cfg, "plumb fuse (effective)");
@@ -903,7 +905,7 @@ int runFuse(const std::vector<std::string>& arguments) {
         if (Status s = writeRunRecord(o.out, kCommand, r); !s.isOk()) return failure(kCommand, s);
     }
     InterruptScope interrupt("plumb fuse");
-    Result<std::unique_ptr<FrameSource>> opened = openFrameSource(uri, o.source_options);
+    Result<std::unique_ptr<FrameSource>> opened = openScanSource(uri, o.source_options);
     if (!opened.isOk()) return failure(kCommand, opened.status());
     std::unique_ptr<FrameSource> source = std::move(opened).value();
     if (Status s = io::writeText(o.out / "config.toml", config_toml); !s.isOk()) {

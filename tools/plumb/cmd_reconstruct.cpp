@@ -36,6 +36,7 @@
 #include "tools/plumb/output_folder.hpp"
 #include "tools/plumb/reconstruct_fusion.hpp"
 #include "tools/plumb/run_record.hpp"
+#include "tools/plumb/scan_source.hpp"
 #include "tools/plumb/self_calibrated_run.hpp"
 #include "tools/plumb/source_arguments.hpp"
 
@@ -93,6 +94,9 @@ constexpr const char* kUsage =
     "  DIR | dataset:DIR  a TUM, ICL-NUIM, Redwood, 7-Scenes or plumb-sim folder (detected)\n"
     "  sim:SCENE          the simulated scanner (living_room, weak_manhattan, l_shape,\n"
     "                     corridor, or a scene .toml file)\n"
+    "  store:DIR[?session=ID]  the raw frames plumb-backend kept of a live scan in its\n"
+    "                     fragment store DIR (streamed with plumb-device --set\n"
+    "                     stream.raw_frame_every=1; the newest session unless named)\n"
     "\n"
     "options:\n"
     "  --out DIR          output folder (required; created when missing). A folder that\n"
@@ -163,11 +167,6 @@ struct Options {
     bool quiet = false;
     bool force = false;
 };
-
-std::string normaliseUri(const std::string& source) {
-    if (source.rfind("sim:", 0) == 0 || source.rfind("dataset:", 0) == 0) return source;
-    return "dataset:" + source;
-}
 
 /// Ground truth of the simulated scanner: its trajectory, dense surface samples and room layout.
 Result<backend::GroundTruth> simGroundTruth(const sim::SimSource& sim) {
@@ -280,7 +279,7 @@ Result<backend::PipelineResult> reconstructOnce(FrameSource& source, const std::
             return std::unique_ptr<FrameSource>(new StoppableSource(std::make_unique<ReplaySource>(
                 kept, camera, "the frames kept from " + description)));
         }
-        Result<std::unique_ptr<FrameSource>> raw = openFrameSource(uri, source_options);
+        Result<std::unique_ptr<FrameSource>> raw = openScanSource(uri, source_options);
         if (!raw.isOk()) return raw.status();
         return std::unique_ptr<FrameSource>(new StoppableSource(std::move(*raw)));
     };
@@ -397,11 +396,11 @@ int runReconstruct(const std::vector<std::string>& arguments) {
                         static_cast<size_t>(o.threads));
     log::setupLogging("plumb reconstruct");
 
-    const std::string uri = normaliseUri(o.source);
+    const std::string uri = normaliseScanUri(o.source);
     if (!o.source_options.sim_noise.empty() && uri.rfind("sim:", 0) != 0) {
         return usageError(kCommand, "--noise applies to sim: sources only");
     }
-    if (Status s = checkSourceArguments(uri, o.source_options); !s.isOk())
+    if (Status s = checkScanSourceArguments(uri, o.source_options); !s.isOk())
         return usageError(kCommand, s.message());
     if (Status s = calibration::validate(cfg.self_calibration.estimate);
         o.self_calibrate && !s.isOk())
@@ -425,7 +424,7 @@ int runReconstruct(const std::vector<std::string>& arguments) {
     InterruptScope interrupt("plumb reconstruct");
     SourceOptions first_options = o.source_options;
     if (o.self_calibrate) first_options.depth_calibration = "none";
-    Result<std::unique_ptr<FrameSource>> source = openFrameSource(uri, first_options);
+    Result<std::unique_ptr<FrameSource>> source = openScanSource(uri, first_options);
     if (!source.isOk()) return failure(kCommand, source.status());
     log::info("reconstructing {} into {}{}", (*source)->description(), o.out.string(),
               o.self_calibrate ? ", self-calibrating the depth" : "");
@@ -439,11 +438,14 @@ int runReconstruct(const std::vector<std::string>& arguments) {
             if (!gt.isOk()) return failure(kCommand, gt.status());
             base.ground_truth = std::move(*gt);
         } else {
-            const std::filesystem::path dir =
-                o.gt_dir ? *o.gt_dir : std::filesystem::path(uri.substr(uri.find(':') + 1));
-            Result<backend::GroundTruth> gt = backend::loadGroundTruth(dir);
-            if (!gt.isOk()) return failure(kCommand, gt.status());
-            base.ground_truth = std::move(*gt);
+            // A store holds no ground truth: only --gt gives one.
+            if (o.gt_dir || !isStoreUri(uri)) {
+                const std::filesystem::path dir =
+                    o.gt_dir ? *o.gt_dir : std::filesystem::path(uri.substr(uri.find(':') + 1));
+                Result<backend::GroundTruth> gt = backend::loadGroundTruth(dir);
+                if (!gt.isOk()) return failure(kCommand, gt.status());
+                base.ground_truth = std::move(*gt);
+            }
         }
     }
     base.config_toml = config_toml;

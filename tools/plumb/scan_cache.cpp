@@ -6,6 +6,7 @@
 #include "common/calibration/depth_calibration.hpp"
 #include "common/frame/frame_recorder.hpp"
 #include "drivers/calibrated_source.hpp"
+#include "tools/plumb/scan_source.hpp"
 
 namespace plumb::tools {
 
@@ -34,7 +35,7 @@ Result<std::unique_ptr<FrameSource>> ScanCache::open(const std::string& depth_ca
         SourceOptions options = raw_options_;
         options.depth_calibration = depth_calibration;
         options.colour = options.colour && colour;
-        return openFrameSource(uri_, options);
+        return openScanSource(uri_, options);
     }
     auto replay = std::make_unique<ReplaySource>(frames_, camera_, description_);
     if (depth_calibration == "none") return std::unique_ptr<FrameSource>(std::move(replay));

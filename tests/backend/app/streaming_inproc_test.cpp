@@ -610,6 +610,60 @@ TEST(StreamingInProcess, TheFinalModelReintegratesTheRawFramesTheIngestKept) {
     }
     ASSERT_TRUE(fs::exists(dir / "camera_info.json"));
 
+    // The session's raw frames open as a scan (`plumb reconstruct store:DIR`): the frames the
+    // camera delivered, depth to the millimetre, numbered in capture order; raw frames of
+    // another session (an hour later, the same indices) stay out.
+    {
+        auto other = RawFrameStore::open(rawFramesDir(store));
+        ASSERT_TRUE(other.isOk());
+        for (const auto& [channel, bytes] : transport.sent) {
+            if (channel != messages::kChannelRgbd) continue;
+            auto raw = messages::decodeRawFrame(bytes).value();
+            raw.utime += int64_t{3600} * 1000000;
+            auto later = messages::toMessage(raw, messages::DepthEncoding::kDeltaVarint,
+                                             messages::ColourEncoding::kDeltaRice, 1);
+            ASSERT_TRUE(later.isOk());
+            ASSERT_TRUE(
+                (*other)->put(raw.utime, raw.frame_index, messages::encodeMessage(*later)).isOk());
+        }
+        auto scan = openStoredScan(store, {});
+        ASSERT_TRUE(scan.isOk()) << scan.status().toString();
+        EXPECT_EQ(scan->session, 79);
+        EXPECT_EQ(scan->frames, 24u);
+        EXPECT_EQ(scan->fragment_frames_with_raw, 24u);
+        EXPECT_TRUE(scan->note.empty()) << scan->note;
+        auto again = openFrameSource("sim:living_room", so);
+        ASSERT_TRUE(again.isOk());
+        int64_t k = 0;
+        for (auto frame = scan->source->next(); frame.isOk(); frame = scan->source->next(), ++k) {
+            auto expected = (*again)->next();
+            ASSERT_TRUE(expected.isOk());
+            EXPECT_EQ(frame->index, k);
+            EXPECT_EQ(toRaw(frame->depth, 1000.0), toRaw(expected->depth, 1000.0)) << k;
+            EXPECT_EQ(frame->colour, expected->colour) << k;
+        }
+        EXPECT_EQ(k, 24);
+        StoredScanOptions first_ten;
+        first_ten.max_frames = 10;
+        first_ten.colour = false;
+        auto ten = openStoredScan(store, first_ten);
+        ASSERT_TRUE(ten.isOk());
+        EXPECT_EQ(ten->frames, 10u);
+        auto frame = ten->source->next();
+        ASSERT_TRUE(frame.isOk());
+        EXPECT_TRUE(frame->colour.empty());
+        // Raw frames of this session only: the later copies are no session's in the store.
+        StoredScanOptions wrong_session;
+        wrong_session.session = 80;
+        EXPECT_EQ(openStoredScan(store, wrong_session).status().code(), StatusCode::kNotFound);
+        EXPECT_EQ(openStoredScan(dir / "nowhere", {}).status().code(), StatusCode::kNotFound);
+        auto all = listRawFrames(rawFramesDir(store));
+        ASSERT_TRUE(all.isOk());
+        for (const StoredRawFrame& f : *all) {
+            if (f.utime > int64_t{3000} * 1000000) fs::remove(f.path);
+        }
+    }
+
     // Reconstructing the store re-integrates the raw frames ...
     ASSERT_EQ(runBackendCommand({"--fragments", store.string(), "--out", (dir / "raw").string()},
                                 "plumb-backend"),

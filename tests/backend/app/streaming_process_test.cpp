@@ -667,6 +667,64 @@ TEST(StreamingProcesses, LcmLoggerRecordingReplaysToTheSameStoreTwice) {
     fs::remove_all(dir);
 }
 
+// Runs `plumb <args>` into the log file `text`; returns the exit code and the output.
+std::pair<int, std::string> runTool(const std::vector<std::string>& args, const fs::path& text) {
+    std::vector<std::string> argv = {PLUMB_TOOL_EXE};
+    argv.insert(argv.end(), args.begin(), args.end());
+    const pid_t pid = spawn(argv, text);
+    const int rc = waitExit(pid, 120s);
+    return {rc, readText(text)};
+}
+
+// A device streaming every raw frame: the backend keeps them beside its store, and `plumb fuse
+// store:DIR` tracks and fuses them again on the workstation, frame for frame.
+TEST(StreamingProcesses, RawFramesKeptByTheBackendAreTrackedAgainFromTheStore) {
+    const fs::path dir = tempDir("raw_store");
+    const pid_t backend = spawn(backendArgs(dir), dir / "backend.log");
+    ASSERT_GT(backend, 0);
+    std::this_thread::sleep_for(300ms);
+    auto device_args = deviceArgs(dir, 30);
+    device_args.insert(device_args.end(), {"--set", "stream.raw_frame_every=1"});
+    const pid_t device = spawn(device_args, dir / "device.log");
+    ASSERT_GT(device, 0);
+    EXPECT_EQ(waitExit(device, 100s), 0) << readText(dir / "device.log");
+    EXPECT_EQ(waitExit(backend, 30s), 0) << readText(dir / "backend.log");
+    const fs::path store = dir / "out" / "fragments";
+    size_t kept = 0;
+    for (const auto& e : fs::directory_iterator(store / "raw_frames")) {
+        kept += e.path().extension() == ".raw" ? 1 : 0;
+    }
+    // A 160x120 frame is one datagram: the 4 MiB receive buffer keeps them all but under
+    // extreme load.
+    EXPECT_GE(kept, 25u) << readText(dir / "backend.log");
+    const auto metrics = nlohmann::json::parse(readText(dir / "out" / "metrics.json"));
+    EXPECT_EQ(metrics["raw_frames"]["kept"], kept);
+
+    const auto [rc, text] =
+        runTool({"fuse", "store:" + store.string(), "--out", (dir / "refused").string(), "--set",
+                 "frames_per_fragment=10", "--set", "tsdf.voxel_size_m=0.02"},
+                dir / "fuse.log");
+    ASSERT_EQ(rc, 0) << text;
+    const auto fragments = nlohmann::json::parse(readText(dir / "refused" / "fragments.json"));
+    size_t frames = 0;
+    for (const auto& f : fragments["fragments"]) frames += f["num_frames"].get<size_t>();
+    EXPECT_EQ(frames, kept) << text;
+    EXPECT_NE(text.find("raw frames of session"), std::string::npos) << text;
+
+    // A store without the session, and no store at all, are errors that say so.
+    const auto [rc2, text2] = runTool(
+        {"reconstruct", "store:" + store.string() + "?session=5", "--out", (dir / "none").string()},
+        dir / "none.log");
+    EXPECT_EQ(rc2, 1) << text2;
+    EXPECT_NE(text2.find("session 5"), std::string::npos) << text2;
+    const auto [rc3, text3] = runTool(
+        {"fuse", "store:" + (dir / "nowhere").string(), "--out", (dir / "nowhere_out").string()},
+        dir / "nowhere.log");
+    EXPECT_EQ(rc3, 1) << text3;
+    EXPECT_NE(text3.find("no fragment store at"), std::string::npos) << text3;
+    fs::remove_all(dir);
+}
+
 // Runs plumb-backend on the fragment store `fragments` into `out` (with `extra` arguments);
 // returns the exit code and the output.
 std::pair<int, std::string> rebuild(const fs::path& fragments, const fs::path& out,
