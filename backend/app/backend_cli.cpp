@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "backend/app/backend_cli.hpp"
 
+#include <algorithm>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
@@ -256,9 +257,23 @@ void attachRawFrames(const std::filesystem::path& fragments_dir, double min_shar
             first.status().message());
         return;
     }
+    const bool coloured_fragments =
+        std::any_of(input->fragments.begin(), input->fragments.end(),
+                    [](const Fragment& f) { return f.points_F.hasColors(); });
+    if (first->colour.empty() && coloured_fragments) {
+        log::info(
+            "final model: from the fragment surfaces, which carry colour: the raw frames "
+            "kept do not (stream.raw_frame_colour = false)");
+        return;
+    }
     log::info("final model: re-integrating the raw frames kept, {} of the {} tracked frames",
               coverage.matched, coverage.tracked_frames);
-    if (coverage.matched < coverage.tracked_frames) {
+    if (coverage.matched == coverage.tracked_frames) {
+        log::info(
+            "the raw frames are a scan of their own: `plumb reconstruct store:{} "
+            "--self-calibrate` tracks them again and learns the camera's depth distortion",
+            fragments_dir.string());
+    } else {
         log::info(
             "final model: if the device streamed every frame (stream.raw_frame_every = "
             "1), the others were lost on the network: udpm drops whole frames when the "

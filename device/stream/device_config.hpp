@@ -95,11 +95,13 @@ struct StreamConfig {
     /// Keep per-point colours in encoded fragments when the cloud has them.
     bool include_colors = true;
     /// Publish every this many captured frames raw on PLUMB_RGBD (depth_frame2_t: depth in
-    /// millimetres, delta-varint), for logs and monitoring; 0 = no raw frames. Recorded sources
-    /// wait for the network thread; live sensors drop raw frames it cannot keep up with.
+    /// millimetres, delta-varint), for logs, monitoring and plumb-backend, which keeps them for
+    /// its final model and for `plumb reconstruct store:DIR` (1 = every frame); 0 = no raw
+    /// frames. Recorded sources wait for the network thread; live sensors drop raw frames it
+    /// cannot keep up with.
     int raw_frame_every = 0;
     /// Send the frame's colour in raw frames when it has one (lossless DELTA_RICE, about half
-    /// of 3 bytes a pixel); false = depth only.
+    /// of 3 bytes a pixel, and CPU the tracking competes for); false = depth only.
     bool raw_frame_colour = true;
 };
 
