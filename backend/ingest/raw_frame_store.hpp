@@ -10,7 +10,8 @@
 //  - storedRawFrames() matches them with the frames of a session's fragments (frame index and
 //    capture time, so that frames of other sessions never mix in) and, when every fragment has
 //    enough of its tracked frames among them, opens a FrameSource over the matches in capture
-//    order.
+//    order (the source of the final model; backend/ingest/stored_scan.hpp opens a session's
+//    frames as a scan of their own).
 //
 // Thread-safety: a RawFrameStore is used by one thread (the ingest's); the FrameSource is a
 // FrameSource (one consumer).
@@ -19,7 +20,6 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
-#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -76,45 +76,24 @@ struct RawFrameCoverage {
 RawFrameCoverage rawFrameCoverage(const std::vector<StoredRawFrame>& stored,
                                   const std::vector<Fragment>& fragments);
 
-/// A FrameSource over `frames` (RawFrameCoverage::frames) as `camera` sees them: depth in
-/// metres, colour when the frame carries it, Frame::index the capture index. A file that no
-/// longer reads or decodes, or whose size is not the camera's, is skipped with a warning. A few
-/// frames are read and decoded ahead, each on a thread of its own; the frames come out in order.
-/// `stop_requested` (may be empty) is asked before every frame; when it returns true next()
-/// returns kCancelled.
+/// How openRawFrameSource presents the frames.
+struct RawFrameView {
+    /// Frame::index is the frame's position among the source's frames instead of its capture
+    /// index (Frame::name then says the capture index).
+    bool renumber = false;
+    bool colour = true;       ///< false: colour dropped
+    std::string description;  ///< empty: "N stored raw frames (WxH)"
+};
+
+/// A FrameSource over `frames` (e.g. RawFrameCoverage::frames) as `camera` sees them: depth in
+/// metres, colour when the frame carries it, Frame::index the capture index (unless `view` says
+/// otherwise). A file that no longer reads or decodes, or whose size is not the camera's, is
+/// skipped with a warning. A few frames are read and decoded ahead, each on a thread of its
+/// own; the frames come out in order. `stop_requested` (may be empty) is asked before every
+/// frame; when it returns true next() returns kCancelled.
 std::unique_ptr<FrameSource> openRawFrameSource(std::vector<StoredRawFrame> frames,
                                                 const PinholeCamera& camera,
-                                                std::function<bool()> stop_requested = {});
-
-/// The raw frames of one session of a fragment store, opened as a scan to process again on a
-/// workstation (`plumb reconstruct store:DIR`, `plumb fuse`, `plumb calibrate`): every raw frame
-/// kept whose capture time lies within the session's (its fragments' first and last frames, a
-/// second either side), in capture order, numbered 0, 1, ... (Frame::name keeps the capture
-/// index).
-struct StoredScanOptions {
-    std::optional<int64_t> session;  ///< none: the newest session in the store
-    size_t max_frames = 0;           ///< 0 = all
-    bool colour = true;              ///< false: the frames' colour is dropped
-    /// The camera; none: the camera_info.json the ingest wrote beside the store (its parent
-    /// directory) or inside it.
-    std::optional<PinholeCamera> camera;
-};
-
-struct StoredScan {
-    std::unique_ptr<FrameSource> source;
-    int64_t session = 0;
-    size_t frames = 0;  ///< raw frames of the session
-    /// How they cover the frames of the session's fragments (frames the device tracked).
-    size_t fragment_frames = 0;
-    size_t fragment_frames_with_raw = 0;
-    /// A warning for the user, empty when there is none: the store's other sessions, or frames
-    /// of the session without a raw frame.
-    std::string note;
-};
-
-/// NotFound: no store at `fragments_dir`, no fragment of the session, or no raw frame of it
-/// (the message says how a device streams them); as readCameraInfo without a camera.
-Result<StoredScan> openStoredScan(const std::filesystem::path& fragments_dir,
-                                  const StoredScanOptions& options);
+                                                std::function<bool()> stop_requested = {},
+                                                RawFrameView view = {});
 
 }  // namespace plumb::backend

@@ -9,7 +9,7 @@
 #include "common/core/logging.hpp"
 
 #if PLUMB_HAVE_BACKEND
-#include "backend/ingest/raw_frame_store.hpp"
+#include "backend/ingest/stored_scan.hpp"
 #endif
 
 namespace plumb::tools {

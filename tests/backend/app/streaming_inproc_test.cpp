@@ -20,6 +20,7 @@
 #include "backend/app/backend_cli.hpp"
 #include "backend/ingest/ingest_run.hpp"
 #include "backend/ingest/ingestor.hpp"
+#include "backend/ingest/stored_scan.hpp"
 #include "device/fusion/fuse_frames.hpp"
 #include "device/stream/device_config.hpp"
 #include "device/stream/device_runner.hpp"
