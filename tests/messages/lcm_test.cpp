@@ -16,6 +16,7 @@
 #include "messages/lcm_link.hpp"
 #include "messages/lcm_log.hpp"
 #include "messages/lcm_transport.hpp"
+#include "messages/lcm_url.hpp"
 
 namespace plumb::messages {
 namespace {
@@ -325,6 +326,39 @@ TEST(LcmTransport, RejectsRegexChannelNames) {
     EXPECT_FALSE(
         (*lcm)->subscribe("PLUMB_.*", [](const std::string&, std::span<const uint8_t>) {}).isOk());
     EXPECT_FALSE(LcmTransport::create("nonsense://x").isOk());
+}
+
+// LinkOptions::recv_buffer_bytes: added to a udpm URL without recv_buf_size (a raw VGA frame is
+// 0.7 MB; the system's default buffer loses whole frames), never to one that sets it, nor to
+// other providers.
+TEST(LcmLink, AsksForTheReceiveBufferOnUdpmUrlsThatSetNone) {
+    LinkOptions options;
+    options.recv_buffer_bytes = int64_t{4} << 20;
+    const std::string port = std::to_string(20000 + ::getpid() % 30000);
+    options.url = "udpm://239.255.76.67:" + port + "?ttl=0";
+    auto link = LcmLink::open(options);
+    ASSERT_TRUE(link.isOk()) << link.status().toString();
+    EXPECT_EQ((*link)->url(), options.url + "&recv_buf_size=4194304");
+    auto parsed = parseLcmUrl((*link)->url());
+    ASSERT_TRUE(parsed.isOk());
+    EXPECT_EQ(parsed->options.at("recv_buf_size"), "4194304");
+    EXPECT_TRUE(keepsTrafficOnHost((*link)->url()));
+
+    options.url = "udpm://239.255.76.67:" + port + "?recv_buf_size=65536&ttl=0";
+    link = LcmLink::open(options);
+    ASSERT_TRUE(link.isOk()) << link.status().toString();
+    EXPECT_EQ((*link)->url(), options.url);
+
+    options.url = "memq://";
+    link = LcmLink::open(options);
+    ASSERT_TRUE(link.isOk()) << link.status().toString();
+    EXPECT_EQ((*link)->url(), "memq://");
+
+    options.recv_buffer_bytes = 0;  // the system's default
+    options.url = "udpm://239.255.76.67:" + port + "?ttl=0";
+    link = LcmLink::open(options);
+    ASSERT_TRUE(link.isOk()) << link.status().toString();
+    EXPECT_EQ((*link)->url(), options.url);
 }
 
 }  // namespace
