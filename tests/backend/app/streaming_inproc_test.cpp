@@ -569,6 +569,39 @@ TEST(StreamingInProcess, RawFramesCarryColourToTheIngest) {
     fs::remove_all(dir);
 }
 
+// Raw frames that cannot be written (here the raw frame folder's name is taken by a file) are
+// counted and left out, once warned about; the fragments are stored and acknowledged as ever.
+TEST(StreamingInProcess, RawFramesThatCannotBeKeptAreCountedAndTheFragmentsStillStored) {
+    SourceOptions so;
+    so.intrinsics = "ci";
+    so.max_frames = 16;
+    auto sim = openFrameSource("sim:living_room", so);
+    ASSERT_TRUE(sim.isOk()) << sim.status().toString();
+    device::DeviceRunOptions options = testDeviceOptions(81);
+    options.config.stream.raw_frame_every = 1;
+    RecordingTransport transport;
+    auto report = runRecordedDevice(**sim, options, transport);
+    ASSERT_TRUE(report.isOk()) << report.status().toString();
+    ASSERT_EQ(report->raw_frames_published, 16);
+
+    const fs::path dir = tempDir("raw_not_kept");
+    const fs::path store = dir / "fragments";
+    fs::create_directories(store);
+    std::ofstream(rawFramesDir(store)) << "in the way\n";
+    LossyHub hub;
+    auto ingestor = Ingestor::open(store, {}, IngestConfig{}, hub);
+    ASSERT_TRUE(ingestor.isOk()) << ingestor.status().toString();
+    for (const auto& [channel, bytes] : transport.sent) (*ingestor)->onMessage(channel, bytes, 1.0);
+    (*ingestor)->poll(2.0);
+    EXPECT_EQ((*ingestor)->fragmentsInStore(), 2u);
+    const auto m = (*ingestor)->metrics({});
+    EXPECT_EQ(m["raw_frames"]["received"], 16);
+    EXPECT_EQ(m["raw_frames"]["kept"], 0);
+    EXPECT_EQ(m["raw_frames"]["not_kept"], 16);
+    EXPECT_EQ(m["fragments_received"], 2);
+    fs::remove_all(dir);
+}
+
 std::string readText(const fs::path& p) {
     std::ifstream in(p);
     return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
