@@ -569,20 +569,28 @@ TEST(StreamingInProcess, RawFramesCarryColourToTheIngest) {
     fs::remove_all(dir);
 }
 
-// Raw frames that cannot be written (here the raw frame folder's name is taken by a file) are
-// counted and left out, once warned about; the fragments are stored and acknowledged as ever.
-TEST(StreamingInProcess, RawFramesThatCannotBeKeptAreCountedAndTheFragmentsStillStored) {
+/// The messages a device publishes for the first `frames` frames of the simulated living room
+/// (ci intrinsics) with every raw frame, as session `session`.
+std::vector<std::pair<std::string, std::vector<uint8_t>>> deviceMessagesWithRawFrames(
+    size_t frames, int64_t session) {
     SourceOptions so;
     so.intrinsics = "ci";
-    so.max_frames = 16;
+    so.max_frames = frames;
     auto sim = openFrameSource("sim:living_room", so);
-    ASSERT_TRUE(sim.isOk()) << sim.status().toString();
-    device::DeviceRunOptions options = testDeviceOptions(81);
+    PLUMB_CHECK(sim.isOk()) << sim.status().toString();
+    device::DeviceRunOptions options = testDeviceOptions(session);
     options.config.stream.raw_frame_every = 1;
     RecordingTransport transport;
     auto report = runRecordedDevice(**sim, options, transport);
-    ASSERT_TRUE(report.isOk()) << report.status().toString();
-    ASSERT_EQ(report->raw_frames_published, 16);
+    PLUMB_CHECK(report.isOk()) << report.status().toString();
+    PLUMB_CHECK(report->raw_frames_published == static_cast<int64_t>(frames));
+    return std::move(transport.sent);
+}
+
+// Raw frames that cannot be written (here the raw frame folder's name is taken by a file) are
+// counted and left out, once warned about; the fragments are stored and acknowledged as ever.
+TEST(StreamingInProcess, RawFramesThatCannotBeKeptAreCountedAndTheFragmentsStillStored) {
+    const auto sent = deviceMessagesWithRawFrames(16, 81);
 
     const fs::path dir = tempDir("raw_not_kept");
     const fs::path store = dir / "fragments";
@@ -591,7 +599,7 @@ TEST(StreamingInProcess, RawFramesThatCannotBeKeptAreCountedAndTheFragmentsStill
     LossyHub hub;
     auto ingestor = Ingestor::open(store, {}, IngestConfig{}, hub);
     ASSERT_TRUE(ingestor.isOk()) << ingestor.status().toString();
-    for (const auto& [channel, bytes] : transport.sent) (*ingestor)->onMessage(channel, bytes, 1.0);
+    for (const auto& [channel, bytes] : sent) (*ingestor)->onMessage(channel, bytes, 1.0);
     (*ingestor)->poll(2.0);
     EXPECT_EQ((*ingestor)->fragmentsInStore(), 2u);
     const auto m = (*ingestor)->metrics({});
@@ -608,17 +616,7 @@ std::string readText(const fs::path& p) {
 }
 
 TEST(StreamingInProcess, TheFinalModelReintegratesTheRawFramesTheIngestKept) {
-    SourceOptions so;
-    so.intrinsics = "ci";
-    so.max_frames = 24;
-    auto sim = openFrameSource("sim:living_room", so);
-    ASSERT_TRUE(sim.isOk()) << sim.status().toString();
-    device::DeviceRunOptions options = testDeviceOptions(79);
-    options.config.stream.raw_frame_every = 1;
-    RecordingTransport transport;
-    auto report = runRecordedDevice(**sim, options, transport);
-    ASSERT_TRUE(report.isOk()) << report.status().toString();
-    ASSERT_EQ(report->raw_frames_published, 24);
+    const auto sent = deviceMessagesWithRawFrames(24, 79);
 
     // plumb-backend's ingest: fragments into the store, raw frames beside it, the camera info
     // beside both (where the reconstruction of the store looks for it).
@@ -628,8 +626,7 @@ TEST(StreamingInProcess, TheFinalModelReintegratesTheRawFramesTheIngestKept) {
         LossyHub hub;
         auto ingestor = Ingestor::open(store, dir, IngestConfig{}, hub);
         ASSERT_TRUE(ingestor.isOk()) << ingestor.status().toString();
-        for (const auto& [channel, bytes] : transport.sent)
-            (*ingestor)->onMessage(channel, bytes, 1.0);
+        for (const auto& [channel, bytes] : sent) (*ingestor)->onMessage(channel, bytes, 1.0);
         (*ingestor)->poll(2.0);
         EXPECT_EQ((*ingestor)->fragmentsInStore(), 3u);
         EXPECT_EQ((*ingestor)->counters().raw_frames_kept, 24u);
@@ -650,7 +647,7 @@ TEST(StreamingInProcess, TheFinalModelReintegratesTheRawFramesTheIngestKept) {
     {
         auto other = RawFrameStore::open(rawFramesDir(store));
         ASSERT_TRUE(other.isOk());
-        for (const auto& [channel, bytes] : transport.sent) {
+        for (const auto& [channel, bytes] : sent) {
             if (channel != messages::kChannelRgbd) continue;
             auto raw = messages::decodeRawFrame(bytes).value();
             raw.utime += int64_t{3600} * 1000000;
@@ -666,6 +663,9 @@ TEST(StreamingInProcess, TheFinalModelReintegratesTheRawFramesTheIngestKept) {
         EXPECT_EQ(scan->frames, 24u);
         EXPECT_EQ(scan->fragment_frames_with_raw, 24u);
         EXPECT_TRUE(scan->note.empty()) << scan->note;
+        SourceOptions so;
+        so.intrinsics = "ci";
+        so.max_frames = 24;
         auto again = openFrameSource("sim:living_room", so);
         ASSERT_TRUE(again.isOk());
         int64_t k = 0;
