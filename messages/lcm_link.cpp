@@ -97,8 +97,7 @@ std::string withReceiveBuffer(const std::string& url, int64_t bytes) {
             "(sysctl -w net.core.rmem_max={} raises it)",
             limit, bytes, bytes);
     }
-    return fmt::format("{}{}recv_buf_size={}", url,
-                       parsed->options.empty() && url.find('?') == std::string::npos ? "?" : "&",
+    return fmt::format("{}{}recv_buf_size={}", url, url.find('?') == std::string::npos ? "?" : "&",
                        bytes);
 }
 

@@ -17,10 +17,6 @@ namespace plumb::backend {
 
 using Key = std::pair<int64_t, uint32_t>;
 
-std::filesystem::path rawFramesDir(const std::filesystem::path& fragments_dir) {
-    return fragments_dir / "raw_frames";
-}
-
 // Forwards the assembler's messages and remembers which chunks it asked for again, so the
 // metrics can say how many chunks were lost and how many of those were recovered.
 class Ingestor::CountingTransport final : public messages::Transport {

@@ -40,9 +40,6 @@
 
 namespace plumb::backend {
 
-/// Where the ingest keeps the raw frames of the fragment store in `fragments_dir`.
-std::filesystem::path rawFramesDir(const std::filesystem::path& fragments_dir);
-
 struct IngestConfig {
     /// Reassembly limits and the retransmission request interval.
     messages::FragmentAssemblerConfig assembler;

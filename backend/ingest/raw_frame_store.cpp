@@ -48,6 +48,11 @@ bool parseFileName(const std::string& name, int64_t* utime, int64_t* frame_index
     return true;
 }
 
+/// Capture time, then index (frames of one instant from two sessions stay apart).
+bool inCaptureOrder(const StoredRawFrame& a, const StoredRawFrame& b) {
+    return std::pair(a.utime, a.frame_index) < std::pair(b.utime, b.frame_index);
+}
+
 class RawFrameSource final : public FrameSource {
   public:
     RawFrameSource(std::vector<StoredRawFrame> frames, const PinholeCamera& camera,
@@ -129,6 +134,8 @@ class RawFrameSource final : public FrameSource {
 
 }  // namespace
 
+fs::path rawFramesDir(const fs::path& fragments_dir) { return fragments_dir / "raw_frames"; }
+
 Result<std::unique_ptr<RawFrameStore>> RawFrameStore::open(const fs::path& dir) {
     std::error_code ec;
     fs::create_directories(dir, ec);
@@ -198,9 +205,7 @@ Result<std::vector<StoredRawFrame>> listRawFrames(const fs::path& dir) {
         return Status(StatusCode::kIoError,
                       fmt::format("raw frames: cannot list {}: {}", dir.string(), ec.message()));
     }
-    std::sort(out.begin(), out.end(), [](const StoredRawFrame& a, const StoredRawFrame& b) {
-        return std::pair(a.utime, a.frame_index) < std::pair(b.utime, b.frame_index);
-    });
+    std::sort(out.begin(), out.end(), inCaptureOrder);
     return out;
 }
 
@@ -233,10 +238,7 @@ RawFrameCoverage rawFrameCoverage(const std::vector<StoredRawFrame>& stored,
             c.min_fragment_id = fragment.id;
         }
     }
-    std::sort(c.frames.begin(), c.frames.end(),
-              [](const StoredRawFrame& a, const StoredRawFrame& b) {
-                  return std::pair(a.utime, a.frame_index) < std::pair(b.utime, b.frame_index);
-              });
+    std::sort(c.frames.begin(), c.frames.end(), inCaptureOrder);
     return c;
 }
 

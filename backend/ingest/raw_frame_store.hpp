@@ -7,11 +7,10 @@
 //  - RawFrameStore writes each frame's message as it arrived to `<dir>/<utime>_<index>.raw`
 //    (a temporary file renamed into place, not fsync'ed: raw frames are never acknowledged, and
 //    one lost to a crash only leaves its frame to the fragment surfaces);
-//  - storedRawFrames() matches them with the frames of a session's fragments (frame index and
-//    capture time, so that frames of other sessions never mix in) and, when every fragment has
-//    enough of its tracked frames among them, opens a FrameSource over the matches in capture
-//    order (the source of the final model; backend/ingest/stored_scan.hpp opens a session's
-//    frames as a scan of their own).
+//  - rawFrameCoverage() matches them with the frames of a session's fragments (frame index and
+//    capture time, so that frames of other sessions never mix in) and says how well they cover
+//    each fragment; openRawFrameSource() reads the matches in capture order (the final model's
+//    source; backend/ingest/stored_scan.hpp opens a session's frames as a scan of their own).
 //
 // Thread-safety: a RawFrameStore is used by one thread (the ingest's); the FrameSource is a
 // FrameSource (one consumer).
@@ -30,6 +29,9 @@
 #include "common/frame/frame_source.hpp"
 
 namespace plumb::backend {
+
+/// Where the ingest keeps the raw frames of the fragment store in `fragments_dir`.
+std::filesystem::path rawFramesDir(const std::filesystem::path& fragments_dir);
 
 /// One stored raw frame.
 struct StoredRawFrame {

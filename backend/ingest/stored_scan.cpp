@@ -4,6 +4,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <limits>
 #include <set>
 #include <utility>
 #include <vector>
@@ -33,21 +34,22 @@ Result<StoredScan> openStoredScan(const fs::path& fragments_dir, const StoredSca
     scan.session = *session;
     auto fragments = loadStoredFragments(**store, *session);
     if (!fragments.isOk()) return fragments.status();
-    double first_s = 0.0, last_s = 0.0;
-    bool any = false;
+    // The session's capture-time span, a second either side.
+    double first_s = std::numeric_limits<double>::infinity(), last_s = -first_s;
     for (const Fragment& fragment : *fragments) {
         for (const FragmentFrame& frame : fragment.frames) {
-            first_s = any ? std::min(first_s, frame.timestamp_s) : frame.timestamp_s;
-            last_s = any ? std::max(last_s, frame.timestamp_s) : frame.timestamp_s;
-            any = true;
+            first_s = std::min(first_s, frame.timestamp_s);
+            last_s = std::max(last_s, frame.timestamp_s);
         }
     }
     auto stored = listRawFrames(rawFramesDir(fragments_dir));
     if (!stored.isOk()) return stored.status();
     std::vector<StoredRawFrame> frames;
-    const int64_t from = messages::toUtime(first_s - 1.0), to = messages::toUtime(last_s + 1.0);
-    for (const StoredRawFrame& f : *stored) {
-        if (any && f.utime >= from && f.utime <= to) frames.push_back(f);
+    if (first_s <= last_s) {  // the session has frames
+        const int64_t from = messages::toUtime(first_s - 1.0), to = messages::toUtime(last_s + 1.0);
+        for (const StoredRawFrame& f : *stored) {
+            if (f.utime >= from && f.utime <= to) frames.push_back(f);
+        }
     }
     if (frames.empty()) {
         return Status(

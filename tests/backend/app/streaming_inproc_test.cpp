@@ -45,18 +45,24 @@ using messages::testing::LossyHub;
 
 constexpr int64_t kSession = 4242;
 
+/// The simulated living room at the ci intrinsics (160x120), its first `frames` frames.
+std::unique_ptr<FrameSource> smallLivingRoom(size_t frames) {
+    SourceOptions so;
+    so.intrinsics = "ci";
+    so.max_frames = frames;
+    auto source = openFrameSource("sim:living_room", so);
+    PLUMB_CHECK(source.isOk()) << source.status().toString();
+    return std::move(source).value();
+}
+
 // 40 frames of the simulated living room at 160x120, 8 frames per fragment, encoded.
 const std::vector<std::vector<uint8_t>>& deviceFragments() {
     static const std::vector<std::vector<uint8_t>> fragments = [] {
-        SourceOptions so;
-        so.intrinsics = "ci";
-        so.max_frames = 40;
-        auto source = openFrameSource("sim:living_room", so);
-        PLUMB_CHECK(source.isOk()) << source.status().toString();
+        std::unique_ptr<FrameSource> source = smallLivingRoom(40);
         device::FusionOptions fo;
         fo.frames_per_fragment = 8;
         fo.voxel_size_m = 0.02;
-        device::FragmentBuilder builder((*source)->camera(), device::toFusionConfig(fo));
+        device::FragmentBuilder builder(source->camera(), device::toFusionConfig(fo));
         std::vector<std::vector<uint8_t>> out;
         device::FuseHooks hooks;
         hooks.on_fragment = [&](Fragment f) {
@@ -65,7 +71,7 @@ const std::vector<std::vector<uint8_t>>& deviceFragments() {
             out.push_back(std::move(bytes).value());
             return Status::ok();
         };
-        const Result<bool> fused = device::fuseFrames(**source, builder, hooks);
+        const Result<bool> fused = device::fuseFrames(*source, builder, hooks);
         PLUMB_CHECK(fused.isOk()) << fused.status().toString();
         return out;
     }();
@@ -432,12 +438,7 @@ Result<device::DeviceRunReport> runRecordedDevice(FrameSource& source,
 }
 
 TEST(StreamingInProcess, UnpluggedCameraIsInTheHeartbeatAndTheScanResumes) {
-    SourceOptions so;
-    so.intrinsics = "ci";
-    so.max_frames = 24;
-    auto sim = openFrameSource("sim:living_room", so);
-    ASSERT_TRUE(sim.isOk()) << sim.status().toString();
-    UnpluggingSource source(std::move(sim).value(), 10, 30, std::chrono::milliseconds(20));
+    UnpluggingSource source(smallLivingRoom(24), 10, 30, std::chrono::milliseconds(20));
 
     device::DeviceRunOptions options = testDeviceOptions(77);
     options.config.stream.status_period_s = 0.05;
@@ -488,21 +489,14 @@ class ColourCamera final : public FrameSourceDecorator {
 };
 
 TEST(StreamingInProcess, RawFramesCarryColourToTheIngest) {
-    SourceOptions so;
-    so.intrinsics = "ci";
-    so.max_frames = 16;
-    auto sim = openFrameSource("sim:living_room", so);
-    ASSERT_TRUE(sim.isOk()) << sim.status().toString();
     // The frames as the camera delivers them, for comparison.
     std::vector<Frame> expected;
     {
-        auto again = openFrameSource("sim:living_room", so);
-        ASSERT_TRUE(again.isOk());
-        ColourCamera camera(std::move(again).value());
+        ColourCamera camera(smallLivingRoom(16));
         for (auto f = camera.next(); f.isOk(); f = camera.next()) expected.push_back(*f);
     }
     ASSERT_EQ(expected.size(), 16u);
-    ColourCamera source(std::move(sim).value());
+    ColourCamera source(smallLivingRoom(16));
 
     device::DeviceRunOptions options = testDeviceOptions(78);
     options.config.stream.raw_frame_every = 5;  // frames 0, 5, 10, 15
@@ -573,15 +567,11 @@ TEST(StreamingInProcess, RawFramesCarryColourToTheIngest) {
 /// (ci intrinsics) with every raw frame, as session `session`.
 std::vector<std::pair<std::string, std::vector<uint8_t>>> deviceMessagesWithRawFrames(
     size_t frames, int64_t session) {
-    SourceOptions so;
-    so.intrinsics = "ci";
-    so.max_frames = frames;
-    auto sim = openFrameSource("sim:living_room", so);
-    PLUMB_CHECK(sim.isOk()) << sim.status().toString();
+    std::unique_ptr<FrameSource> sim = smallLivingRoom(frames);
     device::DeviceRunOptions options = testDeviceOptions(session);
     options.config.stream.raw_frame_every = 1;
     RecordingTransport transport;
-    auto report = runRecordedDevice(**sim, options, transport);
+    auto report = runRecordedDevice(*sim, options, transport);
     PLUMB_CHECK(report.isOk()) << report.status().toString();
     PLUMB_CHECK(report->raw_frames_published == static_cast<int64_t>(frames));
     return std::move(transport.sent);
@@ -663,14 +653,10 @@ TEST(StreamingInProcess, TheFinalModelReintegratesTheRawFramesTheIngestKept) {
         EXPECT_EQ(scan->frames, 24u);
         EXPECT_EQ(scan->fragment_frames_with_raw, 24u);
         EXPECT_TRUE(scan->note.empty()) << scan->note;
-        SourceOptions so;
-        so.intrinsics = "ci";
-        so.max_frames = 24;
-        auto again = openFrameSource("sim:living_room", so);
-        ASSERT_TRUE(again.isOk());
+        std::unique_ptr<FrameSource> again = smallLivingRoom(24);
         int64_t k = 0;
         for (auto frame = scan->source->next(); frame.isOk(); frame = scan->source->next(), ++k) {
-            auto expected = (*again)->next();
+            auto expected = again->next();
             ASSERT_TRUE(expected.isOk());
             EXPECT_EQ(frame->index, k);
             EXPECT_EQ(toRaw(frame->depth, 1000.0), toRaw(expected->depth, 1000.0)) << k;
