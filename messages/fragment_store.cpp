@@ -30,19 +30,37 @@ Result<std::unique_ptr<FragmentStore>> FragmentStore::open(const std::filesystem
         return ioError(
             fmt::format("fragment store: cannot create {}: {}", dir.string(), ec.message()));
     }
-    std::unique_ptr<FragmentStore> store(new FragmentStore(dir));
+    std::unique_ptr<FragmentStore> store(new FragmentStore(dir, false));
+    PLUMB_RETURN_IF_ERROR(store->indexFiles());
+    return store;
+}
+
+Result<std::unique_ptr<FragmentStore>> FragmentStore::openReadOnly(
+    const std::filesystem::path& dir) {
+    std::error_code ec;
+    if (!std::filesystem::is_directory(dir, ec)) {
+        return notFound(fmt::format("fragment store: no store at {}", dir.string()));
+    }
+    std::unique_ptr<FragmentStore> store(new FragmentStore(dir, true));
+    PLUMB_RETURN_IF_ERROR(store->indexFiles());
+    return store;
+}
+
+Status FragmentStore::indexFiles() {
+    std::error_code ec;
     std::vector<std::filesystem::path> files;
-    for (const auto& item : std::filesystem::directory_iterator(dir, ec)) {
+    for (const auto& item : std::filesystem::directory_iterator(dir_, ec)) {
         files.push_back(item.path());
     }
     if (ec) {
         return ioError(
-            fmt::format("fragment store: cannot list {}: {}", dir.string(), ec.message()));
+            fmt::format("fragment store: cannot list {}: {}", dir_.string(), ec.message()));
     }
     for (const auto& path : files) {
         const std::string name = path.filename().string();
         if (name.ends_with(kTempSuffix)) {
-            PLUMB_RETURN_IF_ERROR(removeFile(path));  // an interrupted write, never acknowledged
+            // An interrupted write, never acknowledged; or, read-only, one in progress.
+            if (!read_only_) PLUMB_RETURN_IF_ERROR(removeFile(path));
             continue;
         }
         StoredFragment f;
@@ -50,6 +68,10 @@ Result<std::unique_ptr<FragmentStore>> FragmentStore::open(const std::filesystem
         auto bytes = readFile(path, kMaxFileBytes);
         if (!bytes.isOk()) return bytes.status();
         if (!hasValidCrcTrailer(*bytes)) {
+            if (read_only_) {
+                quarantined_.push_back(path);
+                continue;
+            }
             std::filesystem::path aside = path;
             aside += ".corrupt";
             std::filesystem::rename(path, aside, ec);
@@ -57,19 +79,23 @@ Result<std::unique_ptr<FragmentStore>> FragmentStore::open(const std::filesystem
                 return ioError(fmt::format("fragment store: cannot move damaged {} aside: {}",
                                            path.string(), ec.message()));
             }
-            store->quarantined_.push_back(aside);
+            quarantined_.push_back(aside);
             continue;
         }
         f.crc32 = crc32(*bytes);
         f.size_bytes = static_cast<int64_t>(bytes->size());
         f.path = path;
-        store->index_.emplace(FragmentKey{f.session_id, f.fragment_id}, f);
+        index_.emplace(FragmentKey{f.session_id, f.fragment_id}, f);
     }
-    return store;
+    return Status::ok();
 }
 
 Result<bool> FragmentStore::put(int64_t session_id, uint32_t fragment_id,
                                 std::span<const uint8_t> bytes) {
+    if (read_only_) {
+        return failedPrecondition(
+            fmt::format("fragment store: {} was opened read-only", dir_.string()));
+    }
     const uint32_t crc = crc32(bytes);
     const FragmentKey key{session_id, fragment_id};
     if (auto it = index_.find(key); it != index_.end()) {

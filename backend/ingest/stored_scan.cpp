@@ -24,7 +24,8 @@ Result<StoredScan> openStoredScan(const fs::path& fragments_dir, const StoredSca
         return Status(StatusCode::kNotFound,
                       fmt::format("no fragment store at {}", fragments_dir.string()));
     }
-    auto store = messages::FragmentStore::open(fragments_dir);
+    // Read-only: a live backend may be writing the store (its temporary files stay).
+    auto store = messages::FragmentStore::openReadOnly(fragments_dir);
     if (!store.isOk()) return store.status();
     StoredScan scan;
     std::set<int64_t> wanted;
