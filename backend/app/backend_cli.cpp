@@ -257,15 +257,6 @@ void attachRawFrames(const std::filesystem::path& fragments_dir, double min_shar
             first.status().message());
         return;
     }
-    const bool coloured_fragments =
-        std::any_of(input->fragments.begin(), input->fragments.end(),
-                    [](const Fragment& f) { return f.points_F.hasColors(); });
-    if (first->colour.empty() && coloured_fragments) {
-        log::info(
-            "final model: from the fragment surfaces, which carry colour: the raw frames "
-            "kept do not (stream.raw_frame_colour = false)");
-        return;
-    }
     log::info("final model: re-integrating the raw frames kept, {} of the {} tracked frames",
               coverage.matched, coverage.tracked_frames);
     if (coverage.matched == coverage.tracked_frames) {

@@ -9,6 +9,7 @@
 #include <limits>
 #include <unordered_map>
 
+#include "common/cloud/kd_tree.hpp"
 #include "common/core/parallel.hpp"
 #include "common/tsdf/surface.hpp"
 #include "common/tsdf/tsdf_volume.hpp"
@@ -34,6 +35,10 @@ Status FinalModelConfig::validate() const {
         return invalidArgument("final_model.allocation_stride_px must be in [1, 8]");
     if (splat_radius_px < 0 || splat_radius_px > 8)
         return invalidArgument("final_model.splat_radius_px must be in [0, 8]");
+    if (!(fragment_colour_radius_m >= 0.0 && fragment_colour_radius_m <= 1.0))
+        return invalidArgument(
+            fmt::format("final_model.fragment_colour_radius_m must be in [0, 1] m, got {}",
+                        fragment_colour_radius_m));
     return Status::ok();
 }
 
@@ -60,6 +65,11 @@ void describe(config::Schema& s, FinalModelConfig& c) {
     s.field("allocation_stride_px", c.allocation_stride_px,
             "pixel stride of block allocation (1 = every pixel)", "px")
         .range(1, 8);
+    s.field("fragment_colour_radius_m", c.fragment_colour_radius_m,
+            "raw frames without colour, coloured fragments: a mesh vertex takes the colour of "
+            "the nearest fragment point within this distance (0: mesh left uncoloured)",
+            "m")
+        .range(0.0, 1.0);
     s.field("min_weight", c.min_weight, "voxels observed fewer times are not meshed").min(0.0);
     s.field("splat_radius_px", c.splat_radius_px,
             "splat radius when rendering fragment points into synthetic depth frames", "px")
@@ -149,6 +159,38 @@ DepthImage renderPointsToDepth(const PointCloud& points_F, const PinholeCamera& 
         }
     }
     return depth;
+}
+
+void colourFromFragmentPoints(const std::vector<Fragment>& fragments,
+                              const std::vector<Eigen::Isometry3d>& T_W_F, double radius_m,
+                              int num_threads, TriangleMesh* mesh) {
+    PLUMB_CHECK(fragments.size() == T_W_F.size())
+        << fragments.size() << " fragments but " << T_W_F.size() << " poses";
+    size_t total = 0;
+    for (const Fragment& f : fragments) total += f.points_F.hasColors() ? f.points_F.size() : 0;
+    std::vector<Eigen::Vector3f> points;
+    std::vector<Color3u8> colours;
+    points.reserve(total);
+    colours.reserve(total);
+    for (size_t i = 0; i < fragments.size(); ++i) {
+        const PointCloud& cloud = fragments[i].points_F;
+        if (!cloud.hasColors()) continue;
+        const Eigen::Isometry3f T = T_W_F[i].cast<float>();
+        for (size_t k = 0; k < cloud.points.size(); ++k) {
+            points.push_back(T * cloud.points[k]);
+            colours.push_back(cloud.colors[k]);
+        }
+    }
+    if (points.empty() || mesh->vertices.empty()) return;
+    const PointKdTree<float> tree(points);
+    const auto max_dist_sq = static_cast<float>(radius_m * radius_m);
+    mesh->colors.assign(mesh->vertices.size(), Color3u8(128, 128, 128));
+    parallelFor(num_threads, mesh->vertices.size(), [&](size_t v) {
+        uint32_t nearest = 0;
+        float dist_sq = 0.0f;
+        tree.index().knnSearch(mesh->vertices[v].data(), 1, &nearest, &dist_sq);
+        if (dist_sq <= max_dist_sq) mesh->colors[v] = colours[nearest];
+    });
 }
 
 namespace {
@@ -252,8 +294,9 @@ Result<std::vector<FinalModel>> integrateRawFrames(
 
     std::vector<tsdf::TsdfVolume> volumes = volumesFor(T_W_F.size(), config);
     size_t integrated = 0;
-    size_t seen = 0;    // frames read or skipped
-    size_t passed = 0;  // of those, handed to the integration loop (progress)
+    size_t coloured = 0;  // of those, with colour
+    size_t seen = 0;      // frames read or skipped
+    size_t passed = 0;    // of those, handed to the integration loop (progress)
     // Every frame_stride-th frame is read, the others skipped (not decoded where the source
     // allows). The next frame is read (decoded, simulated, undistorted) while this one is
     // integrated; one call at a time and in order, so the source sees a plain loop's calls.
@@ -290,11 +333,24 @@ Result<std::vector<FinalModel>> integrateRawFrames(
                                       T_F_C, colour ? &frame->colour : nullptr, config.num_threads);
         if (!s.isOk()) return s;
         ++integrated;
+        if (colour) ++coloured;
     }
     if (integrated == 0)
         return failedPrecondition(fmt::format(
             "none of the {} frames of {} matches a fragment frame", seen, source.description()));
-    return finishAll(volumes, config, integrated, true);
+    std::vector<FinalModel> models = finishAll(volumes, config, integrated, true);
+    const bool coloured_fragments =
+        std::any_of(fragments.begin(), fragments.end(),
+                    [](const Fragment& f) { return f.points_F.hasColors(); });
+    if (coloured == 0 && coloured_fragments && config.fragment_colour_radius_m > 0.0) {
+        // Side by side: each variant's k-d tree is built on one thread.
+        parallelFor(config.num_threads, models.size(), [&](size_t v) {
+            colourFromFragmentPoints(fragments, T_W_F[v], config.fragment_colour_radius_m,
+                                     config.num_threads, &models[v].mesh);
+            models[v].colour_from_fragments = true;
+        });
+    }
+    return models;
 }
 
 Result<std::vector<FinalModel>> fuseFragmentSurfaces(

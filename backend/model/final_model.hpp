@@ -52,6 +52,12 @@ struct FinalModelConfig {
     /// this share of its tracked frames among them (1 = all; 0.25 admits raw_frame_every = 4,
     /// the fragment surfaces' own stride); else the surfaces are fused and the log says why.
     double min_raw_frame_share = 0.25;
+    /// Raw frames without colour (a device streaming depth only, stream.raw_frame_colour =
+    /// false) of a scan whose fragments carry colour: each vertex of the mesh takes the colour
+    /// of the nearest fragment point within this distance, metres, at the variant's poses (mid
+    /// grey beyond it), so that the mesh keeps the scan's colour. 3 voxels: the fragments'
+    /// points lie on the surface the raw frames re-measure, well within it. 0: left uncoloured.
+    double fragment_colour_radius_m = 0.03;
     /// Pixel stride of block allocation. The final volume's blocks are 8 cm wide, where a pixel
     /// spans 2 to 8 mm at 1 to 4 m: every fourth pixel still samples each block the surface
     /// passes through, and the allocation walk costs a quarter of every pixel's.
@@ -83,11 +89,22 @@ DepthImage renderPointsToDepth(const PointCloud& points_F, const PinholeCamera& 
                                const Eigen::Isometry3d& T_F_C, int splat_radius_px,
                                ColourImage* colour = nullptr);
 
+/// Colours `mesh` (world frame) from the coloured points of `fragments` placed at T_W_F: each
+/// vertex takes the colour of the nearest point within `radius_m` (mid grey beyond it, as a
+/// volume without colour gives). Fragments without colour contribute no points; when none has
+/// colour the mesh is left as it is. Deterministic whatever num_threads (0 = all).
+void colourFromFragmentPoints(const std::vector<Fragment>& fragments,
+                              const std::vector<Eigen::Isometry3d>& T_W_F, double radius_m,
+                              int num_threads, TriangleMesh* mesh);
+
 struct FinalModel {
     TriangleMesh mesh;             ///< marching cubes of the final volume, world frame
     size_t frames_integrated = 0;  ///< depth images fused
     size_t blocks = 0;             ///< TSDF blocks allocated
     bool from_raw_frames = false;  ///< true: raw frames re-integrated; false: fragment surfaces
+    /// Raw frames only: none had colour and the mesh took the fragments' point colours
+    /// (FinalModelConfig::fragment_colour_radius_m).
+    bool colour_from_fragments = false;
 };
 
 /// Re-integrates the raw frames of `source` (read from the start until it ends, once) at the
@@ -95,7 +112,9 @@ struct FinalModel {
 /// and the baseline; each set keyed by Frame::index through `frameTrajectory`'s order: fragments'
 /// frame indices), one volume per variant: the result has one model per variant, in order.
 /// Frames without an optimised pose are skipped. While a frame is integrated the next one is
-/// read. Fails when the source's frames do not match the fragments (no frame index in common).
+/// read. When no frame has colour and the fragments do, each mesh is coloured from them
+/// (colourFromFragmentPoints). Fails when the source's frames do not match the fragments (no frame
+/// index in common).
 Result<std::vector<FinalModel>> integrateRawFrames(
     FrameSource& source, const std::vector<Fragment>& fragments,
     const std::vector<std::vector<Eigen::Isometry3d>>& T_W_F, const FinalModelConfig& config,

@@ -76,12 +76,12 @@ std::vector<global::PairPrior> pairPriors(const posegraph::PoseGraph& graph) {
 }
 
 /// The final mesh of every variant of `T` (one set of fragment poses each), from one pass over
-/// the raw frames or the fragment surfaces.
+/// the raw frames or the fragment surfaces; *how says which (metrics.json's final_model).
 Result<std::vector<TriangleMesh>> finalMeshes(const PipelineInput& input,
                                               const std::vector<std::vector<Eigen::Isometry3d>>& T,
                                               const FinalModelConfig& config,
                                               const std::string& what, bool show_progress,
-                                              bool* from_raw) {
+                                              std::string* how) {
     Result<std::vector<FinalModel>> models = std::vector<FinalModel>{};
     if (input.open_raw_frames) {
         Result<std::unique_ptr<FrameSource>> source = input.open_raw_frames();
@@ -91,14 +91,20 @@ Result<std::vector<TriangleMesh>> finalMeshes(const PipelineInput& input,
                           progressOptions(show_progress));
         models = integrateRawFrames(**source, input.fragments, T, config, advanceOf(progress));
         progress.finish();
-        *from_raw = true;
+        *how = "raw frames re-integrated";
+        if (models.isOk() && !models->empty() && models->front().colour_from_fragments) {
+            log::info(
+                "final model: the raw frames carry no colour; the mesh takes the colour of "
+                "the fragments' points");
+            *how += ", coloured from the fragment points";
+        }
     } else {
         Progress progress("fusing fragment surfaces (" + what + ")", input.fragments.size(),
                           progressOptions(show_progress));
         models =
             fuseFragmentSurfaces(input.fragments, T, input.camera, config, advanceOf(progress));
         progress.finish();
-        *from_raw = false;
+        *how = "fragment surfaces fused";
     }
     if (!models.isOk()) return models.status();
     std::vector<TriangleMesh> meshes;
@@ -237,13 +243,13 @@ std::string planNames(const std::vector<Plan>& plans) {
 Result<std::vector<TriangleMesh>> planMeshes(const PipelineInput& input,
                                              const std::vector<Plan>& plans,
                                              const FinalModelConfig& config, bool show_progress,
-                                             StageTimer& timer, bool* from_raw) {
+                                             StageTimer& timer, std::string* how) {
     std::vector<std::vector<Eigen::Isometry3d>> poses;
     for (const Plan& plan : plans) poses.push_back(*plan.T);
     const std::string names = planNames(plans);
     auto scope = timer.scope("final model (" + names + ")");
     Result<std::vector<TriangleMesh>> meshes =
-        finalMeshes(input, poses, config, names, show_progress, from_raw);
+        finalMeshes(input, poses, config, names, show_progress, how);
     if (!meshes.isOk()) return prefixed(meshes.status(), "final model (" + names + ")");
     return meshes;
 }
@@ -290,7 +296,7 @@ Status outputAndEvaluate(const fs::path& dir, const PipelineInput& input,
 
 /// What metrics.json says of the input before any figure: format, input, fragments and frames,
 /// the ground truth, and where the final model came from.
-nlohmann::json metricsHeader(const PipelineInput& input, bool from_raw) {
+nlohmann::json metricsHeader(const PipelineInput& input, const std::string& final_model) {
     size_t frames = 0;
     for (const Fragment& f : input.fragments) frames += f.frames.size();
     nlohmann::json metrics;
@@ -302,7 +308,7 @@ nlohmann::json metricsHeader(const PipelineInput& input, bool from_raw) {
     metrics["ground_truth"] = input.ground_truth.description.empty()
                                   ? std::string("none")
                                   : input.ground_truth.description;
-    metrics["final_model"] = from_raw ? "raw frames re-integrated" : "fragment surfaces fused";
+    metrics["final_model"] = final_model;
     return metrics;
 }
 
@@ -616,9 +622,9 @@ Result<PipelineResult> runPipeline(const PipelineInput& input, const PipelineCon
     PipelineResult result;
     ReportFigures figures;
     nlohmann::json variants_json = nlohmann::json::object();
-    bool from_raw = false;
+    std::string final_model;
     Result<std::vector<TriangleMesh>> meshes =
-        planMeshes(input, plans, config.final_model, show_progress, timer, &from_raw);
+        planMeshes(input, plans, config.final_model, show_progress, timer, &final_model);
     if (!meshes.isOk()) return meshes.status();
     PLUMB_RETURN_IF_ERROR(stop("the final model"));
     std::vector<VariantResult> variants(plans.size());
@@ -632,7 +638,7 @@ Result<PipelineResult> runPipeline(const PipelineInput& input, const PipelineCon
         result.variants.push_back(std::move(v));
     }
 
-    nlohmann::json metrics = metricsHeader(input, from_raw);
+    nlohmann::json metrics = metricsHeader(input, final_model);
     metrics["variants"] = variants_json;
     metrics["registration"] = edgeSummary(outcome);
     if (!input.self_calibration.is_null()) metrics["self_calibration"] = input.self_calibration;

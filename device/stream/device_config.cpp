@@ -71,7 +71,8 @@ void describe(config::Schema& s, StreamConfig& c) {
         .min(0);
     s.field("raw_frame_colour", c.raw_frame_colour,
             "send the frame's colour in raw frames when it has one (lossless, about 12 ms of "
-            "device CPU a VGA frame; false: depth only, about 0.3 MB a frame)");
+            "device CPU a VGA frame; false: depth only, about 0.3 MB a frame, and the "
+            "backend's mesh takes the colour of the fragments)");
 }
 
 void describe(config::Schema& s, DeviceConfig& c) {

@@ -101,7 +101,8 @@ struct StreamConfig {
     /// cannot keep up with.
     int raw_frame_every = 0;
     /// Send the frame's colour in raw frames when it has one (lossless DELTA_RICE, about half
-    /// of 3 bytes a pixel, and CPU the tracking competes for); false = depth only.
+    /// of 3 bytes a pixel, and CPU the tracking competes for); false = depth only, and the
+    /// backend's mesh takes the colour of the fragments' points instead.
     bool raw_frame_colour = true;
 };
 

@@ -12,6 +12,7 @@
 #include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <lcm/lcm-cpp.hpp>
 #include <mutex>
 #include <random>
@@ -21,6 +22,7 @@
 #include "backend/ingest/ingest_run.hpp"
 #include "backend/ingest/ingestor.hpp"
 #include "backend/ingest/stored_scan.hpp"
+#include "common/io/ply.hpp"
 #include "device/fusion/fuse_frames.hpp"
 #include "device/stream/device_config.hpp"
 #include "device/stream/device_runner.hpp"
@@ -32,6 +34,7 @@
 #include "messages/crc32.hpp"
 #include "messages/files.hpp"
 #include "messages/fragment_codec.hpp"
+#include "messages/fragment_files.hpp"
 #include "messages/fragment_store.hpp"
 #include "messages/wire.hpp"
 #include "tests/messages/lossy_transport.hpp"
@@ -361,6 +364,49 @@ TEST(StreamingInProcess, ChoosingASessionNamesTheOthers) {
     ASSERT_TRUE(loaded.isOk());
     EXPECT_EQ(loaded->size(), 3u);
     EXPECT_EQ(chooseSession(**store, {333}, &note).status().code(), StatusCode::kNotFound);
+    fs::remove_all(dir);
+}
+
+// `plumb reconstruct store:DIR` reads a store a live backend may be writing: opened read-only,
+// the store is indexed and left as it is (a write in progress stays, a damaged file stays where
+// it is), and nothing can be put.
+TEST(StreamingInProcess, AStoreOpenedReadOnlyIsLeftAsItIs) {
+    const fs::path dir = tempDir("read_only");
+    {
+        auto store = messages::FragmentStore::open(dir);
+        ASSERT_TRUE(store.isOk());
+        for (uint32_t i = 0; i < 2; ++i)
+            ASSERT_TRUE((*store)->put(111, i, deviceFragments()[i]).isOk());
+    }
+    const fs::path in_progress = dir / (messages::fragmentFileName(111, 2) + messages::kTempSuffix);
+    std::ofstream(in_progress) << "half a fragment";
+    const fs::path damaged = dir / messages::fragmentFileName(111, 3);
+    std::vector<uint8_t> bytes = deviceFragments()[3];
+    bytes[bytes.size() / 2] ^= 0x5a;
+    std::ofstream(damaged, std::ios::binary)
+        .write(reinterpret_cast<const char*>(bytes.data()),
+               static_cast<std::streamsize>(bytes.size()));
+
+    auto reader = messages::FragmentStore::openReadOnly(dir);
+    ASSERT_TRUE(reader.isOk()) << reader.status().toString();
+    EXPECT_EQ((*reader)->fragments().size(), 2u);
+    ASSERT_EQ((*reader)->quarantined().size(), 1u);
+    EXPECT_EQ((*reader)->quarantined()[0], damaged);
+    EXPECT_TRUE(fs::exists(in_progress));
+    EXPECT_TRUE(fs::exists(damaged));
+    EXPECT_EQ((*reader)->put(111, 4, deviceFragments()[4]).status().code(),
+              StatusCode::kFailedPrecondition);
+    EXPECT_FALSE((*reader)->contains(111, 4));
+    EXPECT_EQ(messages::FragmentStore::openReadOnly(dir / "nowhere").status().code(),
+              StatusCode::kNotFound);
+    EXPECT_FALSE(fs::exists(dir / "nowhere"));
+
+    // The owner's open() clears the interrupted write and moves the damaged file aside.
+    auto owner = messages::FragmentStore::open(dir);
+    ASSERT_TRUE(owner.isOk());
+    EXPECT_FALSE(fs::exists(in_progress));
+    EXPECT_FALSE(fs::exists(damaged));
+    EXPECT_TRUE(fs::exists(fs::path(damaged.string() + ".corrupt")));
     fs::remove_all(dir);
 }
 
@@ -710,6 +756,53 @@ TEST(StreamingInProcess, TheFinalModelReintegratesTheRawFramesTheIngestKept) {
               0);
     metrics = nlohmann::json::parse(readText(dir / "eighth" / "metrics.json"));
     EXPECT_EQ(metrics["final_model"], "raw frames re-integrated");
+    auto coloured = io::readTriangleMesh(dir / "eighth" / "mesh.ply");
+    ASSERT_TRUE(coloured.isOk()) << coloured.status().toString();
+    ASSERT_FALSE(coloured->colors.empty());
+
+    // Depth-only raw frames (stream.raw_frame_colour = false) are re-integrated all the same,
+    // and the mesh takes the colour of the fragments' points.
+    {
+        auto rewrite = RawFrameStore::open(rawFramesDir(store));
+        ASSERT_TRUE(rewrite.isOk());
+        auto kept = listRawFrames(rawFramesDir(store));
+        ASSERT_TRUE(kept.isOk());
+        for (const StoredRawFrame& f : *kept) {
+            std::ifstream in(f.path, std::ios::binary);
+            const std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)),
+                                             std::istreambuf_iterator<char>());
+            auto raw = messages::decodeRawFrame(bytes);
+            ASSERT_TRUE(raw.isOk()) << raw.status().toString();
+            auto depth_only = messages::toMessage(*raw, messages::DepthEncoding::kDeltaVarint,
+                                                  messages::ColourEncoding::kNone, 1);
+            ASSERT_TRUE(depth_only.isOk());
+            ASSERT_TRUE((*rewrite)
+                            ->put(f.utime, f.frame_index, messages::encodeMessage(*depth_only))
+                            .isOk());
+        }
+    }
+    ASSERT_EQ(runBackendCommand({"--fragments", store.string(), "--out", (dir / "depth").string(),
+                                 "--set", "final_model.min_raw_frame_share=0.125"},
+                                "plumb-backend"),
+              0);
+    metrics = nlohmann::json::parse(readText(dir / "depth" / "metrics.json"));
+    EXPECT_EQ(metrics["final_model"],
+              "raw frames re-integrated, coloured from the fragment points");
+    auto from_points = io::readTriangleMesh(dir / "depth" / "mesh.ply");
+    ASSERT_TRUE(from_points.isOk()) << from_points.status().toString();
+    EXPECT_EQ(from_points->vertices, coloured->vertices);
+    ASSERT_EQ(from_points->colors.size(), from_points->vertices.size());
+    // The fragments' colours are the frames' colours averaged: vertex by vertex close to the
+    // colours the coloured raw frames gave.
+    std::vector<int> differences;
+    for (size_t v = 0; v < coloured->colors.size(); ++v) {
+        int d = 0;
+        for (int c = 0; c < 3; ++c)
+            d = std::max(d, std::abs(int{coloured->colors[v][c]} - int{from_points->colors[v][c]}));
+        differences.push_back(d);
+    }
+    std::sort(differences.begin(), differences.end());
+    EXPECT_LE(differences[differences.size() / 2], 6);
     fs::remove_all(dir);
 }
 

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
+#include <algorithm>
 #include <cmath>
 #include <memory>
 #include <numbers>
@@ -192,6 +193,99 @@ TEST(FinalModel, EveryKthViewOfEachFragmentIsFused) {
                   .status()
                   .code(),
               StatusCode::kInvalidArgument);
+}
+
+/// A smooth colour of the world point p, so that a vertex's expected colour is known wherever it
+/// lies: about 3 units of change a centimetre at most.
+Color3u8 worldColour(const Eigen::Vector3f& p) {
+    auto channel = [](float x) {
+        return static_cast<uint8_t>(std::lround(128.0f + 100.0f * std::sin(3.0f * x)));
+    };
+    return Color3u8(channel(p.x()), channel(p.y()), channel(p.z()));
+}
+
+int largestChannelError(const Color3u8& a, const Color3u8& b) {
+    int e = 0;
+    for (int c = 0; c < 3; ++c) e = std::max(e, std::abs(int{a[c]} - int{b[c]}));
+    return e;
+}
+
+TEST(FinalModel, RawDepthWithoutColourTakesTheColourOfTheFragmentPoints) {
+    // The fragments carry the colour of the world where their points lie (ground-truth poses);
+    // the raw frames carry depth only, as a device streaming stream.raw_frame_colour = false.
+    std::vector<Fragment> fragments = scan().sim.fragments;
+    for (size_t i = 0; i < fragments.size(); ++i) {
+        PointCloud& cloud = fragments[i].points_F;
+        cloud.colors.clear();
+        for (const Eigen::Vector3f& p : cloud.points)
+            cloud.colors.push_back(worldColour(scan().sim.T_W_F_gt[i].cast<float>() * p));
+    }
+    auto build = [&](int threads, double radius) {
+        FinalModelConfig config;
+        config.num_threads = threads;
+        config.fragment_colour_radius_m = radius;
+        ReplaySource source(scan().frames, smallCamera(), "depth-only frames");
+        Result<std::vector<FinalModel>> models =
+            integrateRawFrames(source, fragments, scan().variants, config);
+        EXPECT_TRUE(models.isOk()) << models.status().toString();
+        return models.isOk() ? std::move(*models) : std::vector<FinalModel>{};
+    };
+    const std::vector<FinalModel> models = build(0, 0.03);
+    ASSERT_EQ(models.size(), 2u);
+    for (const FinalModel& m : models) {
+        EXPECT_TRUE(m.from_raw_frames);
+        EXPECT_TRUE(m.colour_from_fragments);
+        ASSERT_EQ(m.mesh.colors.size(), m.mesh.vertices.size());
+    }
+    // At the true poses every vertex has the colour of the world where it lies, to within the
+    // change over the distance to the nearest point.
+    const TriangleMesh& mesh = models[0].mesh;
+    ASSERT_GT(mesh.vertices.size(), 1000u);
+    std::vector<int> errors;
+    for (size_t v = 0; v < mesh.vertices.size(); ++v)
+        errors.push_back(largestChannelError(mesh.colors[v], worldColour(mesh.vertices[v])));
+    std::sort(errors.begin(), errors.end());
+    EXPECT_LE(errors[errors.size() / 2], 3);
+    EXPECT_LE(errors[errors.size() * 99 / 100], 10);
+    // The perturbed poses carry their fragments' points with them: another colouring.
+    EXPECT_NE(models[1].mesh.colors,
+              std::vector<Color3u8>(models[1].mesh.vertices.size(), Color3u8(128, 128, 128)));
+    // Whatever the thread count, the same colours.
+    for (int threads : {1, 2}) {
+        const std::vector<FinalModel> again = build(threads, 0.03);
+        ASSERT_EQ(again.size(), 2u);
+        for (size_t v = 0; v < 2; ++v) EXPECT_EQ(again[v].mesh.colors, models[v].mesh.colors);
+    }
+    // A radius of 0 leaves the mesh uncoloured; so do fragments without colour.
+    for (const FinalModel& m : build(0, 0.0)) {
+        EXPECT_FALSE(m.colour_from_fragments);
+        EXPECT_TRUE(m.mesh.colors.empty());
+    }
+    for (const FinalModel& m : fromFrames(scan().variants, 0)) {
+        EXPECT_FALSE(m.colour_from_fragments);
+        EXPECT_TRUE(m.mesh.colors.empty());
+    }
+}
+
+TEST(FinalModel, AVertexFarFromEveryFragmentPointIsMidGrey) {
+    std::vector<Fragment> fragments = scan().sim.fragments;
+    for (Fragment& f : fragments)
+        f.points_F.colors.assign(f.points_F.points.size(), Color3u8(200, 10, 20));
+    TriangleMesh mesh;
+    const Eigen::Vector3f on =
+        scan().sim.T_W_F_gt[0].cast<float>() * fragments[0].points_F.points[0];
+    mesh.vertices = {on, on + Eigen::Vector3f(0.0f, 0.0f, 0.02f),
+                     on + Eigen::Vector3f(50.0f, 0.0f, 0.0f)};
+    colourFromFragmentPoints(fragments, scan().sim.T_W_F_gt, 0.03, 0, &mesh);
+    ASSERT_EQ(mesh.colors.size(), 3u);
+    EXPECT_EQ(mesh.colors[0], Color3u8(200, 10, 20));
+    EXPECT_EQ(mesh.colors[1], Color3u8(200, 10, 20));
+    EXPECT_EQ(mesh.colors[2], Color3u8(128, 128, 128));
+    // Fragments without colour leave the mesh as it is.
+    TriangleMesh plain;
+    plain.vertices = {on};
+    colourFromFragmentPoints(scan().sim.fragments, scan().sim.T_W_F_gt, 0.03, 0, &plain);
+    EXPECT_TRUE(plain.colors.empty());
 }
 
 }  // namespace
