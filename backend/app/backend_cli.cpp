@@ -56,10 +56,12 @@ constexpr const char* kUsage =
     "  --log-level L        trace|debug|info|warn|error|off (default info)\n"
     "\n"
     "The ingest keeps the raw frames a device streams (plumb-device --set\n"
-    "stream.raw_frame_every=1; about 0.7 MB a VGA frame with colour) in <fragments>/raw_frames.\n"
-    "The final model re-integrates them at the optimised poses when every fragment has at least\n"
-    "final_model.min_raw_frame_share of its tracked frames among them; else it fuses the\n"
-    "fragments' surfaces (less accurate: BENCHMARKS.md). The log says which.\n";
+    "stream.raw_frame_every=1; about 0.7 MB a VGA frame with colour, 0.3 MB depth only) in\n"
+    "<fragments>/raw_frames, while 2 GiB stay free for the fragments. The final model\n"
+    "re-integrates them at the optimised poses when every fragment has at least\n"
+    "final_model.min_raw_frame_share (0.2: every 4th frame) of its tracked frames among them;\n"
+    "else it fuses the fragments' surfaces (less accurate: BENCHMARKS.md). The log says which.\n"
+    "Depth-only raw frames of a coloured scan are coloured from the fragments' points.\n";
 
 std::atomic<int> g_stop_requests{0};
 extern "C" void onSignal(int) { g_stop_requests.fetch_add(1); }
@@ -257,19 +259,29 @@ void attachRawFrames(const std::filesystem::path& fragments_dir, double min_shar
             first.status().message());
         return;
     }
-    log::info("final model: re-integrating the raw frames kept, {} of the {} tracked frames",
-              coverage.matched, coverage.tracked_frames);
+    const std::string stride = coverage.stride > 1
+                                   ? fmt::format(" (one in {}: stream.raw_frame_every = {})",
+                                                 coverage.stride, coverage.stride)
+                                   : std::string();
+    log::info("final model: re-integrating the raw frames kept, {} of the {} tracked frames{}",
+              coverage.matched, coverage.tracked_frames, stride);
+    // Frames the device's stride predicts and the store does not hold (1 % of slack for
+    // fragments whose length is not a multiple of the stride).
+    const double expected =
+        static_cast<double>(coverage.tracked_frames) / static_cast<double>(coverage.stride);
+    const bool frames_missing = static_cast<double>(coverage.matched) < 0.99 * expected;
     if (coverage.matched == coverage.tracked_frames) {
         log::info(
             "the raw frames are a scan of their own: `plumb reconstruct store:{} "
             "--self-calibrate` tracks them again and learns the camera's depth distortion",
             fragments_dir.string());
-    } else {
+    } else if (frames_missing) {
         log::info(
-            "final model: if the device streamed every frame (stream.raw_frame_every = "
-            "1), the others were lost on the network: udpm drops whole frames when the "
-            "receive buffer overflows (sysctl net.core.rmem_max of at least 4194304 keeps "
-            "them)");
+            "final model: about {:.0f} raw frames the device streamed are missing, lost on "
+            "the network or not kept: udpm drops whole frames when the receive buffer "
+            "overflows (sysctl net.core.rmem_max of at least 4194304 keeps them); the ingest's "
+            "metrics.json counts the frames not kept",
+            expected - static_cast<double>(coverage.matched));
     }
     input->open_raw_frames = [frames = std::move(coverage.frames),
                               camera = input->camera]() -> Result<std::unique_ptr<FrameSource>> {

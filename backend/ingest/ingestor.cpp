@@ -4,6 +4,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <filesystem>
 
 #include "backend/ingest/raw_frame_store.hpp"
 #include "common/core/logging.hpp"
@@ -151,12 +152,39 @@ void Ingestor::keepRawFrame(const messages::RawRgbdFrame& frame, std::span<const
             kept = store.status();
         }
     }
-    if (kept.isOk()) kept = raw_store_->put(frame.utime, frame.frame_index, bytes);
+    if (kept.isOk()) {
+        // The fragments, acknowledged once stored, keep their room on the disk.
+        std::error_code ec;
+        const std::filesystem::space_info space = std::filesystem::space(raw_frames_dir_, ec);
+        const bool short_of_space = !ec && space.available < config_.raw_frames_min_free_bytes;
+        if (short_of_space != raw_frames_short_of_space_) {
+            raw_frames_short_of_space_ = short_of_space;
+            if (short_of_space) {
+                log::warn(
+                    "ingest: {:.2f} GB free on {}, less than the {:.2f} GB kept for fragments: "
+                    "raw frames are not kept until space comes back",
+                    static_cast<double>(space.available) * 1e-9, raw_frames_dir_.string(),
+                    static_cast<double>(config_.raw_frames_min_free_bytes) * 1e-9);
+            } else {
+                log::info("ingest: {:.2f} GB free on {}: raw frames are kept again",
+                          static_cast<double>(space.available) * 1e-9, raw_frames_dir_.string());
+            }
+        }
+        if (short_of_space) {
+            ++counters_.raw_frames_not_kept;
+            ++counters_.raw_frames_not_kept_disk;
+            return;
+        }
+        kept = raw_store_->put(frame.utime, frame.frame_index, bytes);
+    }
     if (kept.isOk()) {
         ++counters_.raw_frames_kept;
         return;
     }
-    if (counters_.raw_frames_not_kept++ == 0) {
+    const bool first_failure =
+        counters_.raw_frames_not_kept == counters_.raw_frames_not_kept_disk;  // none yet
+    ++counters_.raw_frames_not_kept;
+    if (first_failure) {
         log::warn(
             "ingest: {} (raw frames that cannot be kept are counted; the final model "
             "re-integrates the raw frames only where every fragment has enough of them)",
@@ -369,7 +397,8 @@ nlohmann::json Ingestor::metrics(const messages::AuthStats& auth) const {
     j["raw_frames"] = {{"received", counters_.raw_frames},
                        {"with_colour", counters_.raw_frames_colour},
                        {"kept", counters_.raw_frames_kept},
-                       {"not_kept", counters_.raw_frames_not_kept}};
+                       {"not_kept", counters_.raw_frames_not_kept},
+                       {"not_kept_disk", counters_.raw_frames_not_kept_disk}};
     j["messages_accepted"] = auth.accepted;
     j["messages_rejected"] = {
         {"unsigned", auth.rejected_unsigned},

@@ -54,6 +54,11 @@ struct IngestConfig {
     /// (about 0.7 MB a VGA frame with colour). A frame that cannot be written is counted
     /// (raw_frames.not_kept) and left out; raw frames are never acknowledged.
     bool keep_raw_frames = true;
+    /// Raw frames are not kept while the raw frame folder's file system has less free space
+    /// than this, bytes (counted raw_frames.not_kept_disk, warned about once; kept again when
+    /// space comes back): the fragments, which are acknowledged and must be stored, keep their
+    /// room. 2 GiB holds the fragments of about 10 minutes of a 30 Hz VGA scan (6.7 MB each).
+    uint64_t raw_frames_min_free_bytes = uint64_t{2} << 30;
 };
 
 struct IngestCounters {
@@ -71,7 +76,8 @@ struct IngestCounters {
     uint64_t raw_frames_colour = 0;     ///< of these, with colour
     uint64_t raw_frames_malformed = 0;  ///< raw frames that did not decode
     uint64_t raw_frames_kept = 0;       ///< raw frames written to the raw frame store
-    uint64_t raw_frames_not_kept = 0;   ///< raw frames the raw frame store failed to write
+    uint64_t raw_frames_not_kept = 0;   ///< raw frames not written (disk full, write failed)
+    uint64_t raw_frames_not_kept_disk = 0;  ///< of those, for want of free space
 };
 
 /// What the ingest knows about one device session (a run of plumb-device).
@@ -161,6 +167,7 @@ class Ingestor {
     std::optional<messages::RawRgbdFrame> last_raw_;
     std::filesystem::path raw_frames_dir_;
     std::unique_ptr<RawFrameStore> raw_store_;  ///< opened at the first raw frame
+    bool raw_frames_short_of_space_ = false;    ///< the last raw frame was not kept for space
     std::string device_config_;
 };
 

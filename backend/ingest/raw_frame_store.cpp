@@ -239,6 +239,18 @@ RawFrameCoverage rawFrameCoverage(const std::vector<StoredRawFrame>& stored,
         }
     }
     std::sort(c.frames.begin(), c.frames.end(), inCaptureOrder);
+    std::map<int64_t, size_t> steps;  // ordered: the smaller step wins a tie
+    for (size_t k = 1; k < c.frames.size(); ++k) {
+        const int64_t step = c.frames[k].frame_index - c.frames[k - 1].frame_index;
+        if (step > 0) ++steps[step];
+    }
+    size_t most = 0;
+    for (const auto& [step, count] : steps) {
+        if (count > most) {
+            most = count;
+            c.stride = step;
+        }
+    }
     return c;
 }
 

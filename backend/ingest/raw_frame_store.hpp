@@ -71,6 +71,10 @@ struct RawFrameCoverage {
     double min_fragment_share = 0.0;
     uint32_t min_fragment_id = 0;
     std::vector<StoredRawFrame> frames;  ///< the matched frames, in capture order
+    /// The most common step between the frame indices of consecutive matched frames: the
+    /// device's stream.raw_frame_every when it streamed every k-th frame (1 with fewer than
+    /// two frames).
+    int64_t stride = 1;
 };
 
 /// Matches `stored` with the tracked frames of `fragments`: same frame index, capture times

@@ -49,9 +49,10 @@ struct FinalModelConfig {
     int surface_frame_stride = 4;
     /// plumb-backend: the raw frames the device streamed (stream.raw_frame_every) and the ingest
     /// kept are re-integrated instead of the fragment surfaces when every fragment has at least
-    /// this share of its tracked frames among them (1 = all; 0.25 admits raw_frame_every = 4,
-    /// the fragment surfaces' own stride); else the surfaces are fused and the log says why.
-    double min_raw_frame_share = 0.25;
+    /// this share of its tracked frames among them (1 = all; 0.2 admits raw_frame_every = 4,
+    /// the fragment surfaces' own stride, of which a 50-frame fragment holds 12 or 13); else
+    /// the surfaces are fused and the log says why.
+    double min_raw_frame_share = 0.2;
     /// Raw frames without colour (a device streaming depth only, stream.raw_frame_colour =
     /// false) of a scan whose fragments carry colour: each vertex of the mesh takes the colour
     /// of the nearest fragment point within this distance, metres, at the variant's poses (mid

@@ -14,6 +14,7 @@
 #include <fstream>
 #include <iterator>
 #include <lcm/lcm-cpp.hpp>
+#include <limits>
 #include <mutex>
 #include <random>
 #include <thread>
@@ -646,6 +647,34 @@ TEST(StreamingInProcess, RawFramesThatCannotBeKeptAreCountedAndTheFragmentsStill
     fs::remove_all(dir);
 }
 
+// Short of free space (here: asked for more than any disk has), raw frames are not kept, and the
+// fragments, which are acknowledged, are stored as ever; with room they are kept.
+TEST(StreamingInProcess, RawFramesLeaveTheDiskToTheFragmentsWhenSpaceIsShort) {
+    const auto sent = deviceMessagesWithRawFrames(16, 82);
+    const fs::path dir = tempDir("raw_no_space");
+    for (const bool short_of_space : {true, false}) {
+        const fs::path store = dir / (short_of_space ? "short" : "room");
+        IngestConfig config;
+        config.raw_frames_min_free_bytes =
+            short_of_space ? std::numeric_limits<uint64_t>::max() : 0;
+        LossyHub hub;
+        auto ingestor = Ingestor::open(store, {}, config, hub);
+        ASSERT_TRUE(ingestor.isOk()) << ingestor.status().toString();
+        for (const auto& [channel, bytes] : sent) (*ingestor)->onMessage(channel, bytes, 1.0);
+        (*ingestor)->poll(2.0);
+        EXPECT_EQ((*ingestor)->fragmentsInStore(), 2u);
+        const auto m = (*ingestor)->metrics({});
+        EXPECT_EQ(m["raw_frames"]["received"], 16);
+        EXPECT_EQ(m["raw_frames"]["kept"], short_of_space ? 0 : 16);
+        EXPECT_EQ(m["raw_frames"]["not_kept"], short_of_space ? 16 : 0);
+        EXPECT_EQ(m["raw_frames"]["not_kept_disk"], short_of_space ? 16 : 0);
+        auto kept = listRawFrames(rawFramesDir(store));
+        ASSERT_TRUE(kept.isOk());
+        EXPECT_EQ(kept->size(), short_of_space ? 0u : 16u);
+    }
+    fs::remove_all(dir);
+}
+
 std::string readText(const fs::path& p) {
     std::ifstream in(p);
     return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
@@ -738,7 +767,7 @@ TEST(StreamingInProcess, TheFinalModelReintegratesTheRawFramesTheIngestKept) {
     EXPECT_EQ(metrics["final_model"], "raw frames re-integrated");
 
     // ... but not when a fragment has too few of its frames among them: frames 8-14 of the
-    // second fragment (8-15) are gone, 1 of its 8 is left, under the default share of 25 %.
+    // second fragment (8-15) are gone, 1 of its 8 is left, under the default share of 20 %.
     auto stored = listRawFrames(rawFramesDir(store));
     ASSERT_TRUE(stored.isOk());
     for (const StoredRawFrame& f : *stored) {

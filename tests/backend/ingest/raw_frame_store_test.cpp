@@ -11,6 +11,7 @@
 
 #include <fstream>
 
+#include "backend/model/final_model.hpp"
 #include "messages/conversions.hpp"
 #include "messages/files.hpp"
 #include "messages/fragment_sender.hpp"
@@ -138,9 +139,31 @@ TEST(RawFrameStore, CoverageMatchesIndexAndCaptureTimeOfTheSessionOnly) {
         EXPECT_EQ(f.path, fs::path("a"));
     }
     EXPECT_EQ(indices, (std::vector<int64_t>{0, 1, 3, 4, 5, 8}));
+    EXPECT_EQ(c.stride, 1);  // steps 1, 2, 1, 1, 3
 
     EXPECT_EQ(rawFrameCoverage({}, fragments).min_fragment_share, 0.0);
     EXPECT_EQ(rawFrameCoverage(stored, {}).min_fragment_share, 0.0);
+}
+
+// The default share admits a device streaming every 4th frame (stream.raw_frame_every = 4, the
+// fragment surfaces' own stride): a 50-frame fragment then holds 12 or 13 of them, whatever the
+// fragment's phase against the stride.
+TEST(RawFrameStore, TheDefaultShareAdmitsEveryFourthFrameOfFiftyFrameFragments) {
+    const double t0 = 1.7e9;
+    std::vector<StoredRawFrame> stored;
+    for (int64_t k = 0; k < 400; k += 4) stored.push_back({utimeOf(k, t0), k, fs::path("a")});
+    std::vector<Fragment> fragments;
+    for (uint32_t i = 0; i < 8; ++i) fragments.push_back(fragmentOf(i, 50 * i, 50 * i + 49, t0));
+    const RawFrameCoverage every4 = rawFrameCoverage(stored, fragments);
+    EXPECT_DOUBLE_EQ(every4.min_fragment_share, 12.0 / 50.0);
+    EXPECT_GE(every4.min_fragment_share, FinalModelConfig{}.min_raw_frame_share);
+    EXPECT_EQ(every4.stride, 4);
+    // Every 8th frame is too few.
+    std::vector<StoredRawFrame> every8_frames;
+    for (int64_t k = 0; k < 400; k += 8) every8_frames.push_back({utimeOf(k, t0), k, "a"});
+    const RawFrameCoverage every8 = rawFrameCoverage(every8_frames, fragments);
+    EXPECT_LT(every8.min_fragment_share, FinalModelConfig{}.min_raw_frame_share);
+    EXPECT_EQ(every8.stride, 8);
 }
 
 TEST(RawFrameStore, SourceReadsMetresAndColourAndLeavesOutDamagedFrames) {
