@@ -624,6 +624,20 @@ std::vector<std::pair<std::string, std::vector<uint8_t>>> deviceMessagesWithRawF
     return std::move(transport.sent);
 }
 
+/// Ingests `sent` (the messages of a device cutting two fragments) into the store `dir` and
+/// returns the ingest's metrics; both fragments must be stored, whatever becomes of raw frames.
+nlohmann::json ingestInto(const fs::path& dir, const IngestConfig& config,
+                          const std::vector<std::pair<std::string, std::vector<uint8_t>>>& sent) {
+    LossyHub hub;
+    auto ingestor = Ingestor::open(dir, {}, config, hub);
+    EXPECT_TRUE(ingestor.isOk()) << ingestor.status().toString();
+    if (!ingestor.isOk()) return {};
+    for (const auto& [channel, bytes] : sent) (*ingestor)->onMessage(channel, bytes, 1.0);
+    (*ingestor)->poll(2.0);
+    EXPECT_EQ((*ingestor)->fragmentsInStore(), 2u);
+    return (*ingestor)->metrics({});
+}
+
 // Raw frames that cannot be written (here the raw frame folder's name is taken by a file) are
 // counted and left out, once warned about; the fragments are stored and acknowledged as ever.
 TEST(StreamingInProcess, RawFramesThatCannotBeKeptAreCountedAndTheFragmentsStillStored) {
@@ -633,13 +647,7 @@ TEST(StreamingInProcess, RawFramesThatCannotBeKeptAreCountedAndTheFragmentsStill
     const fs::path store = dir / "fragments";
     fs::create_directories(store);
     std::ofstream(rawFramesDir(store)) << "in the way\n";
-    LossyHub hub;
-    auto ingestor = Ingestor::open(store, {}, IngestConfig{}, hub);
-    ASSERT_TRUE(ingestor.isOk()) << ingestor.status().toString();
-    for (const auto& [channel, bytes] : sent) (*ingestor)->onMessage(channel, bytes, 1.0);
-    (*ingestor)->poll(2.0);
-    EXPECT_EQ((*ingestor)->fragmentsInStore(), 2u);
-    const auto m = (*ingestor)->metrics({});
+    const nlohmann::json m = ingestInto(store, IngestConfig{}, sent);
     EXPECT_EQ(m["raw_frames"]["received"], 16);
     EXPECT_EQ(m["raw_frames"]["kept"], 0);
     EXPECT_EQ(m["raw_frames"]["not_kept"], 16);
@@ -657,13 +665,7 @@ TEST(StreamingInProcess, RawFramesLeaveTheDiskToTheFragmentsWhenSpaceIsShort) {
         IngestConfig config;
         config.raw_frames_min_free_bytes =
             short_of_space ? std::numeric_limits<uint64_t>::max() : 0;
-        LossyHub hub;
-        auto ingestor = Ingestor::open(store, {}, config, hub);
-        ASSERT_TRUE(ingestor.isOk()) << ingestor.status().toString();
-        for (const auto& [channel, bytes] : sent) (*ingestor)->onMessage(channel, bytes, 1.0);
-        (*ingestor)->poll(2.0);
-        EXPECT_EQ((*ingestor)->fragmentsInStore(), 2u);
-        const auto m = (*ingestor)->metrics({});
+        const nlohmann::json m = ingestInto(store, config, sent);
         EXPECT_EQ(m["raw_frames"]["received"], 16);
         EXPECT_EQ(m["raw_frames"]["kept"], short_of_space ? 0 : 16);
         EXPECT_EQ(m["raw_frames"]["not_kept"], short_of_space ? 16 : 0);
