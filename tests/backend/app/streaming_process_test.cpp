@@ -602,9 +602,11 @@ TEST(StreamingProcesses, LooseKeyFileWarnedWeakKeyRefused) {
 TEST(StreamingProcesses, LcmLoggerRecordingReplaysToTheSameStoreTwice) {
     const fs::path dir = tempDir("logger");
     const fs::path log = dir / "scan.lcmlog";
-    const pid_t logger =
-        spawn({"lcm-logger", "--lcm-url=" + lcmUrl(), "-c", "PLUMB_.*", "-f", log.string()},
-              dir / "logger.log");
+    // A large receive buffer, as docs/streaming.md advises: the system's default drops bursts of
+    // chunks on a busy machine, and the logger asks for nothing again.
+    const pid_t logger = spawn({"lcm-logger", "--lcm-url=" + lcmUrl() + "&recv_buf_size=4194304",
+                                "-c", "PLUMB_.*", "-f", log.string()},
+                               dir / "logger.log");
     ASSERT_GT(logger, 0);
     const pid_t backend = spawn(backendArgs(dir), dir / "backend.log");
     ASSERT_GT(backend, 0);
