@@ -22,6 +22,7 @@ inline constexpr const char* kChannelFragmentBackoff =
 inline constexpr const char* kChannelCameraInfo = "PLUMB_CAMERA_INFO";  ///< camera_info_t
 inline constexpr const char* kChannelDepth = "PLUMB_DEPTH";             ///< depth_frame_t
 inline constexpr const char* kChannelRgbd = "PLUMB_RGBD";               ///< depth_frame2_t
+inline constexpr const char* kChannelRgbdSession = "PLUMB_RGBD3";       ///< depth_frame3_t
 inline constexpr const char* kChannelConfig = "PLUMB_CONFIG";           ///< config_snapshot_t
 
 }  // namespace plumb::messages

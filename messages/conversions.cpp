@@ -322,7 +322,30 @@ Result<RawRgbdFrame> fromMessage(const plumb::depth_frame2_t& m) {
     return f;
 }
 
+Result<plumb::depth_frame3_t> toSessionMessage(const RawRgbdFrame& frame, int64_t session_id,
+                                               DepthEncoding encoding,
+                                               ColourEncoding colour_encoding, int64_t seq) {
+    auto inner = toMessage(frame, encoding, colour_encoding, seq);
+    if (!inner.isOk()) return inner.status();
+    plumb::depth_frame3_t m{};
+    m.session_id = session_id;
+    m.frame = std::move(inner).value();
+    return m;
+}
+
+Result<RawRgbdFrame> fromMessage(const plumb::depth_frame3_t& m) {
+    auto frame = fromMessage(m.frame);
+    if (!frame.isOk()) return frame.status();
+    frame->session_id = m.session_id;
+    return frame;
+}
+
 Result<RawRgbdFrame> decodeRawFrame(std::span<const uint8_t> bytes) {
+    if (hasFingerprint<plumb::depth_frame3_t>(bytes)) {
+        auto msg = decodeMessage<plumb::depth_frame3_t>(bytes);
+        if (!msg.isOk()) return msg.status();
+        return fromMessage(*msg);
+    }
     if (hasFingerprint<plumb::depth_frame_t>(bytes)) {
         auto msg = decodeMessage<plumb::depth_frame_t>(bytes);
         if (!msg.isOk()) return msg.status();

@@ -7,6 +7,7 @@
 // Thread-safety: pure functions of their arguments (no shared state): thread-safe.
 
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <string>
 
@@ -92,10 +93,12 @@ enum class ColourEncoding : int8_t {
     kDeltaRice = plumb::depth_frame2_t::COLOUR_DELTA_RICE,
 };
 
-/// A raw frame with its colour (depth_frame2_t).
+/// A raw frame with its colour (depth_frame2_t), and its session (depth_frame3_t).
 struct RawRgbdFrame {
     int64_t utime = 0;        ///< capture time, microseconds
     int64_t frame_index = 0;  ///< index in the capture stream
+    /// The device session, when the message names it (depth_frame3_t; older messages do not).
+    std::optional<int64_t> session_id;
     double depth_scale = 1000.0;
     Depth16Image depth;
     ColourImage colour;  ///< 8-bit RGB registered to `depth` (same size), or empty
@@ -110,9 +113,18 @@ Result<plumb::depth_frame2_t> toMessage(const RawRgbdFrame& frame, DepthEncoding
 /// unknown colour encoding, RGB8 data of the wrong length, or a damaged DELTA_RICE stream.
 Result<RawRgbdFrame> fromMessage(const plumb::depth_frame2_t& msg);
 
-/// A raw frame off the wire: a depth_frame2_t, or a depth_frame_t (logs from before colour; the
-/// colour stays empty), told apart by the type fingerprint. Corrupt (naming the type) for
-/// anything that does not check and decode as one of them.
+/// The frame as toMessage encodes it, inside a depth_frame3_t naming `session_id` (the
+/// frame's own session_id is not used).
+Result<plumb::depth_frame3_t> toSessionMessage(const RawRgbdFrame& frame, int64_t session_id,
+                                               DepthEncoding encoding,
+                                               ColourEncoding colour_encoding, int64_t seq);
+/// As fromMessage(depth_frame2_t), with session_id set. Corrupt as it is.
+Result<RawRgbdFrame> fromMessage(const plumb::depth_frame3_t& msg);
+
+/// A raw frame off the wire: a depth_frame3_t, a depth_frame2_t (without a session), or a
+/// depth_frame_t (logs from before colour; the colour stays empty), told apart by the type
+/// fingerprint. Corrupt (naming the type) for anything that does not check and decode as one of
+/// them.
 Result<RawRgbdFrame> decodeRawFrame(std::span<const uint8_t> bytes);
 
 plumb::config_snapshot_t toMessage(const std::string& program, const std::string& version,

@@ -76,6 +76,14 @@ const WireSchema& wireSchema<plumb::depth_frame2_t>() {
     return kSchema;
 }
 template <>
+const WireSchema& wireSchema<plumb::depth_frame3_t>() {
+    // The session id, then a depth_frame2_t's fields (a nested struct carries no hash of its own).
+    static const WireSchema kSchema{"depth_frame3_t",
+                                    {F::kI64, F::kI64, F::kI64, F::kI64, F::kI32, F::kI32, F::kI64,
+                                     F::kI8, F::kCount, F::kBytes, F::kI8, F::kCount, F::kBytes}};
+    return kSchema;
+}
+template <>
 const WireSchema& wireSchema<plumb::config_snapshot_t>() {
     static const WireSchema kSchema{"config_snapshot_t",
                                     {F::kI64, F::kI64, F::kString, F::kString, F::kString}};

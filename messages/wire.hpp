@@ -20,6 +20,7 @@
 #include "messages/lcm/plumb/camera_info_t.hpp"
 #include "messages/lcm/plumb/config_snapshot_t.hpp"
 #include "messages/lcm/plumb/depth_frame2_t.hpp"
+#include "messages/lcm/plumb/depth_frame3_t.hpp"
 #include "messages/lcm/plumb/depth_frame_t.hpp"
 #include "messages/lcm/plumb/device_status_t.hpp"
 #include "messages/lcm/plumb/envelope_t.hpp"
@@ -76,6 +77,8 @@ template <>
 const WireSchema& wireSchema<plumb::depth_frame_t>();
 template <>
 const WireSchema& wireSchema<plumb::depth_frame2_t>();
+template <>
+const WireSchema& wireSchema<plumb::depth_frame3_t>();
 template <>
 const WireSchema& wireSchema<plumb::config_snapshot_t>();
 template <>

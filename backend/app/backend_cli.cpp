@@ -223,10 +223,10 @@ int ingest(const BackendArgs& a) {
 
 #ifdef PLUMB_BACKEND_HAS_PIPELINE
 /// Lets the final model re-integrate the raw frames the ingest kept for the fragments of
-/// `input` (backend/ingest/raw_frame_store.hpp) when every fragment has at least `min_share` of
-/// its tracked frames among them and they are of the camera's size; else it fuses the fragment
-/// surfaces, and the log says why.
-void attachRawFrames(const std::filesystem::path& fragments_dir, double min_share,
+/// `input`, which are of `session` (backend/ingest/raw_frame_store.hpp), when every fragment
+/// has at least `min_share` of its tracked frames among them and they are of the camera's
+/// size; else it fuses the fragment surfaces, and the log says why.
+void attachRawFrames(const std::filesystem::path& fragments_dir, int64_t session, double min_share,
                      backend::PipelineInput* input) {
     auto stored = backend::listRawFrames(backend::rawFramesDir(fragments_dir));
     if (!stored.isOk()) {
@@ -239,7 +239,8 @@ void attachRawFrames(const std::filesystem::path& fragments_dir, double min_shar
             "plumb-device --set stream.raw_frame_every=1 streams them)");
         return;
     }
-    backend::RawFrameCoverage coverage = backend::rawFrameCoverage(*stored, input->fragments);
+    backend::RawFrameCoverage coverage =
+        backend::rawFrameCoverage(*stored, input->fragments, session);
     if (coverage.min_fragment_share < min_share) {
         log::info(
             "final model: from the fragment surfaces: {} of the {} tracked frames have a "
@@ -331,7 +332,8 @@ int finalise(const BackendArgs& a, const backend::PipelineConfig& pipeline_confi
         log::warn("{}; assuming the primesense intrinsics", camera.status().toString());
         input.camera = *cameraPreset("primesense");
     }
-    attachRawFrames(options.fragments_dir, pipeline_config.final_model.min_raw_frame_share, &input);
+    attachRawFrames(options.fragments_dir, *session,
+                    pipeline_config.final_model.min_raw_frame_share, &input);
     auto ran = backend::runPipeline(input, pipeline_config, a.out_dir, true);
     if (!ran.isOk()) {
         log::error("{}", ran.status().toString());

@@ -70,8 +70,8 @@ Ingestor::~Ingestor() = default;
 std::vector<std::string> Ingestor::channels() {
     return {messages::kChannelFragmentHeader, messages::kChannelFragmentChunk,
             messages::kChannelStatus,         messages::kChannelCameraInfo,
-            messages::kChannelConfig,         messages::kChannelRgbd,
-            messages::kChannelDepth};
+            messages::kChannelConfig,         messages::kChannelRgbdSession,
+            messages::kChannelRgbd,           messages::kChannelDepth};
 }
 
 void Ingestor::noteRequest(const Key& key, const std::vector<int32_t>& chunks) {
@@ -92,7 +92,8 @@ void Ingestor::onMessage(const std::string& channel, std::span<const uint8_t> by
         onCameraInfo(bytes);
     } else if (channel == messages::kChannelConfig) {
         onConfig(bytes);
-    } else if (channel == messages::kChannelRgbd || channel == messages::kChannelDepth) {
+    } else if (channel == messages::kChannelRgbdSession || channel == messages::kChannelRgbd ||
+               channel == messages::kChannelDepth) {
         onRawFrame(bytes);
     }
     poll(now_s);
@@ -175,7 +176,7 @@ void Ingestor::keepRawFrame(const messages::RawRgbdFrame& frame, std::span<const
             ++counters_.raw_frames_not_kept_disk;
             return;
         }
-        kept = raw_store_->put(frame.utime, frame.frame_index, bytes);
+        kept = raw_store_->put(frame.utime, frame.frame_index, bytes, frame.session_id);
     }
     if (kept.isOk()) {
         ++counters_.raw_frames_kept;

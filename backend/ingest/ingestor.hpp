@@ -10,8 +10,9 @@
 // from the store: fragments already there are
 // acknowledged again when announced and never stored twice. It also keeps the device's latest
 // heartbeat, camera info and configuration snapshot, and notices the end of a scan (a heartbeat
-// with TRACKING_STOPPED carries the final fragment count). Raw frames (depth_frame2_t on
-// PLUMB_RGBD, with colour; depth_frame_t on PLUMB_DEPTH from older devices) are decoded,
+// with TRACKING_STOPPED carries the final fragment count). Raw frames (depth_frame3_t on
+// PLUMB_RGBD3, with colour and session; depth_frame2_t on PLUMB_RGBD and depth_frame_t on
+// PLUMB_DEPTH from older devices) are decoded,
 // counted and kept in `<fragments_dir>/raw_frames` (backend/ingest/raw_frame_store.hpp), where the
 // final model finds them; the latest one is also kept in memory.
 //
@@ -62,21 +63,21 @@ struct IngestConfig {
 };
 
 struct IngestCounters {
-    uint64_t fragments_received = 0;    ///< new fragments persisted by this process
-    uint64_t fragments_resumed = 0;     ///< already in the store at open()
-    uint64_t fragments_duplicate = 0;   ///< reassembled again although stored (ignored)
-    uint64_t fragments_rejected = 0;    ///< reassembled but undecodable or conflicting
-    uint64_t persist_errors = 0;        ///< disk errors (the fragment is received again)
-    uint64_t backoffs_sent = 0;         ///< "cannot store" answers (fragment_backoff_t)
-    uint64_t chunks_lost = 0;           ///< distinct chunks requested again (lost or late)
-    uint64_t chunks_recovered = 0;      ///< of these, received afterwards
-    uint64_t status_messages = 0;       ///< device heartbeats
-    uint64_t malformed_other = 0;       ///< undecodable status, camera info or config messages
-    uint64_t raw_frames = 0;            ///< raw frames decoded (depth_frame2_t and depth_frame_t)
-    uint64_t raw_frames_colour = 0;     ///< of these, with colour
-    uint64_t raw_frames_malformed = 0;  ///< raw frames that did not decode
-    uint64_t raw_frames_kept = 0;       ///< raw frames written to the raw frame store
-    uint64_t raw_frames_not_kept = 0;   ///< raw frames not written (disk full, write failed)
+    uint64_t fragments_received = 0;        ///< new fragments persisted by this process
+    uint64_t fragments_resumed = 0;         ///< already in the store at open()
+    uint64_t fragments_duplicate = 0;       ///< reassembled again although stored (ignored)
+    uint64_t fragments_rejected = 0;        ///< reassembled but undecodable or conflicting
+    uint64_t persist_errors = 0;            ///< disk errors (the fragment is received again)
+    uint64_t backoffs_sent = 0;             ///< "cannot store" answers (fragment_backoff_t)
+    uint64_t chunks_lost = 0;               ///< distinct chunks requested again (lost or late)
+    uint64_t chunks_recovered = 0;          ///< of these, received afterwards
+    uint64_t status_messages = 0;           ///< device heartbeats
+    uint64_t malformed_other = 0;           ///< undecodable status, camera info or config messages
+    uint64_t raw_frames = 0;                ///< raw frames decoded (depth_frame3_t, 2_t and _t)
+    uint64_t raw_frames_colour = 0;         ///< of these, with colour
+    uint64_t raw_frames_malformed = 0;      ///< raw frames that did not decode
+    uint64_t raw_frames_kept = 0;           ///< raw frames written to the raw frame store
+    uint64_t raw_frames_not_kept = 0;       ///< raw frames not written (disk full, write failed)
     uint64_t raw_frames_not_kept_disk = 0;  ///< of those, for want of free space
 };
 

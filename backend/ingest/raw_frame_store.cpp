@@ -11,6 +11,7 @@
 #include <future>
 #include <map>
 #include <system_error>
+#include <tuple>
 #include <utility>
 
 #include "common/core/logging.hpp"
@@ -33,24 +34,37 @@ constexpr int64_t kTimeToleranceUs = 1000;
 /// serially (about 10 ms at VGA), so one reader alone would keep the integration waiting.
 constexpr size_t kReadAhead = 3;
 
-std::string fileName(int64_t utime, int64_t frame_index) {
-    return fmt::format("{:017d}_{:09d}{}", utime, frame_index, kSuffix);
+std::string fileName(int64_t utime, int64_t frame_index, std::optional<int64_t> session_id) {
+    if (!session_id) return fmt::format("{:017d}_{:09d}{}", utime, frame_index, kSuffix);
+    return fmt::format("{:017d}_{:09d}_s{}{}", utime, frame_index, *session_id, kSuffix);
 }
 
-bool parseFileName(const std::string& name, int64_t* utime, int64_t* frame_index) {
+/// The capture time, index and session (when named) of a file named by fileName.
+bool parseFileName(const std::string& name, StoredRawFrame* f) {
     if (!name.ends_with(kSuffix)) return false;
-    long long t = 0, i = 0;
+    long long t = 0, i = 0, s = 0;
     int consumed = 0;
     if (std::sscanf(name.c_str(), "%lld_%lld%n", &t, &i, &consumed) != 2) return false;
-    if (name.substr(static_cast<size_t>(consumed)) != kSuffix || t < 0 || i < 0) return false;
-    *utime = t;
-    *frame_index = i;
+    std::string rest = name.substr(static_cast<size_t>(consumed));
+    std::optional<int64_t> session;
+    if (rest != kSuffix) {
+        int more = 0;
+        if (std::sscanf(rest.c_str(), "_s%lld%n", &s, &more) != 1) return false;
+        if (rest.substr(static_cast<size_t>(more)) != kSuffix) return false;
+        session = s;
+    }
+    if (t < 0 || i < 0) return false;
+    f->utime = t;
+    f->frame_index = i;
+    f->session_id = session;
     return true;
 }
 
-/// Capture time, then index (frames of one instant from two sessions stay apart).
+/// Capture time, then index, then session (frames of one instant from two sessions stay apart
+/// in a fixed order).
 bool inCaptureOrder(const StoredRawFrame& a, const StoredRawFrame& b) {
-    return std::pair(a.utime, a.frame_index) < std::pair(b.utime, b.frame_index);
+    return std::tuple(a.utime, a.frame_index, a.session_id) <
+           std::tuple(b.utime, b.frame_index, b.session_id);
 }
 
 class RawFrameSource final : public FrameSource {
@@ -157,13 +171,14 @@ Result<std::unique_ptr<RawFrameStore>> RawFrameStore::open(const fs::path& dir) 
 }
 
 Status RawFrameStore::put(int64_t utime, int64_t frame_index,
-                          std::span<const uint8_t> message_bytes) {
+                          std::span<const uint8_t> message_bytes,
+                          std::optional<int64_t> session_id) {
     if (utime < 0 || frame_index < 0) {
         return Status(
             StatusCode::kInvalidArgument,
             fmt::format("raw frames: negative capture time {} or index {}", utime, frame_index));
     }
-    const fs::path path = dir_ / fileName(utime, frame_index);
+    const fs::path path = dir_ / fileName(utime, frame_index, session_id);
     const fs::path tmp = fs::path(path.string() + messages::kTempSuffix);
     std::FILE* f = std::fopen(tmp.c_str(), "wb");
     if (f == nullptr) {
@@ -197,7 +212,7 @@ Result<std::vector<StoredRawFrame>> listRawFrames(const fs::path& dir) {
     if (!fs::exists(dir, ec)) return out;
     for (const auto& item : fs::directory_iterator(dir, ec)) {
         StoredRawFrame f;
-        if (!parseFileName(item.path().filename().string(), &f.utime, &f.frame_index)) continue;
+        if (!parseFileName(item.path().filename().string(), &f)) continue;
         f.path = item.path();
         out.push_back(std::move(f));
     }
@@ -210,9 +225,13 @@ Result<std::vector<StoredRawFrame>> listRawFrames(const fs::path& dir) {
 }
 
 RawFrameCoverage rawFrameCoverage(const std::vector<StoredRawFrame>& stored,
-                                  const std::vector<Fragment>& fragments) {
+                                  const std::vector<Fragment>& fragments,
+                                  std::optional<int64_t> session_id) {
     std::multimap<int64_t, const StoredRawFrame*> by_index;
-    for (const StoredRawFrame& f : stored) by_index.emplace(f.frame_index, &f);
+    for (const StoredRawFrame& f : stored) {
+        if (session_id && f.session_id && *f.session_id != *session_id) continue;
+        by_index.emplace(f.frame_index, &f);
+    }
     RawFrameCoverage c;
     c.min_fragment_share = fragments.empty() ? 0.0 : 1.0;
     for (const Fragment& fragment : fragments) {

@@ -1,14 +1,17 @@
 // SPDX-License-Identifier: Apache-2.0
 #pragma once
 
-// The raw frames a device streams (depth_frame2_t on PLUMB_RGBD, depth_frame_t on PLUMB_DEPTH;
-// plumb-device's stream.raw_frame_every), kept beside the fragment store so that the final
-// model can re-integrate the frames themselves instead of the fragments' surfaces:
-//  - RawFrameStore writes each frame's message as it arrived to `<dir>/<utime>_<index>.raw`
-//    (a temporary file renamed into place, not fsync'ed: raw frames are never acknowledged, and
-//    one lost to a crash only leaves its frame to the fragment surfaces);
-//  - rawFrameCoverage() matches them with the frames of a session's fragments (frame index and
-//    capture time, so that frames of other sessions never mix in) and says how well they cover
+// The raw frames a device streams (depth_frame3_t on PLUMB_RGBD3; depth_frame2_t on PLUMB_RGBD
+// and depth_frame_t on PLUMB_DEPTH from older devices; plumb-device's stream.raw_frame_every),
+// kept beside the fragment store so that the final model can re-integrate the frames themselves
+// instead of the fragments' surfaces:
+//  - RawFrameStore writes each frame's message as it arrived to
+//    `<dir>/<utime>_<index>_s<session>.raw`, or `<dir>/<utime>_<index>.raw` for a message that
+//    names no session (a temporary file renamed into place, not fsync'ed: raw frames are never
+//    acknowledged, and one lost to a crash only leaves its frame to the fragment surfaces);
+//  - rawFrameCoverage() matches them with the frames of a session's fragments (the session when
+//    the frame names one, frame index and capture time, so that frames of other sessions never
+//    mix in) and says how well they cover
 //    each fragment; openRawFrameSource() reads the matches in capture order (the final model's
 //    source; backend/ingest/stored_scan.hpp opens a session's frames as a scan of their own).
 //
@@ -19,6 +22,7 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -38,6 +42,7 @@ struct StoredRawFrame {
     int64_t utime = 0;        ///< capture time, microseconds
     int64_t frame_index = 0;  ///< index in the capture stream
     std::filesystem::path path;
+    std::optional<int64_t> session_id;  ///< the device session, when the message named it
 };
 
 class RawFrameStore {
@@ -46,9 +51,11 @@ class RawFrameStore {
     /// IoError names the directory.
     static Result<std::unique_ptr<RawFrameStore>> open(const std::filesystem::path& dir);
 
-    /// Writes one raw frame's message bytes (as received); the same frame again replaces it.
-    /// IoError (e.g. a full disk) names the file; nothing is left half written under its name.
-    Status put(int64_t utime, int64_t frame_index, std::span<const uint8_t> message_bytes);
+    /// Writes one raw frame's message bytes (as received), of session `session_id` when the
+    /// message names one; the same frame again replaces it. IoError (e.g. a full disk) names the
+    /// file; nothing is left half written under its name.
+    Status put(int64_t utime, int64_t frame_index, std::span<const uint8_t> message_bytes,
+               std::optional<int64_t> session_id = std::nullopt);
 
     const std::filesystem::path& dir() const { return dir_; }
 
@@ -57,7 +64,8 @@ class RawFrameStore {
     std::filesystem::path dir_;
 };
 
-/// Every raw frame file in `dir`, by capture time then index (an absent directory holds none).
+/// Every raw frame file in `dir`, by capture time, index, then session (an absent directory
+/// holds none).
 /// Files that are not named as RawFrameStore names them are ignored. IoError when the
 /// directory cannot be listed.
 Result<std::vector<StoredRawFrame>> listRawFrames(const std::filesystem::path& dir);
@@ -77,10 +85,12 @@ struct RawFrameCoverage {
     int64_t stride = 1;
 };
 
-/// Matches `stored` with the tracked frames of `fragments`: same frame index, capture times
-/// within a millisecond of each other.
+/// Matches `stored` with the tracked frames of `fragments`, which are of session `session_id`
+/// (when given): a raw frame of another session is never matched; one that names no session
+/// matches by frame index and capture time (within a millisecond), as do the others.
 RawFrameCoverage rawFrameCoverage(const std::vector<StoredRawFrame>& stored,
-                                  const std::vector<Fragment>& fragments);
+                                  const std::vector<Fragment>& fragments,
+                                  std::optional<int64_t> session_id = std::nullopt);
 
 /// How openRawFrameSource presents the frames.
 struct RawFrameView {

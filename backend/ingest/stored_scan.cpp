@@ -49,6 +49,7 @@ Result<StoredScan> openStoredScan(const fs::path& fragments_dir, const StoredSca
     if (first_s <= last_s) {  // the session has frames
         const int64_t from = messages::toUtime(first_s - 1.0), to = messages::toUtime(last_s + 1.0);
         for (const StoredRawFrame& f : *stored) {
+            if (f.session_id && *f.session_id != *session) continue;  // another session's
             if (f.utime >= from && f.utime <= to) frames.push_back(f);
         }
     }
@@ -60,7 +61,7 @@ Result<StoredScan> openStoredScan(const fs::path& fragments_dir, const StoredSca
                         "which keeps them in {})",
                         fragments_dir.string(), *session, rawFramesDir(fragments_dir).string()));
     }
-    const RawFrameCoverage coverage = rawFrameCoverage(frames, *fragments);
+    const RawFrameCoverage coverage = rawFrameCoverage(frames, *fragments, *session);
     scan.fragment_frames = coverage.tracked_frames;
     scan.fragment_frames_with_raw = coverage.matched;
     if (coverage.matched < coverage.tracked_frames) {

@@ -64,7 +64,7 @@ void describe(config::Schema& s, StreamConfig& c) {
         .min(0);
     s.field("include_colors", c.include_colors, "keep per-point colours in encoded fragments");
     s.field("raw_frame_every", c.raw_frame_every,
-            "publish every N-th captured frame raw on PLUMB_RGBD (depth_frame2_t); 0: none. "
+            "publish every N-th captured frame raw on PLUMB_RGBD3 (depth_frame3_t); 0: none. "
             "plumb-backend keeps them: its final model re-integrates them, and `plumb "
             "reconstruct store:DIR` tracks them again (1: every frame)",
             "frames")

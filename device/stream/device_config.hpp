@@ -94,7 +94,7 @@ struct StreamConfig {
     double ack_wait_s = 30.0;
     /// Keep per-point colours in encoded fragments when the cloud has them.
     bool include_colors = true;
-    /// Publish every this many captured frames raw on PLUMB_RGBD (depth_frame2_t: depth in
+    /// Publish every this many captured frames raw on PLUMB_RGBD3 (depth_frame3_t: depth in
     /// millimetres, delta-varint), for logs, monitoring and plumb-backend, which keeps them for
     /// its final model and for `plumb reconstruct store:DIR` (1 = every frame); 0 = no raw
     /// frames. Recorded sources wait for the network thread; live sensors drop raw frames it

@@ -7,7 +7,8 @@
 // (device/stream/fragment_publisher.hpp), publishes the status heartbeat, camera info and the
 // configuration snapshot, and dispatches acknowledgements. With stream.raw_frame_every = N, every
 // N-th captured frame also goes to the network thread, which publishes it raw (depth and colour)
-// as a depth_frame2_t on PLUMB_RGBD. LCM is used from the network thread only.
+// with the session id as a depth_frame3_t on PLUMB_RGBD3. LCM is used from the network thread
+// only.
 //
 // Capture never blocks on a live sensor (or with capture.realtime): when fusion lags, frames are
 // dropped, counted and reported in the heartbeat. When the camera vanishes (the source reports
@@ -69,7 +70,7 @@ struct DeviceRunReport {
     int64_t frames_dropped = 0;
     int64_t fragments_cut = 0;
     int64_t fragments_acked = 0;
-    int64_t raw_frames_published = 0;  ///< depth_frame2_t on PLUMB_RGBD (stream.raw_frame_every)
+    int64_t raw_frames_published = 0;  ///< depth_frame3_t on PLUMB_RGBD3 (stream.raw_frame_every)
     int64_t raw_frames_dropped = 0;    ///< raw frames a live sensor could not wait for
     bool stopped_by_signal = false;
     bool source_error = false;   ///< the source failed (not a normal end)

@@ -242,6 +242,37 @@ TEST(Conversions, OldDepthFrameLogsStillDecode) {
         << wrong.status().message();
 }
 
+TEST(Conversions, SessionRgbdFramesCarryTheirSessionAndOlderOnesNone) {
+    const RawRgbdFrame f = sampleRgbdFrame();
+    auto m = toSessionMessage(f, 1796661477802188, DepthEncoding::kDeltaVarint,
+                              ColourEncoding::kDeltaRice, 5);
+    ASSERT_TRUE(m.isOk()) << m.status().toString();
+    EXPECT_EQ(m->frame.seq, 5);
+    auto back = decodeRawFrame(encodeMessage(*m));
+    ASSERT_TRUE(back.isOk()) << back.status().toString();
+    EXPECT_EQ(back->session_id, 1796661477802188);
+    EXPECT_EQ(back->utime, f.utime);
+    EXPECT_EQ(back->frame_index, 42);
+    EXPECT_EQ(back->depth, f.depth);
+    EXPECT_EQ(back->colour, f.colour);
+    // The released depth_frame2_t names no session.
+    auto older = decodeRawFrame(encodeMessage(
+        toMessage(f, DepthEncoding::kDeltaVarint, ColourEncoding::kDeltaRice, 5).value()));
+    ASSERT_TRUE(older.isOk());
+    EXPECT_FALSE(older->session_id.has_value());
+    EXPECT_EQ(older->colour, f.colour);
+    // A frame the inner message refuses is refused inside the new one too; damage is Corrupt.
+    RawRgbdFrame bad = f;
+    bad.depth_scale = -1.0;
+    EXPECT_EQ(toSessionMessage(bad, 1, DepthEncoding::kDeltaVarint, ColourEncoding::kNone, 1)
+                  .status()
+                  .code(),
+              StatusCode::kInvalidArgument);
+    std::vector<uint8_t> damaged = encodeMessage(*m);
+    damaged.resize(damaged.size() - 7);
+    EXPECT_EQ(decodeRawFrame(damaged).status().code(), StatusCode::kCorrupt);
+}
+
 TEST(Conversions, RgbdFramesRejectForgedAndTruncatedColour) {
     const RawRgbdFrame f = sampleRgbdFrame();
     const auto rice =

@@ -46,7 +46,7 @@ void decodeAndConvert(std::span<const uint8_t> bytes) {
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     if (size < 1) return 0;
     const std::span<const uint8_t> bytes(data + 1, size - 1);
-    switch (data[0] % 15) {
+    switch (data[0] % 16) {
         case 0:
             decodeAndConvert<plumb::device_status_t>(bytes);
             break;
@@ -82,6 +82,9 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
             break;
         case 13:
             (void)decodeRawFrame(bytes);
+            break;
+        case 15:
+            decodeAndConvert<plumb::depth_frame3_t>(bytes);
             break;
         case 14: {
             // The sender's handling of "cannot store" answers (checked values, no state kept).

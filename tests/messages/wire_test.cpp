@@ -140,6 +140,10 @@ TEST(Wire, SchemasMatchGeneratedTypes) {
     rgbd.colour_data = {7, 8, 9};
     rgbd.colour_size = 3;
     expectSchemaMatches(rgbd);
+    plumb::depth_frame3_t session_rgbd{};
+    session_rgbd.session_id = 77;
+    session_rgbd.frame = rgbd;
+    expectSchemaMatches(session_rgbd);
     plumb::config_snapshot_t config{};
     config.program = "plumb-device";
     config.version = "0.1.0";

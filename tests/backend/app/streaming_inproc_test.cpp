@@ -553,12 +553,15 @@ TEST(StreamingInProcess, RawFramesCarryColourToTheIngest) {
     EXPECT_EQ(report->raw_frames_published, 4);
     EXPECT_EQ(report->raw_frames_dropped, 0);  // a recorded source waits for the network thread
 
-    // Each raw frame is the captured frame: depth to the millimetre, colour exactly.
+    // Each raw frame is the captured frame: depth to the millimetre, colour exactly, with the
+    // device's session.
     std::vector<int64_t> indices;
     for (const auto& [channel, bytes] : transport.sent) {
-        if (channel != messages::kChannelRgbd) continue;
+        EXPECT_NE(channel, messages::kChannelRgbd);  // the older message is no longer sent
+        if (channel != messages::kChannelRgbdSession) continue;
         auto raw = messages::decodeRawFrame(bytes);
         ASSERT_TRUE(raw.isOk()) << raw.status().toString();
+        EXPECT_EQ(raw->session_id, 78);
         ASSERT_LT(raw->frame_index, 16);
         const Frame& original = expected[static_cast<size_t>(raw->frame_index)];
         indices.push_back(raw->frame_index);
@@ -569,7 +572,8 @@ TEST(StreamingInProcess, RawFramesCarryColourToTheIngest) {
     EXPECT_EQ(indices, (std::vector<int64_t>{0, 5, 10, 15}));
 
     // The backend's ingest (plumb-backend --live/--log, plumb replay) decodes and counts them,
-    // and old depth-only raw frames too; a damaged one is counted as malformed.
+    // and the raw frames of older devices too (depth_frame2_t without a session, depth-only
+    // depth_frame_t); a damaged one is counted as malformed.
     const fs::path dir = tempDir("raw_frames");
     LossyHub hub;
     IngestConfig ic;
@@ -587,23 +591,42 @@ TEST(StreamingInProcess, RawFramesCarryColourToTheIngest) {
     ASSERT_TRUE((*ingestor)->lastRawFrame().has_value());
     EXPECT_EQ((*ingestor)->lastRawFrame()->frame_index, 99);
     EXPECT_TRUE((*ingestor)->lastRawFrame()->colour.empty());
+    messages::RawRgbdFrame older;
+    older.utime = 5000000;
+    older.frame_index = 98;
+    older.depth = toRaw(expected[4].depth, 1000.0);
+    older.colour = expected[4].colour;
+    (*ingestor)->onMessage(
+        messages::kChannelRgbd,
+        messages::encodeMessage(messages::toMessage(older, messages::DepthEncoding::kDeltaVarint,
+                                                    messages::ColourEncoding::kDeltaRice, 1)
+                                    .value()),
+        2.0);
+    EXPECT_FALSE((*ingestor)->lastRawFrame()->session_id.has_value());
     auto damaged = transport.sent.front().second;
     for (const auto& [channel, bytes] : transport.sent) {
-        if (channel == messages::kChannelRgbd) damaged = bytes;
+        if (channel == messages::kChannelRgbdSession) damaged = bytes;
     }
     damaged.resize(damaged.size() - 10);
-    (*ingestor)->onMessage(messages::kChannelRgbd, damaged, 3.0);
+    (*ingestor)->onMessage(messages::kChannelRgbdSession, damaged, 3.0);
     const auto m = (*ingestor)->metrics({});
-    EXPECT_EQ(m["raw_frames"]["received"], 5);
-    EXPECT_EQ(m["raw_frames"]["with_colour"], 4);
+    EXPECT_EQ(m["raw_frames"]["received"], 6);
+    EXPECT_EQ(m["raw_frames"]["with_colour"], 5);
     EXPECT_EQ((*ingestor)->counters().raw_frames_malformed, 1u);
     EXPECT_GE(m["messages_rejected"]["malformed"].get<uint64_t>(), 1u);
-    // Every frame that decoded is kept for the final model, the old depth-only one too.
-    EXPECT_EQ(m["raw_frames"]["kept"], 5);
+    // Every frame that decoded is kept for the final model, the older ones too; the device's
+    // with its session, the older ones without.
+    EXPECT_EQ(m["raw_frames"]["kept"], 6);
     EXPECT_EQ(m["raw_frames"]["not_kept"], 0);
     auto kept = listRawFrames(rawFramesDir(dir / "fragments"));
     ASSERT_TRUE(kept.isOk()) << kept.status().toString();
-    ASSERT_EQ(kept->size(), 5u);
+    ASSERT_EQ(kept->size(), 6u);
+    for (const StoredRawFrame& f : *kept) {
+        if (f.frame_index >= 98)
+            EXPECT_FALSE(f.session_id.has_value()) << f.frame_index;
+        else
+            EXPECT_EQ(f.session_id, 78) << f.frame_index;
+    }
     EXPECT_EQ(std::count_if(kept->begin(), kept->end(),
                             [](const StoredRawFrame& f) { return f.frame_index == 99; }),
               1);
@@ -709,14 +732,28 @@ TEST(StreamingInProcess, TheFinalModelReintegratesTheRawFramesTheIngestKept) {
     ASSERT_TRUE(fs::exists(dir / "camera_info.json"));
 
     // The session's raw frames open as a scan (`plumb reconstruct store:DIR`): the frames the
-    // camera delivered, depth to the millimetre, numbered in capture order; raw frames of
-    // another session (an hour later, the same indices) stay out.
+    // camera delivered, depth to the millimetre, numbered in capture order. Raw frames of other
+    // sessions stay out: one whose frames name it, at the same capture times and indices (two
+    // runs of the simulator, whose clock starts at 0), with other depth; and one of an older
+    // device, whose frames name no session, an hour later.
     {
         auto other = RawFrameStore::open(rawFramesDir(store));
         ASSERT_TRUE(other.isOk());
         for (const auto& [channel, bytes] : sent) {
-            if (channel != messages::kChannelRgbd) continue;
+            if (channel != messages::kChannelRgbdSession) continue;
             auto raw = messages::decodeRawFrame(bytes).value();
+            messages::RawRgbdFrame same_time = raw;
+            for (size_t k = 0; k < same_time.depth.size(); ++k) {
+                uint16_t& d = same_time.depth.data()[k];
+                if (d != 0) d = static_cast<uint16_t>(d + 100);
+            }
+            auto twin =
+                messages::toSessionMessage(same_time, 77, messages::DepthEncoding::kDeltaVarint,
+                                           messages::ColourEncoding::kDeltaRice, 1);
+            ASSERT_TRUE(twin.isOk());
+            ASSERT_TRUE((*other)
+                            ->put(raw.utime, raw.frame_index, messages::encodeMessage(*twin), 77)
+                            .isOk());
             raw.utime += int64_t{3600} * 1000000;
             auto later = messages::toMessage(raw, messages::DepthEncoding::kDeltaVarint,
                                              messages::ColourEncoding::kDeltaRice, 1);
@@ -756,8 +793,17 @@ TEST(StreamingInProcess, TheFinalModelReintegratesTheRawFramesTheIngestKept) {
         EXPECT_EQ(openStoredScan(dir / "nowhere", {}).status().code(), StatusCode::kNotFound);
         auto all = listRawFrames(rawFramesDir(store));
         ASSERT_TRUE(all.isOk());
+        EXPECT_EQ(all->size(), 3u * 24u);  // no session's frames replaced another's
+        auto reader = messages::FragmentStore::openReadOnly(store);
+        ASSERT_TRUE(reader.isOk());
+        auto fragments = loadStoredFragments(**reader, 79);
+        ASSERT_TRUE(fragments.isOk());
+        const RawFrameCoverage own = rawFrameCoverage(*all, *fragments, 79);
+        EXPECT_EQ(own.matched, 24u);
+        // Session 77's frames come first at each instant (capture order breaks ties by session).
+        for (const StoredRawFrame& f : own.frames) EXPECT_EQ(f.session_id, 79);
         for (const StoredRawFrame& f : *all) {
-            if (f.utime > int64_t{3000} * 1000000) fs::remove(f.path);
+            if (f.utime > int64_t{3000} * 1000000 || f.session_id == 77) fs::remove(f.path);
         }
     }
 
@@ -804,11 +850,13 @@ TEST(StreamingInProcess, TheFinalModelReintegratesTheRawFramesTheIngestKept) {
                                              std::istreambuf_iterator<char>());
             auto raw = messages::decodeRawFrame(bytes);
             ASSERT_TRUE(raw.isOk()) << raw.status().toString();
-            auto depth_only = messages::toMessage(*raw, messages::DepthEncoding::kDeltaVarint,
-                                                  messages::ColourEncoding::kNone, 1);
+            ASSERT_EQ(f.session_id, 79);
+            auto depth_only =
+                messages::toSessionMessage(*raw, 79, messages::DepthEncoding::kDeltaVarint,
+                                           messages::ColourEncoding::kNone, 1);
             ASSERT_TRUE(depth_only.isOk());
             ASSERT_TRUE((*rewrite)
-                            ->put(f.utime, f.frame_index, messages::encodeMessage(*depth_only))
+                            ->put(f.utime, f.frame_index, messages::encodeMessage(*depth_only), 79)
                             .isOk());
         }
     }

@@ -115,6 +115,45 @@ TEST(RawFrameStore, KeepsFramesAsReceivedInCaptureOrder) {
     fs::remove_all(dir);
 }
 
+// Frames that name their session (depth_frame3_t) are kept apart from another session's frame
+// of the same capture time and index (two runs of the simulator); frames of older devices, which
+// name none, are kept as before. Names that are neither are not raw frames.
+TEST(RawFrameStore, FramesOfTwoSessionsAtOneInstantAreBothKept) {
+    const fs::path dir = tempDir("sessions");
+    auto store = RawFrameStore::open(dir);
+    ASSERT_TRUE(store.isOk());
+    const double t0 = 0.0;  // a simulator's clock
+    ASSERT_TRUE((*store)->put(utimeOf(1, t0), 1, rawFrameMessage(utimeOf(1, t0), 1), 11).isOk());
+    ASSERT_TRUE((*store)->put(utimeOf(1, t0), 1, rawFrameMessage(utimeOf(1, t0), 2), 7).isOk());
+    ASSERT_TRUE((*store)->put(utimeOf(1, t0), 1, rawFrameMessage(utimeOf(1, t0), 3)).isOk());
+    for (const char* name :
+         {"00000000000000001_000000001_s.raw", "00000000000000001_000000001_7.raw",
+          "00000000000000001_000000001_s7x.raw"})
+        std::ofstream(dir / name) << "not a frame";
+    auto listed = listRawFrames(dir);
+    ASSERT_TRUE(listed.isOk()) << listed.status().toString();
+    ASSERT_EQ(listed->size(), 3u);
+    // Capture time, index, then session: none first, then 7, then 11.
+    EXPECT_FALSE((*listed)[0].session_id.has_value());
+    EXPECT_EQ((*listed)[1].session_id, 7);
+    EXPECT_EQ((*listed)[2].session_id, 11);
+    for (const StoredRawFrame& f : *listed) {
+        EXPECT_EQ(f.utime, utimeOf(1, t0));
+        EXPECT_EQ(f.frame_index, 1);
+    }
+    // Each session's fragments match their own frame, or the one that names no session.
+    const std::vector<Fragment> fragments = {fragmentOf(0, 1, 1, t0)};
+    for (const int64_t session : {7, 11}) {
+        const RawFrameCoverage c = rawFrameCoverage(*listed, fragments, session);
+        ASSERT_EQ(c.matched, 1u);
+        EXPECT_TRUE(!c.frames[0].session_id || *c.frames[0].session_id == session);
+    }
+    const std::vector<StoredRawFrame> named(listed->begin() + 1, listed->end());
+    EXPECT_EQ(rawFrameCoverage(named, fragments, 11).frames[0].session_id, 11);
+    EXPECT_EQ(rawFrameCoverage(named, fragments, 12).matched, 0u);
+    fs::remove_all(dir);
+}
+
 TEST(RawFrameStore, CoverageMatchesIndexAndCaptureTimeOfTheSessionOnly) {
     const double t0 = 1.7e9, other_session = 1.7e9 + 3600.0;
     std::vector<StoredRawFrame> stored;
