@@ -705,6 +705,55 @@ std::string readText(const fs::path& p) {
     return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }
 
+// A store whose raw frames cannot be tracked again as well as the device tracked them says why
+// when opened as a scan: one frame in two, without colour.
+TEST(StreamingInProcess, AStoredScanSaysWhenItsFramesAreStridedOrWithoutColour) {
+    const auto sent = deviceMessagesWithRawFrames(16, 85);
+    const fs::path dir = tempDir("raw_strided");
+    const fs::path store = dir / "fragments";
+    {
+        LossyHub hub;
+        auto ingestor = Ingestor::open(store, dir, IngestConfig{}, hub);
+        ASSERT_TRUE(ingestor.isOk()) << ingestor.status().toString();
+        for (const auto& [channel, bytes] : sent) (*ingestor)->onMessage(channel, bytes, 1.0);
+        (*ingestor)->poll(2.0);
+    }
+    auto every = openStoredScan(store, {});
+    ASSERT_TRUE(every.isOk()) << every.status().toString();
+    EXPECT_TRUE(every->note.empty()) << every->note;
+
+    auto rewrite = RawFrameStore::open(rawFramesDir(store));
+    ASSERT_TRUE(rewrite.isOk());
+    auto kept = listRawFrames(rawFramesDir(store));
+    ASSERT_TRUE(kept.isOk());
+    for (const StoredRawFrame& f : *kept) {
+        if (f.frame_index % 2 == 1) {
+            fs::remove(f.path);
+            continue;
+        }
+        auto raw = messages::decodeRawFrame(messages::readFile(f.path, 1 << 24).value()).value();
+        auto depth_only = messages::toSessionMessage(raw, 85, messages::DepthEncoding::kDeltaVarint,
+                                                     messages::ColourEncoding::kNone, 1);
+        ASSERT_TRUE((*rewrite)
+                        ->put(f.utime, f.frame_index, messages::encodeMessage(*depth_only), 85)
+                        .isOk());
+    }
+    auto strided = openStoredScan(store, {});
+    ASSERT_TRUE(strided.isOk()) << strided.status().toString();
+    EXPECT_EQ(strided->frames, 8u);
+    EXPECT_NE(strided->note.find("one frame in 2 (stream.raw_frame_every = 2)"), std::string::npos)
+        << strided->note;
+    EXPECT_NE(strided->note.find("the raw frames carry no colour"), std::string::npos)
+        << strided->note;
+    // Asked for without colour, the frames' lack of it is no news.
+    StoredScanOptions no_colour;
+    no_colour.colour = false;
+    auto depth_only = openStoredScan(store, no_colour);
+    ASSERT_TRUE(depth_only.isOk());
+    EXPECT_EQ(depth_only->note.find("carry no colour"), std::string::npos) << depth_only->note;
+    fs::remove_all(dir);
+}
+
 TEST(StreamingInProcess, TheFinalModelReintegratesTheRawFramesTheIngestKept) {
     const auto sent = deviceMessagesWithRawFrames(24, 79);
 
