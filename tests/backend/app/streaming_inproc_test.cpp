@@ -647,17 +647,17 @@ std::vector<std::pair<std::string, std::vector<uint8_t>>> deviceMessagesWithRawF
     return std::move(transport.sent);
 }
 
-/// Ingests `sent` (the messages of a device cutting two fragments) into the store `dir` and
-/// returns the ingest's metrics; both fragments must be stored, whatever becomes of raw frames.
-nlohmann::json ingestInto(const fs::path& dir, const IngestConfig& config,
-                          const std::vector<std::pair<std::string, std::vector<uint8_t>>>& sent) {
+/// Ingests `sent` (a device's messages) into the store `store` (the camera info into `info_dir`
+/// when given) and returns the ingest's metrics.
+nlohmann::json ingestInto(const fs::path& store, const IngestConfig& config,
+                          const std::vector<std::pair<std::string, std::vector<uint8_t>>>& sent,
+                          const fs::path& info_dir = {}) {
     LossyHub hub;
-    auto ingestor = Ingestor::open(dir, {}, config, hub);
+    auto ingestor = Ingestor::open(store, info_dir, config, hub);
     EXPECT_TRUE(ingestor.isOk()) << ingestor.status().toString();
     if (!ingestor.isOk()) return {};
     for (const auto& [channel, bytes] : sent) (*ingestor)->onMessage(channel, bytes, 1.0);
     (*ingestor)->poll(2.0);
-    EXPECT_EQ((*ingestor)->fragmentsInStore(), 2u);
     return (*ingestor)->metrics({});
 }
 
@@ -671,6 +671,7 @@ TEST(StreamingInProcess, RawFramesThatCannotBeKeptAreCountedAndTheFragmentsStill
     fs::create_directories(store);
     std::ofstream(rawFramesDir(store)) << "in the way\n";
     const nlohmann::json m = ingestInto(store, IngestConfig{}, sent);
+    EXPECT_EQ(m["fragments_received"], 2);
     EXPECT_EQ(m["raw_frames"]["received"], 16);
     EXPECT_EQ(m["raw_frames"]["kept"], 0);
     EXPECT_EQ(m["raw_frames"]["not_kept"], 16);
@@ -689,6 +690,7 @@ TEST(StreamingInProcess, RawFramesLeaveTheDiskToTheFragmentsWhenSpaceIsShort) {
         config.raw_frames_min_free_bytes =
             short_of_space ? std::numeric_limits<uint64_t>::max() : 0;
         const nlohmann::json m = ingestInto(store, config, sent);
+        EXPECT_EQ(m["fragments_received"], 2);
         EXPECT_EQ(m["raw_frames"]["received"], 16);
         EXPECT_EQ(m["raw_frames"]["kept"], short_of_space ? 0 : 16);
         EXPECT_EQ(m["raw_frames"]["not_kept"], short_of_space ? 16 : 0);
@@ -711,13 +713,7 @@ TEST(StreamingInProcess, AStoredScanSaysWhenItsFramesAreStridedOrWithoutColour) 
     const auto sent = deviceMessagesWithRawFrames(16, 85);
     const fs::path dir = tempDir("raw_strided");
     const fs::path store = dir / "fragments";
-    {
-        LossyHub hub;
-        auto ingestor = Ingestor::open(store, dir, IngestConfig{}, hub);
-        ASSERT_TRUE(ingestor.isOk()) << ingestor.status().toString();
-        for (const auto& [channel, bytes] : sent) (*ingestor)->onMessage(channel, bytes, 1.0);
-        (*ingestor)->poll(2.0);
-    }
+    EXPECT_EQ(ingestInto(store, IngestConfig{}, sent, dir)["raw_frames"]["kept"], 16);
     auto every = openStoredScan(store, {});
     ASSERT_TRUE(every.isOk()) << every.status().toString();
     EXPECT_TRUE(every->note.empty()) << every->note;
@@ -762,14 +758,12 @@ TEST(StreamingInProcess, TheFinalModelReintegratesTheRawFramesTheIngestKept) {
     const fs::path dir = tempDir("raw_final");
     const fs::path store = dir / "fragments";
     {
-        LossyHub hub;
-        auto ingestor = Ingestor::open(store, dir, IngestConfig{}, hub);
-        ASSERT_TRUE(ingestor.isOk()) << ingestor.status().toString();
-        for (const auto& [channel, bytes] : sent) (*ingestor)->onMessage(channel, bytes, 1.0);
-        (*ingestor)->poll(2.0);
-        EXPECT_EQ((*ingestor)->fragmentsInStore(), 3u);
-        EXPECT_EQ((*ingestor)->counters().raw_frames_kept, 24u);
-        auto fragments = loadStoredFragments((*ingestor)->store());
+        const nlohmann::json m = ingestInto(store, IngestConfig{}, sent, dir);
+        EXPECT_EQ(m["fragments_received"], 3);
+        EXPECT_EQ(m["raw_frames"]["kept"], 24);
+        auto reader = messages::FragmentStore::openReadOnly(store);
+        ASSERT_TRUE(reader.isOk());
+        auto fragments = loadStoredFragments(**reader);
         ASSERT_TRUE(fragments.isOk()) << fragments.status().toString();
         auto kept = listRawFrames(rawFramesDir(store));
         ASSERT_TRUE(kept.isOk());
