@@ -45,6 +45,11 @@ constexpr const char* kUsage =
     "  --timeout S          live: give up after S seconds (exit 1)\n"
     "  --linger S           live: keep acknowledging for S seconds after the end (default 1)\n"
     "  --no-finalise        stop after ingest (no reconstruction)\n"
+    "  --no-raw-frames      neither keep the raw frames devices stream nor re-integrate the\n"
+    "                       ones kept: the final model fuses the fragment surfaces\n"
+    "  --raw-frames-reserve GIB\n"
+    "                       keep raw frames only while this much disk stays free for the\n"
+    "                       fragments (default 2)\n"
     "  --gt DIR             ground truth to score against (groundtruth.txt or trajectory.log,\n"
     "                       gt_points.ply, layout.json)\n"
     "  --lcm-url URL        LCM URL (default udpm://239.255.76.67:7667?ttl=0, stays on host);\n"
@@ -138,6 +143,13 @@ std::optional<int> parseArguments(const std::vector<std::string>& args, BackendA
             if (!value(&out->gt_dir)) return usageError(g_program, "--gt needs a directory");
         } else if (a == "--no-finalise" || a == "--no-finalize") {
             out->finalise = false;
+        } else if (a == "--no-raw-frames") {
+            options.ingest.keep_raw_frames = false;
+        } else if (a == "--raw-frames-reserve") {
+            if (!value(&v) || !parseDouble(v, &d) || !(d >= 0.0) || d > 1e6)
+                return usageError(g_program, "--raw-frames-reserve needs GiB >= 0");
+            options.ingest.raw_frames_min_free_bytes =
+                static_cast<uint64_t>(d * static_cast<double>(uint64_t{1} << 30));
         } else if (a == "--lcm-url") {
             if (!value(&link_options.url)) return usageError(g_program, "--lcm-url needs a value");
         } else if (a == "--allow-remote") {
@@ -332,8 +344,12 @@ int finalise(const BackendArgs& a, const backend::PipelineConfig& pipeline_confi
         log::warn("{}; assuming the primesense intrinsics", camera.status().toString());
         input.camera = *cameraPreset("primesense");
     }
-    attachRawFrames(options.fragments_dir, *session,
-                    pipeline_config.final_model.min_raw_frame_share, &input);
+    if (options.ingest.keep_raw_frames) {
+        attachRawFrames(options.fragments_dir, *session,
+                        pipeline_config.final_model.min_raw_frame_share, &input);
+    } else {
+        log::info("final model: from the fragment surfaces (--no-raw-frames)");
+    }
     auto ran = backend::runPipeline(input, pipeline_config, a.out_dir, true);
     if (!ran.isOk()) {
         log::error("{}", ran.status().toString());

@@ -53,12 +53,14 @@ struct IngestConfig {
     double max_cannot_store_backoff_s = 30.0;
     /// Keep the raw frames that decode in `<fragments_dir>/raw_frames`, for the final model
     /// (about 0.7 MB a VGA frame with colour). A frame that cannot be written is counted
-    /// (raw_frames.not_kept) and left out; raw frames are never acknowledged.
+    /// (raw_frames.not_kept) and left out; raw frames are never acknowledged. plumb-backend
+    /// --no-raw-frames sets it false.
     bool keep_raw_frames = true;
     /// Raw frames are not kept while the raw frame folder's file system has less free space
     /// than this, bytes (counted raw_frames.not_kept_disk, warned about once; kept again when
     /// space comes back): the fragments, which are acknowledged and must be stored, keep their
     /// room. 2 GiB holds the fragments of about 10 minutes of a 30 Hz VGA scan (6.7 MB each).
+    /// plumb-backend --raw-frames-reserve GIB sets it.
     uint64_t raw_frames_min_free_bytes = uint64_t{2} << 30;
 };
 

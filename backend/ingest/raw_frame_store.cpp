@@ -240,12 +240,18 @@ RawFrameCoverage rawFrameCoverage(const std::vector<StoredRawFrame>& stored,
             if (!frame.tracking_ok) continue;
             ++tracked;
             const int64_t utime = messages::toUtime(frame.timestamp_s);
+            // The frame that names the session rather than one that names none (an older
+            // device's at the same instant).
+            const StoredRawFrame* best = nullptr;
             auto [begin, end] = by_index.equal_range(frame.frame_index);
             for (auto it = begin; it != end; ++it) {
                 if (std::abs(it->second->utime - utime) > kTimeToleranceUs) continue;
-                c.frames.push_back(*it->second);
+                if (best == nullptr || (!best->session_id && it->second->session_id))
+                    best = it->second;
+            }
+            if (best != nullptr) {
+                c.frames.push_back(*best);
                 ++matched;
-                break;
             }
         }
         c.tracked_frames += tracked;

@@ -856,6 +856,20 @@ TEST(StreamingInProcess, TheFinalModelReintegratesTheRawFramesTheIngestKept) {
               0);
     auto metrics = nlohmann::json::parse(readText(dir / "raw" / "metrics.json"));
     EXPECT_EQ(metrics["final_model"], "raw frames re-integrated");
+    // ... unless told not to; a reserve that is not a size is a usage error.
+    ASSERT_EQ(runBackendCommand({"--fragments", store.string(), "--out", (dir / "no_raw").string(),
+                                 "--no-raw-frames"},
+                                "plumb-backend"),
+              0);
+    EXPECT_EQ(nlohmann::json::parse(readText(dir / "no_raw" / "metrics.json"))["final_model"],
+              "fragment surfaces fused");
+    for (const char* bad : {"-1", "lots", "nan"}) {
+        EXPECT_EQ(runBackendCommand({"--fragments", store.string(), "--out", (dir / "bad").string(),
+                                     "--raw-frames-reserve", bad},
+                                    "plumb-backend"),
+                  2)
+            << bad;
+    }
 
     // ... but not when a fragment has too few of its frames among them: frames 8-14 of the
     // second fragment (8-15) are gone, 1 of its 8 is left, under the default share of 20 %.

@@ -76,6 +76,15 @@ Fragment fragmentOf(uint32_t id, int64_t first, int64_t last, double t0_s, int64
     return f;
 }
 
+/// A stored raw frame that names no session.
+StoredRawFrame storedAt(int64_t utime, int64_t frame_index, const fs::path& path) {
+    StoredRawFrame f;
+    f.utime = utime;
+    f.frame_index = frame_index;
+    f.path = path;
+    return f;
+}
+
 int64_t utimeOf(int64_t k, double t0_s) {
     return messages::toUtime(t0_s + static_cast<double>(k) / 30.0);
 }
@@ -141,13 +150,17 @@ TEST(RawFrameStore, FramesOfTwoSessionsAtOneInstantAreBothKept) {
         EXPECT_EQ(f.utime, utimeOf(1, t0));
         EXPECT_EQ(f.frame_index, 1);
     }
-    // Each session's fragments match their own frame, or the one that names no session.
+    // Each session's fragments match their own frame rather than the one that names none (which
+    // sorts first); a session without a frame of its own takes that one.
     const std::vector<Fragment> fragments = {fragmentOf(0, 1, 1, t0)};
     for (const int64_t session : {7, 11}) {
         const RawFrameCoverage c = rawFrameCoverage(*listed, fragments, session);
         ASSERT_EQ(c.matched, 1u);
-        EXPECT_TRUE(!c.frames[0].session_id || *c.frames[0].session_id == session);
+        EXPECT_EQ(c.frames[0].session_id, session);
     }
+    const RawFrameCoverage other = rawFrameCoverage(*listed, fragments, 12);
+    ASSERT_EQ(other.matched, 1u);
+    EXPECT_FALSE(other.frames[0].session_id.has_value());
     const std::vector<StoredRawFrame> named(listed->begin() + 1, listed->end());
     EXPECT_EQ(rawFrameCoverage(named, fragments, 11).frames[0].session_id, 11);
     EXPECT_EQ(rawFrameCoverage(named, fragments, 12).matched, 0u);
@@ -159,9 +172,9 @@ TEST(RawFrameStore, CoverageMatchesIndexAndCaptureTimeOfTheSessionOnly) {
     std::vector<StoredRawFrame> stored;
     // This session: frames 0-9 but 6 and 7; another session: frames 0-19 an hour later.
     for (int64_t k = 0; k < 10; ++k) {
-        if (k != 6 && k != 7) stored.push_back({utimeOf(k, t0), k, fs::path("a")});
+        if (k != 6 && k != 7) stored.push_back(storedAt(utimeOf(k, t0), k, "a"));
     }
-    for (int64_t k = 0; k < 20; ++k) stored.push_back({utimeOf(k, other_session), k, "b"});
+    for (int64_t k = 0; k < 20; ++k) stored.push_back(storedAt(utimeOf(k, other_session), k, "b"));
     // Frame 3 of this session stored 0.4 ms off (within the tolerance), frame 9 2 ms off (not).
     stored[3].utime += 400;
     stored[7].utime += 2000;  // frame 9 (6 and 7 are missing)
@@ -190,7 +203,7 @@ TEST(RawFrameStore, CoverageMatchesIndexAndCaptureTimeOfTheSessionOnly) {
 TEST(RawFrameStore, TheDefaultShareAdmitsEveryFourthFrameOfFiftyFrameFragments) {
     const double t0 = 1.7e9;
     std::vector<StoredRawFrame> stored;
-    for (int64_t k = 0; k < 400; k += 4) stored.push_back({utimeOf(k, t0), k, fs::path("a")});
+    for (int64_t k = 0; k < 400; k += 4) stored.push_back(storedAt(utimeOf(k, t0), k, "a"));
     std::vector<Fragment> fragments;
     for (uint32_t i = 0; i < 8; ++i) fragments.push_back(fragmentOf(i, 50 * i, 50 * i + 49, t0));
     const RawFrameCoverage every4 = rawFrameCoverage(stored, fragments);
@@ -199,7 +212,7 @@ TEST(RawFrameStore, TheDefaultShareAdmitsEveryFourthFrameOfFiftyFrameFragments) 
     EXPECT_EQ(every4.stride, 4);
     // Every 8th frame is too few.
     std::vector<StoredRawFrame> every8_frames;
-    for (int64_t k = 0; k < 400; k += 8) every8_frames.push_back({utimeOf(k, t0), k, "a"});
+    for (int64_t k = 0; k < 400; k += 8) every8_frames.push_back(storedAt(utimeOf(k, t0), k, "a"));
     const RawFrameCoverage every8 = rawFrameCoverage(every8_frames, fragments);
     EXPECT_LT(every8.min_fragment_share, FinalModelConfig{}.min_raw_frame_share);
     EXPECT_EQ(every8.stride, 8);
