@@ -312,8 +312,21 @@ json MonitorState::buildJsonLocked() const {
 
     // The newest session is the one a pose graph describes (node i = fragment i).
     const int64_t newest_session = fragments_.empty() ? 0 : fragments_.rbegin()->first.first;
-
     std::vector<Eigen::Vector2d> all_points_V;
+    j["fragments"] = fragmentsJsonLocked(T_V_W, newest_session, &all_points_V);
+    j["edges"] = edgesJsonLocked(newest_session);
+    j["layout"] = layoutJsonLocked();
+    j["device"] = deviceJsonLocked();
+    j["link"] = linkJsonLocked();
+    j["trajectory_V"] = trajectoryJsonLocked(T_V_W);
+    j["coverage"] = coverageJsonLocked(all_points_V);
+    j["errors"] = errors_;
+    j["uptime_s"] = std::chrono::duration<double>(Clock::now() - start_).count();
+    return j;
+}
+
+json MonitorState::fragmentsJsonLocked(const Eigen::Isometry3d& T_V_W, int64_t newest_session,
+                                       std::vector<Eigen::Vector2d>* all_points_V) const {
     json fragments = json::array();
     for (const auto& [key, f] : fragments_) {
         const bool from_graph =
@@ -325,7 +338,7 @@ json MonitorState::buildJsonLocked() const {
         for (const Eigen::Vector3f& p : f.sample_F) {
             pts.push_back((T_V_F * p.cast<double>()).head<2>());
         }
-        all_points_V.insert(all_points_V.end(), pts.begin(), pts.end());
+        all_points_V->insert(all_points_V->end(), pts.begin(), pts.end());
         json outline = json::array();
         for (const auto& q : convexHull(pts)) outline.push_back(pointJson(q));
         json o;
@@ -347,8 +360,10 @@ json MonitorState::buildJsonLocked() const {
         o["ack"] = f.ack == 1 ? "persisted" : (f.ack == -1 ? "rejected" : "none");
         fragments.push_back(std::move(o));
     }
-    j["fragments"] = std::move(fragments);
+    return fragments;
+}
 
+json MonitorState::edgesJsonLocked(int64_t newest_session) const {
     // Edges: the pose graph's, plus odometry edges implied by consecutive fragments of one
     // segment that the graph does not cover yet.
     json edges = json::array();
@@ -381,63 +396,63 @@ json MonitorState::buildJsonLocked() const {
         e.reason = "fragment odometry";
         edges.push_back(edgeJson(e));
     }
-    j["edges"] = std::move(edges);
+    return edges;
+}
 
-    if (layout_) {
-        json l = io::layoutToJson(*layout_);
-        // V = L when a layout is known, so the floor plan is the room polygon as it is.
-        json polygon = json::array();
-        for (const auto& p : layout_->room_polygon_L) polygon.push_back(pointJson(p));
-        l["room_polygon_V"] = std::move(polygon);
-        json walls = json::array();
-        for (const LayoutPlane* w : layout_->walls()) {
-            walls.push_back({{"id", w->id},
-                             {"start_V", pointJson(w->start_L)},
-                             {"end_V", pointJson(w->end_L)},
-                             {"manhattan_snapped", w->manhattan_snapped}});
-        }
-        l["walls_V"] = std::move(walls);
-        j["layout"] = std::move(l);
-    } else {
-        j["layout"] = nullptr;
+json MonitorState::layoutJsonLocked() const {
+    if (!layout_) return nullptr;
+    json l = io::layoutToJson(*layout_);
+    // V = L when a layout is known, so the floor plan is the room polygon as it is.
+    json polygon = json::array();
+    for (const auto& p : layout_->room_polygon_L) polygon.push_back(pointJson(p));
+    l["room_polygon_V"] = std::move(polygon);
+    json walls = json::array();
+    for (const LayoutPlane* w : layout_->walls()) {
+        walls.push_back({{"id", w->id},
+                         {"start_V", pointJson(w->start_L)},
+                         {"end_V", pointJson(w->end_L)},
+                         {"manhattan_snapped", w->manhattan_snapped}});
     }
+    l["walls_V"] = std::move(walls);
+    return l;
+}
 
-    if (device_) {
-        const messages::DeviceStatus& d = *device_;
-        const double age_s = std::chrono::duration<double>(Clock::now() - device_received_).count();
-        j["device"] = {{"session_id", d.session_id},
-                       {"fps", d.fps},
-                       {"tracking", trackingName(d.tracking)},
-                       {"frames_processed", d.frames_processed},
-                       {"frames_dropped", d.frames_dropped},
-                       {"processed_fraction",
-                        messages::processedFraction(d.frames_processed, d.frames_dropped)},
-                       {"fragments_cut", d.fragments_cut},
-                       {"fragments_acked", d.fragments_acked},
-                       {"spool_fragments", d.spool_fragments},
-                       {"spool_bytes", d.spool_bytes},
-                       {"memory_bytes", d.memory_bytes},
-                       {"utime", device_utime_},
-                       {"seq", device_seq_},
-                       {"received_unix_s", wallClockSeconds() - age_s},
-                       {"stale_after_s", config_.device_stale_after_s}};
-    } else {
-        j["device"] = nullptr;
-    }
-    if (link_stats_) {
-        const auto& s = *link_stats_;
-        j["link"] = {{"messages", link_messages_},
-                     {"malformed", link_malformed_ + s.malformed_messages},
-                     {"chunks_received", s.chunks_received},
-                     {"duplicate_chunks", s.duplicate_chunks},
-                     {"chunk_crc_failures", s.chunk_crc_failures},
-                     {"fragment_crc_failures", s.fragment_crc_failures},
-                     {"fragments_completed", s.fragments_completed},
-                     {"partial_fragments_evicted", s.fragments_evicted}};
-    } else {
-        j["link"] = nullptr;
-    }
+json MonitorState::deviceJsonLocked() const {
+    if (!device_) return nullptr;
+    const messages::DeviceStatus& d = *device_;
+    const double age_s = std::chrono::duration<double>(Clock::now() - device_received_).count();
+    return {
+        {"session_id", d.session_id},
+        {"fps", d.fps},
+        {"tracking", trackingName(d.tracking)},
+        {"frames_processed", d.frames_processed},
+        {"frames_dropped", d.frames_dropped},
+        {"processed_fraction", messages::processedFraction(d.frames_processed, d.frames_dropped)},
+        {"fragments_cut", d.fragments_cut},
+        {"fragments_acked", d.fragments_acked},
+        {"spool_fragments", d.spool_fragments},
+        {"spool_bytes", d.spool_bytes},
+        {"memory_bytes", d.memory_bytes},
+        {"utime", device_utime_},
+        {"seq", device_seq_},
+        {"received_unix_s", wallClockSeconds() - age_s},
+        {"stale_after_s", config_.device_stale_after_s}};
+}
 
+json MonitorState::linkJsonLocked() const {
+    if (!link_stats_) return nullptr;
+    const auto& s = *link_stats_;
+    return {{"messages", link_messages_},
+            {"malformed", link_malformed_ + s.malformed_messages},
+            {"chunks_received", s.chunks_received},
+            {"duplicate_chunks", s.duplicate_chunks},
+            {"chunk_crc_failures", s.chunk_crc_failures},
+            {"fragment_crc_failures", s.fragment_crc_failures},
+            {"fragments_completed", s.fragments_completed},
+            {"partial_fragments_evicted", s.fragments_evicted}};
+}
+
+json MonitorState::trajectoryJsonLocked(const Eigen::Isometry3d& T_V_W) const {
     json traj = json::array();
     const size_t n = trajectory_W_.size();
     const size_t keep = std::min<size_t>(n, static_cast<size_t>(config_.max_trajectory_points));
@@ -445,8 +460,10 @@ json MonitorState::buildJsonLocked() const {
         const size_t k = keep > 1 ? i * (n - 1) / (keep - 1) : 0;
         traj.push_back(pointJson((T_V_W * trajectory_W_[k]).head<2>()));
     }
-    j["trajectory_V"] = std::move(traj);
+    return traj;
+}
 
+json MonitorState::coverageJsonLocked(const std::vector<Eigen::Vector2d>& all_points_V) const {
     CoverageConfig cc;
     cc.cell_m = config_.coverage_cell_m;
     // Against the room only when the layout has closed it with walls: an outline that is the
@@ -460,22 +477,19 @@ json MonitorState::buildJsonLocked() const {
          ++i) {
         gaps.push_back({grid.gaps[i].x(), grid.gaps[i].y()});
     }
-    j["coverage"] = {{"cell_m", grid.cell_m},
-                     {"origin_V", pointJson(grid.origin_V)},
-                     {"width", grid.width},
-                     {"height", grid.height},
-                     {"region", grid.room_polygon ? "room_polygon" : "convex_hull"},
-                     {"room_closed", room_closed},
-                     {"wall_bounded_fraction", layout_ ? json(wall_fraction) : json(nullptr)},
-                     {"cells_of_interest", grid.cells_of_interest},
-                     {"covered_cells", grid.covered_of_interest},
-                     {"fraction", grid.coverageFraction()},
-                     {"room_fraction", room_closed ? json(grid.coverageFraction()) : json(nullptr)},
-                     {"num_gaps", grid.gaps.size()},
-                     {"gaps", std::move(gaps)}};
-    j["errors"] = errors_;
-    j["uptime_s"] = std::chrono::duration<double>(Clock::now() - start_).count();
-    return j;
+    return {{"cell_m", grid.cell_m},
+            {"origin_V", pointJson(grid.origin_V)},
+            {"width", grid.width},
+            {"height", grid.height},
+            {"region", grid.room_polygon ? "room_polygon" : "convex_hull"},
+            {"room_closed", room_closed},
+            {"wall_bounded_fraction", layout_ ? json(wall_fraction) : json(nullptr)},
+            {"cells_of_interest", grid.cells_of_interest},
+            {"covered_cells", grid.covered_of_interest},
+            {"fraction", grid.coverageFraction()},
+            {"room_fraction", room_closed ? json(grid.coverageFraction()) : json(nullptr)},
+            {"num_gaps", grid.gaps.size()},
+            {"gaps", std::move(gaps)}};
 }
 
 }  // namespace plumb::monitor

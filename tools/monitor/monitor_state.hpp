@@ -143,6 +143,16 @@ class MonitorState {
     };
     void bumpLocked();
     nlohmann::json buildJsonLocked() const;
+    // The parts of buildJsonLocked's state, with mutex_ held. `T_V_W` places the world in the
+    // view; fragments of `newest_session` take the pose graph's poses.
+    nlohmann::json fragmentsJsonLocked(const Eigen::Isometry3d& T_V_W, int64_t newest_session,
+                                       std::vector<Eigen::Vector2d>* all_points_V) const;
+    nlohmann::json edgesJsonLocked(int64_t newest_session) const;
+    nlohmann::json layoutJsonLocked() const;
+    nlohmann::json deviceJsonLocked() const;
+    nlohmann::json linkJsonLocked() const;
+    nlohmann::json trajectoryJsonLocked(const Eigen::Isometry3d& T_V_W) const;
+    nlohmann::json coverageJsonLocked(const std::vector<Eigen::Vector2d>& all_points_V) const;
 
     MonitorStateConfig config_;
     mutable std::mutex mutex_;
