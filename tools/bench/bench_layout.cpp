@@ -11,11 +11,13 @@
 //
 // Usage: plumb-bench-layout [--scene NAME] [--rate HZ] [--frames-per-fragment K] [--repeat R]
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "backend/layout/estimate_layout.hpp"
@@ -35,6 +37,102 @@ using namespace plumb;
 using Clock = std::chrono::steady_clock;
 double ms(Clock::time_point a, Clock::time_point b) {
     return std::chrono::duration<double, std::milli>(b - a).count();
+}
+
+/// Fuses the first `num_frames` frames of `src` into fragments of `per_fragment` frames at the
+/// ground-truth poses (2 cm TSDF), each in its first camera's frame; `poses` gets T_W_F.
+Status fuseWithTruth(const sim::SimSource& src, size_t num_frames, int per_fragment,
+                     std::vector<Fragment>* fragments, std::vector<Eigen::Isometry3d>* poses) {
+    tsdf::TsdfConfig tc;
+    tc.voxel_size_m = 0.02f;
+    tc.truncation_m = 0.06f;
+    for (size_t k0 = 0; k0 < num_frames; k0 += per_fragment) {
+        tsdf::TsdfVolume volume(tc);
+        Fragment f;
+        f.id = static_cast<uint32_t>(fragments->size());
+        for (size_t k = k0; k < std::min(num_frames, k0 + per_fragment); ++k) {
+            auto fr = src.render(k);
+            if (!fr.isOk()) return fr.status();
+            if (k == k0) f.T_W_F = *fr->frame.T_W_C_gt;
+            const Eigen::Isometry3d T_F_C = f.T_W_F.inverse() * *fr->frame.T_W_C_gt;
+            PLUMB_RETURN_IF_ERROR(volume.integrate(fr->frame.depth, src.camera(), T_F_C).status());
+        }
+        f.points_F = tsdf::extractSurfacePoints(volume);
+        if (f.points_F.empty()) continue;  // a one-frame tail has no twice-seen voxels
+        poses->push_back(f.T_W_F);
+        fragments->push_back(std::move(f));
+    }
+    return Status::ok();
+}
+
+/// Our per-fragment plane extraction, timed: the best of `repeat` runs per fragment.
+struct TimedPlanes {
+    std::vector<layout::FragmentPlanes> planes;
+    std::vector<double> best_ms;               ///< per fragment
+    double sample_points = 0.0;                ///< summed over the fragments
+    double planes_found = 0.0;                 ///< summed over the fragments
+    layout::FragmentPlaneDiagnostics stage{};  ///< stage times summed over the fragments
+};
+
+Result<TimedPlanes> extractPlanesTimed(const std::vector<Fragment>& fragments,
+                                       const layout::FragmentPlaneConfig& pc, int repeat) {
+    TimedPlanes out;
+    for (const Fragment& f : fragments) {
+        double best = 1e300;
+        Result<layout::FragmentPlanes> r = invalidArgument("not run");
+        for (int rep = 0; rep < repeat; ++rep) {
+            const auto t0 = Clock::now();
+            r = layout::extractFragmentPlanes(f, pc);
+            best = std::min(best, ms(t0, Clock::now()));
+        }
+        if (!r.isOk()) return r.status();
+        out.best_ms.push_back(best);
+        out.sample_points += r->diagnostics.num_sample_points;
+        out.planes_found += static_cast<double>(r->planes.size());
+        out.stage.ms_sample += r->diagnostics.ms_sample;
+        out.stage.ms_supervoxels += r->diagnostics.ms_supervoxels;
+        out.stage.ms_hypotheses += r->diagnostics.ms_hypotheses;
+        out.stage.ms_tlinkage += r->diagnostics.ms_tlinkage;
+        out.stage.ms_graph_cut += r->diagnostics.ms_graph_cut;
+        out.planes.push_back(std::move(r).value());
+    }
+    return out;
+}
+
+/// The peer: Open3D's SegmentPlane repeated on each fragment's working sample (see the file
+/// comment), best of `repeat` runs: {mean ms a fragment, planes a fragment}; {-1, 0} without
+/// Open3D.
+std::pair<double, double> open3dSegmentPlanes(
+    [[maybe_unused]] const std::vector<layout::FragmentPlanes>& planes,
+    [[maybe_unused]] const layout::FragmentPlaneConfig& pc, [[maybe_unused]] int repeat) {
+    double o3d_mean_ms = -1.0, o3d_planes = 0.0;
+#ifdef PLUMB_HAVE_OPEN3D
+    const double nf = static_cast<double>(planes.size());
+    open3d::utility::SetVerbosityLevel(open3d::utility::VerbosityLevel::Error);
+    open3d::utility::random::Seed(1);
+    o3d_mean_ms = 0.0;
+    for (const layout::FragmentPlanes& fp : planes) {
+        double best = 1e300;
+        size_t found = 0;
+        for (int rep = 0; rep < repeat; ++rep) {
+            open3d::geometry::PointCloud cloud;
+            for (const auto& p : fp.sample_F.points) cloud.points_.push_back(p.cast<double>());
+            const auto t0 = Clock::now();
+            found = 0;
+            auto rest = std::make_shared<open3d::geometry::PointCloud>(cloud);
+            while (rest->points_.size() >= static_cast<size_t>(pc.min_label_points)) {
+                auto [model, inliers] = rest->SegmentPlane(0.02, 3, 1000);
+                if (inliers.size() < static_cast<size_t>(pc.min_label_points)) break;
+                ++found;
+                rest = rest->SelectByIndex(inliers, true);
+            }
+            best = std::min(best, ms(t0, Clock::now()));
+        }
+        o3d_mean_ms += best / nf;
+        o3d_planes += static_cast<double>(found) / nf;
+    }
+#endif
+    return {o3d_mean_ms, o3d_planes};
 }
 
 }  // namespace
@@ -90,25 +188,8 @@ int main(int argc, char** argv) {
     const auto t_fuse = Clock::now();
     std::vector<Fragment> fragments;
     std::vector<Eigen::Isometry3d> poses;
-    tsdf::TsdfConfig tc;
-    tc.voxel_size_m = 0.02f;
-    tc.truncation_m = 0.06f;
-    for (size_t k0 = 0; k0 < cfg.trajectory.num_frames; k0 += per_fragment) {
-        tsdf::TsdfVolume volume(tc);
-        Fragment f;
-        f.id = static_cast<uint32_t>(fragments.size());
-        for (size_t k = k0; k < std::min(cfg.trajectory.num_frames, k0 + per_fragment); ++k) {
-            auto fr = src.render(k);
-            if (!fr.isOk()) return 1;
-            if (k == k0) f.T_W_F = *fr->frame.T_W_C_gt;
-            const Eigen::Isometry3d T_F_C = f.T_W_F.inverse() * *fr->frame.T_W_C_gt;
-            if (!volume.integrate(fr->frame.depth, src.camera(), T_F_C).isOk()) return 1;
-        }
-        f.points_F = tsdf::extractSurfacePoints(volume);
-        if (f.points_F.empty()) continue;  // a one-frame tail has no twice-seen voxels
-        poses.push_back(f.T_W_F);
-        fragments.push_back(std::move(f));
-    }
+    if (!fuseWithTruth(src, cfg.trajectory.num_frames, per_fragment, &fragments, &poses).isOk())
+        return 1;
     std::printf(
         "plumb-bench-layout: %s loop, %zu frames at %.0f Hz, %zu fragments of %d frames "
         "(fused in %.1f s)\n",
@@ -117,32 +198,15 @@ int main(int argc, char** argv) {
 
     // Ours: per-fragment plane extraction, best of `repeat` runs per fragment.
     layout::FragmentPlaneConfig pc;
-    std::vector<layout::FragmentPlanes> planes;
-    std::vector<double> ours_ms;
-    double sample_points = 0, planes_found = 0;
-    layout::FragmentPlaneDiagnostics stage{};
-    for (const Fragment& f : fragments) {
-        double best = 1e300;
-        Result<layout::FragmentPlanes> r = invalidArgument("not run");
-        for (int rep = 0; rep < repeat; ++rep) {
-            const auto t0 = Clock::now();
-            r = layout::extractFragmentPlanes(f, pc);
-            best = std::min(best, ms(t0, Clock::now()));
-        }
-        if (!r.isOk()) {
-            std::fprintf(stderr, "error: %s\n", r.status().toString().c_str());
-            return 1;
-        }
-        ours_ms.push_back(best);
-        sample_points += r->diagnostics.num_sample_points;
-        planes_found += static_cast<double>(r->planes.size());
-        stage.ms_sample += r->diagnostics.ms_sample;
-        stage.ms_supervoxels += r->diagnostics.ms_supervoxels;
-        stage.ms_hypotheses += r->diagnostics.ms_hypotheses;
-        stage.ms_tlinkage += r->diagnostics.ms_tlinkage;
-        stage.ms_graph_cut += r->diagnostics.ms_graph_cut;
-        planes.push_back(std::move(r).value());
+    auto extracted = extractPlanesTimed(fragments, pc, repeat);
+    if (!extracted.isOk()) {
+        std::fprintf(stderr, "error: %s\n", extracted.status().toString().c_str());
+        return 1;
     }
+    const std::vector<layout::FragmentPlanes>& planes = extracted->planes;
+    const std::vector<double>& ours_ms = extracted->best_ms;
+    const double sample_points = extracted->sample_points, planes_found = extracted->planes_found;
+    const layout::FragmentPlaneDiagnostics& stage = extracted->stage;
     const double nf = static_cast<double>(fragments.size());
     double mean_ms = 0, max_ms = 0;
     for (double v : ours_ms) {
@@ -175,31 +239,8 @@ int main(int argc, char** argv) {
                 layout_ms, m->num_est_walls, m->num_gt_walls, m->max_wall_angle_error_deg,
                 m->max_abs_wall_offset_error_m);
 
-    double o3d_mean_ms = -1.0, o3d_planes = 0.0;
+    const auto [o3d_mean_ms, o3d_planes] = open3dSegmentPlanes(planes, pc, repeat);
 #ifdef PLUMB_HAVE_OPEN3D
-    open3d::utility::SetVerbosityLevel(open3d::utility::VerbosityLevel::Error);
-    open3d::utility::random::Seed(1);
-    o3d_mean_ms = 0.0;
-    for (const layout::FragmentPlanes& fp : planes) {
-        double best = 1e300;
-        size_t found = 0;
-        for (int rep = 0; rep < repeat; ++rep) {
-            open3d::geometry::PointCloud cloud;
-            for (const auto& p : fp.sample_F.points) cloud.points_.push_back(p.cast<double>());
-            const auto t0 = Clock::now();
-            found = 0;
-            auto rest = std::make_shared<open3d::geometry::PointCloud>(cloud);
-            while (rest->points_.size() >= static_cast<size_t>(pc.min_label_points)) {
-                auto [model, inliers] = rest->SegmentPlane(0.02, 3, 1000);
-                if (inliers.size() < static_cast<size_t>(pc.min_label_points)) break;
-                ++found;
-                rest = rest->SelectByIndex(inliers, true);
-            }
-            best = std::min(best, ms(t0, Clock::now()));
-        }
-        o3d_mean_ms += best / nf;
-        o3d_planes += static_cast<double>(found) / nf;
-    }
     std::printf(
         "Open3D SegmentPlane x N: %.1f planes per fragment, %.1f ms mean; ratio "
         "(Open3D / ours) %.2fx\n",

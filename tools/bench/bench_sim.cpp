@@ -28,7 +28,10 @@
 #include <cstdio>
 #include <cstdlib>
 #include <ctime>
+#include <filesystem>
+#include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "drivers/sim/colour.hpp"
@@ -78,150 +81,100 @@ int usage(const char* msg) {
     return 2;
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
+/// Times one built-in scene (see the file comment); keeps every third clean living_room render in
+/// `clean_for_peer`. `model_path` is the distortion table, or none for the parametric model.
+plumb::Result<SceneResult> benchScene(const std::string& name, size_t frames,
+                                      const std::optional<std::filesystem::path>& model_path,
+                                      std::vector<plumb::DepthImage>* clean_for_peer) {
     using namespace plumb;
-    size_t frames = 90;
-    int threads = 2;
-    std::string noise_model;
-    for (int i = 1; i < argc; ++i) {
-        const std::string a = argv[i];
-        if (a == "--frames" && i + 1 < argc) {
-            frames = static_cast<size_t>(std::strtoul(argv[++i], nullptr, 10));
-            if (frames < 2) return usage("--frames needs an integer >= 2");
-        } else if (a == "--threads" && i + 1 < argc) {
-            threads = std::atoi(argv[++i]);
-            if (threads < 1) return usage("--threads needs a positive integer");
-        } else if (a == "--noise-model" && i + 1 < argc) {
-            noise_model = argv[++i];
-        } else {
-            return usage(("unknown argument '" + a + "'").c_str());
-        }
-    }
-    tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
-                              static_cast<size_t>(threads));
+    const bool have_table = model_path.has_value();
+    sim::SimConfig config;
+    config.scene = name;
+    config.camera = PinholeCamera{};  // PrimeSense 640x480, fx = fy = 525
+    config.trajectory.num_frames = frames;
+    config.noise.distortion =
+        have_table ? sim::DistortionKind::kTable : sim::DistortionKind::kParametric;
+    if (have_table) config.noise_model_path = model_path->string();
+    auto source = sim::SimSource::create(config);
+    auto stream = sim::SimSource::create(config);  // consumed through next()
+    if (!source.isOk()) return source.status();
+    if (!stream.isOk()) return stream.status();
+    const sim::SimSource& src = **source;
 
-    // The Redwood table when it can be found, else the parametric distortion (same cost class).
-    auto model_path = sim::findNoiseModelFile(noise_model);
-    const bool have_table = model_path.isOk();
-    if (!have_table) {
-        std::printf("note: %s\n      timing the parametric distortion instead\n",
-                    model_path.status().message().c_str());
-    }
-
-    std::printf("plumb-bench-sim: 640x480, %zu frames per scene, %d threads, noise %s\n", frames,
-                threads, have_table ? "redwood (distortion table) + missing data" : "parametric");
-    std::printf("%-16s %12s %12s %12s %12s %12s %14s %12s %8s\n", "scene", "render fps",
-                "depth-only", "noise fps", "rgb noise", "total fps", "total cpu ms", "fresh fps",
-                "valid");
-
-    std::vector<SceneResult> results;
-    std::vector<DepthImage> clean_for_peer;  // living_room clean renders, for the peer
-    for (const std::string& name : sim::builtinSceneNames()) {
-        sim::SimConfig config;
-        config.scene = name;
-        config.camera = PinholeCamera{};  // PrimeSense 640x480, fx = fy = 525
-        config.trajectory.num_frames = frames;
-        config.noise.distortion =
-            have_table ? sim::DistortionKind::kTable : sim::DistortionKind::kParametric;
-        if (have_table) config.noise_model_path = model_path->string();
-        auto source = sim::SimSource::create(config);
-        auto stream = sim::SimSource::create(config);  // consumed through next()
-        if (!source.isOk()) {
-            std::fprintf(stderr, "plumb-bench-sim: %s\n", source.status().toString().c_str());
-            return 1;
-        }
-        const sim::SimSource& src = **source;
-        if (!stream.isOk()) return 1;
-
-        // Stage timings with our own renderer and noise model (the same objects SimSource uses).
-        std::optional<DistortionTable> table;
-        if (have_table) table = *DistortionTable::load(*model_path);
-        const sim::Renderer renderer(src.scene(), config.camera);
-        sim::RenderConfig depth_only_config;
-        depth_only_config.colour = false;
-        const sim::Renderer depth_only(src.scene(), config.camera, depth_only_config);
-        const sim::DepthNoiseModel noise(config.noise, std::move(table), config.camera.cx,
-                                         config.camera.cy);
-        const sim::ColourNoiseModel colour_noise(config.colour);
-        sim::RenderedView view, view_depth_only;
-        DepthImage noisy;
-        ColourImage noisy_colour;
-        renderer.render(src.trajectory()[0].T_W_C, &view);  // warm-up
-        depth_only.render(src.trajectory()[0].T_W_C, &view_depth_only);
-        double t_render = 0.0, t_depth_only = 0.0, t_noise = 0.0, t_colour_noise = 0.0;
-        size_t valid = 0;
-        for (size_t k = 0; k < frames; ++k) {
-            auto t0 = Clock::now();
-            renderer.render(src.trajectory()[k].T_W_C, &view);
-            t_render += secondsSince(t0);
-            t0 = Clock::now();
-            depth_only.render(src.trajectory()[k].T_W_C, &view_depth_only);
-            t_depth_only += secondsSince(t0);
-            t0 = Clock::now();
-            noise.apply(view.depth, view.cos_view, config.seed, k, &noisy);
-            t_noise += secondsSince(t0);
-            t0 = Clock::now();
-            colour_noise.apply(view.colour, config.seed, k, &noisy_colour);
-            t_colour_noise += secondsSince(t0);
-            valid += countValid(noisy);
-            if (name == "living_room" && k % 3 == 0) clean_for_peer.push_back(view.depth);
-        }
-        // End to end through the frame source, as a live consumer of `sim:<scene>` sees it.
+    // Stage timings with our own renderer and noise model (the same objects SimSource uses).
+    std::optional<DistortionTable> table;
+    if (have_table) table = *DistortionTable::load(*model_path);
+    const sim::Renderer renderer(src.scene(), config.camera);
+    sim::RenderConfig depth_only_config;
+    depth_only_config.colour = false;
+    const sim::Renderer depth_only(src.scene(), config.camera, depth_only_config);
+    const sim::DepthNoiseModel noise(config.noise, std::move(table), config.camera.cx,
+                                     config.camera.cy);
+    const sim::ColourNoiseModel colour_noise(config.colour);
+    sim::RenderedView view, view_depth_only;
+    DepthImage noisy;
+    ColourImage noisy_colour;
+    renderer.render(src.trajectory()[0].T_W_C, &view);  // warm-up
+    depth_only.render(src.trajectory()[0].T_W_C, &view_depth_only);
+    double t_render = 0.0, t_depth_only = 0.0, t_noise = 0.0, t_colour_noise = 0.0;
+    size_t valid = 0;
+    for (size_t k = 0; k < frames; ++k) {
         auto t0 = Clock::now();
-        const double cpu0 = cpuSeconds();
-        for (size_t k = 0; k < frames; ++k) {
-            auto f = (*stream)->next();
-            if (!f.isOk()) {
-                std::fprintf(stderr, "plumb-bench-sim: %s\n", f.status().toString().c_str());
-                return 1;
-            }
-        }
-        const double t_total = secondsSince(t0);
-        const double cpu_total = cpuSeconds() - cpu0;
-        // Random access with a new SimFrame per call (allocation and first touch included).
+        renderer.render(src.trajectory()[k].T_W_C, &view);
+        t_render += secondsSince(t0);
         t0 = Clock::now();
-        for (size_t k = 0; k < frames; ++k) {
-            auto f = src.render(k);
-            if (!f.isOk()) {
-                std::fprintf(stderr, "plumb-bench-sim: %s\n", f.status().toString().c_str());
-                return 1;
-            }
-        }
-        const double t_fresh = secondsSince(t0);
-        SceneResult r;
-        r.scene = name;
-        r.render_fps = frames / t_render;
-        r.render_depth_only_fps = frames / t_depth_only;
-        r.noise_fps = frames / t_noise;
-        r.colour_noise_fps = frames / t_colour_noise;
-        r.total_fps = frames / t_total;
-        r.total_cpu_ms = 1000.0 * cpu_total / frames;
-        r.fresh_fps = frames / t_fresh;
-        r.valid_fraction = static_cast<double>(valid) / (frames * 640.0 * 480.0);
-        std::printf("%-16s %12.1f %12.1f %12.1f %12.1f %12.1f %14.1f %12.1f %7.1f%%\n",
-                    name.c_str(), r.render_fps, r.render_depth_only_fps, r.noise_fps,
-                    r.colour_noise_fps, r.total_fps, r.total_cpu_ms, r.fresh_fps,
-                    100.0 * r.valid_fraction);
-        results.push_back(r);
+        depth_only.render(src.trajectory()[k].T_W_C, &view_depth_only);
+        t_depth_only += secondsSince(t0);
+        t0 = Clock::now();
+        noise.apply(view.depth, view.cos_view, config.seed, k, &noisy);
+        t_noise += secondsSince(t0);
+        t0 = Clock::now();
+        colour_noise.apply(view.colour, config.seed, k, &noisy_colour);
+        t_colour_noise += secondsSince(t0);
+        valid += countValid(noisy);
+        if (name == "living_room" && k % 3 == 0) clean_for_peer->push_back(view.depth);
     }
-    double min_total = 1e30, max_cpu_ms = 0.0;
-    for (const SceneResult& r : results) {
-        min_total = std::min(min_total, r.total_fps);
-        max_cpu_ms = std::max(max_cpu_ms, r.total_cpu_ms);
+    // End to end through the frame source, as a live consumer of `sim:<scene>` sees it.
+    auto t0 = Clock::now();
+    const double cpu0 = cpuSeconds();
+    for (size_t k = 0; k < frames; ++k) {
+        auto f = (*stream)->next();
+        if (!f.isOk()) return f.status();
     }
-    // What `threads` dedicated cores give at that CPU cost (perfect scaling: an upper bound).
-    const double cpu_bound_fps = 1000.0 * threads / max_cpu_ms;
-    std::printf(
-        "slowest scene: %.1f frames/s wall clock; %.1f CPU ms/frame = %.1f frames/s on %d idle "
-        "cores (target >= 60)\n",
-        min_total, max_cpu_ms, cpu_bound_fps, threads);
+    const double t_total = secondsSince(t0);
+    const double cpu_total = cpuSeconds() - cpu0;
+    // Random access with a new SimFrame per call (allocation and first touch included).
+    t0 = Clock::now();
+    for (size_t k = 0; k < frames; ++k) {
+        auto f = src.render(k);
+        if (!f.isOk()) return f.status();
+    }
+    const double t_fresh = secondsSince(t0);
+    SceneResult r;
+    r.scene = name;
+    r.render_fps = frames / t_render;
+    r.render_depth_only_fps = frames / t_depth_only;
+    r.noise_fps = frames / t_noise;
+    r.colour_noise_fps = frames / t_colour_noise;
+    r.total_fps = frames / t_total;
+    r.total_cpu_ms = 1000.0 * cpu_total / frames;
+    r.fresh_fps = frames / t_fresh;
+    r.valid_fraction = static_cast<double>(valid) / (frames * 640.0 * 480.0);
+    std::printf("%-16s %12.1f %12.1f %12.1f %12.1f %12.1f %14.1f %12.1f %7.1f%%\n", name.c_str(),
+                r.render_fps, r.render_depth_only_fps, r.noise_fps, r.colour_noise_fps, r.total_fps,
+                r.total_cpu_ms, r.fresh_fps, 100.0 * r.valid_fraction);
+    return r;
+}
 
-    // Peer: the Redwood noise stage alone, ours vs Open3D's DepthNoiseSimulator, same images.
+/// The Redwood noise stage alone, ours and Open3D's DepthNoiseSimulator on the same clean
+/// images: milliseconds a frame {plumb, open3d}, {-1, -1} without Open3D or a table.
+std::pair<double, double> benchNoiseAgainstPeer(
+    [[maybe_unused]] const std::optional<std::filesystem::path>& model_path,
+    [[maybe_unused]] const std::vector<plumb::DepthImage>& clean_for_peer) {
+    using namespace plumb;
     double ours_noise_ms = -1.0, o3d_noise_ms = -1.0;
 #ifdef PLUMB_HAVE_OPEN3D
-    if (have_table && !clean_for_peer.empty()) {
+    if (model_path && !clean_for_peer.empty()) {
         sim::NoiseConfig pure;  // Open3D's pipeline: no missing-data extras, no range gating
         pure.missing_data = false;
         pure.min_depth_m = 0.0;
@@ -258,6 +211,73 @@ int main(int argc, char** argv) {
 #else
     std::printf("Open3D not found at build time: no peer comparison\n");
 #endif
+    return {ours_noise_ms, o3d_noise_ms};
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    using namespace plumb;
+    size_t frames = 90;
+    int threads = 2;
+    std::string noise_model;
+    for (int i = 1; i < argc; ++i) {
+        const std::string a = argv[i];
+        if (a == "--frames" && i + 1 < argc) {
+            frames = static_cast<size_t>(std::strtoul(argv[++i], nullptr, 10));
+            if (frames < 2) return usage("--frames needs an integer >= 2");
+        } else if (a == "--threads" && i + 1 < argc) {
+            threads = std::atoi(argv[++i]);
+            if (threads < 1) return usage("--threads needs a positive integer");
+        } else if (a == "--noise-model" && i + 1 < argc) {
+            noise_model = argv[++i];
+        } else {
+            return usage(("unknown argument '" + a + "'").c_str());
+        }
+    }
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
+                              static_cast<size_t>(threads));
+
+    // The Redwood table when it can be found, else the parametric distortion (same cost class).
+    auto model_path = sim::findNoiseModelFile(noise_model);
+    const bool have_table = model_path.isOk();
+    const std::optional<std::filesystem::path> table_path =
+        have_table ? std::optional<std::filesystem::path>(*model_path) : std::nullopt;
+    if (!have_table) {
+        std::printf("note: %s\n      timing the parametric distortion instead\n",
+                    model_path.status().message().c_str());
+    }
+
+    std::printf("plumb-bench-sim: 640x480, %zu frames per scene, %d threads, noise %s\n", frames,
+                threads, have_table ? "redwood (distortion table) + missing data" : "parametric");
+    std::printf("%-16s %12s %12s %12s %12s %12s %14s %12s %8s\n", "scene", "render fps",
+                "depth-only", "noise fps", "rgb noise", "total fps", "total cpu ms", "fresh fps",
+                "valid");
+
+    std::vector<SceneResult> results;
+    std::vector<DepthImage> clean_for_peer;  // living_room clean renders, for the peer
+    for (const std::string& name : sim::builtinSceneNames()) {
+        auto r = benchScene(name, frames, table_path, &clean_for_peer);
+        if (!r.isOk()) {
+            std::fprintf(stderr, "plumb-bench-sim: %s\n", r.status().toString().c_str());
+            return 1;
+        }
+        results.push_back(*r);
+    }
+    double min_total = 1e30, max_cpu_ms = 0.0;
+    for (const SceneResult& r : results) {
+        min_total = std::min(min_total, r.total_fps);
+        max_cpu_ms = std::max(max_cpu_ms, r.total_cpu_ms);
+    }
+    // What `threads` dedicated cores give at that CPU cost (perfect scaling: an upper bound).
+    const double cpu_bound_fps = 1000.0 * threads / max_cpu_ms;
+    std::printf(
+        "slowest scene: %.1f frames/s wall clock; %.1f CPU ms/frame = %.1f frames/s on %d idle "
+        "cores (target >= 60)\n",
+        min_total, max_cpu_ms, cpu_bound_fps, threads);
+
+    // Peer: the Redwood noise stage alone, ours vs Open3D's DepthNoiseSimulator, same images.
+    const auto [ours_noise_ms, o3d_noise_ms] = benchNoiseAgainstPeer(table_path, clean_for_peer);
 
     std::string scenes_json;
     for (const SceneResult& r : results) {
