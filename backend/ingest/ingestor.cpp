@@ -153,31 +153,13 @@ void Ingestor::keepRawFrame(const messages::RawRgbdFrame& frame, std::span<const
             kept = store.status();
         }
     }
-    if (kept.isOk()) {
-        // The fragments, acknowledged once stored, keep their room on the disk.
-        std::error_code ec;
-        const std::filesystem::space_info space = std::filesystem::space(raw_frames_dir_, ec);
-        const bool short_of_space = !ec && space.available < config_.raw_frames_min_free_bytes;
-        if (short_of_space != raw_frames_short_of_space_) {
-            raw_frames_short_of_space_ = short_of_space;
-            if (short_of_space) {
-                log::warn(
-                    "ingest: {:.2f} GB free on {}, less than the {:.2f} GB kept for fragments: "
-                    "raw frames are not kept until space comes back",
-                    static_cast<double>(space.available) * 1e-9, raw_frames_dir_.string(),
-                    static_cast<double>(config_.raw_frames_min_free_bytes) * 1e-9);
-            } else {
-                log::info("ingest: {:.2f} GB free on {}: raw frames are kept again",
-                          static_cast<double>(space.available) * 1e-9, raw_frames_dir_.string());
-            }
-        }
-        if (short_of_space) {
-            ++counters_.raw_frames_not_kept;
-            ++counters_.raw_frames_not_kept_disk;
-            return;
-        }
-        kept = raw_store_->put(frame.utime, frame.frame_index, bytes, frame.session_id);
+    if (kept.isOk() && rawFramesShortOfSpace()) {
+        ++counters_.raw_frames_not_kept;
+        ++counters_.raw_frames_not_kept_disk;
+        return;
     }
+    if (kept.isOk())
+        kept = raw_store_->put(frame.utime, frame.frame_index, bytes, frame.session_id);
     if (kept.isOk()) {
         ++counters_.raw_frames_kept;
         return;
@@ -191,6 +173,26 @@ void Ingestor::keepRawFrame(const messages::RawRgbdFrame& frame, std::span<const
             "re-integrates the raw frames only where every fragment has enough of them)",
             kept.message());
     }
+}
+
+bool Ingestor::rawFramesShortOfSpace() {
+    std::error_code ec;
+    const std::filesystem::space_info space = std::filesystem::space(raw_frames_dir_, ec);
+    const bool short_of_space = !ec && space.available < config_.raw_frames_min_free_bytes;
+    if (short_of_space == raw_frames_short_of_space_) return short_of_space;
+    raw_frames_short_of_space_ = short_of_space;
+    const double free_gb = static_cast<double>(space.available) * 1e-9;
+    if (short_of_space) {
+        log::warn(
+            "ingest: {:.2f} GB free on {}, less than the {:.2f} GB kept for fragments: raw "
+            "frames are not kept until space comes back",
+            free_gb, raw_frames_dir_.string(),
+            static_cast<double>(config_.raw_frames_min_free_bytes) * 1e-9);
+    } else {
+        log::info("ingest: {:.2f} GB free on {}: raw frames are kept again", free_gb,
+                  raw_frames_dir_.string());
+    }
+    return short_of_space;
 }
 
 void Ingestor::onCameraInfo(std::span<const uint8_t> bytes) {

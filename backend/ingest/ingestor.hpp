@@ -149,6 +149,10 @@ class Ingestor {
     void onConfig(std::span<const uint8_t> bytes);
     void onRawFrame(std::span<const uint8_t> bytes);
     void keepRawFrame(const messages::RawRgbdFrame& frame, std::span<const uint8_t> bytes);
+    /// True while the raw frames' file system has less free space than
+    /// IngestConfig::raw_frames_min_free_bytes (the fragments, acknowledged once stored, keep
+    /// their room); logs each change.
+    bool rawFramesShortOfSpace();
     void noteRequest(const std::pair<int64_t, uint32_t>& key, const std::vector<int32_t>& chunks);
 
     IngestConfig config_;

@@ -11,9 +11,9 @@
 //    acknowledged, and one lost to a crash only leaves its frame to the fragment surfaces);
 //  - rawFrameCoverage() matches them with the frames of a session's fragments (the session when
 //    the frame names one, frame index and capture time, so that frames of other sessions never
-//    mix in) and says how well they cover
-//    each fragment; openRawFrameSource() reads the matches in capture order (the final model's
-//    source; backend/ingest/stored_scan.hpp opens a session's frames as a scan of their own).
+//    mix in) and says how well they cover each fragment; openRawFrameSource() reads the matches
+//    in capture order (the final model's source; backend/ingest/stored_scan.hpp opens a
+//    session's frames as a scan of their own).
 //
 // Thread-safety: a RawFrameStore is used by one thread (the ingest's); the FrameSource is a
 // FrameSource (one consumer).

@@ -161,7 +161,7 @@ DepthImage renderPointsToDepth(const PointCloud& points_F, const PinholeCamera& 
     return depth;
 }
 
-void colourFromFragmentPoints(const std::vector<Fragment>& fragments,
+bool colourFromFragmentPoints(const std::vector<Fragment>& fragments,
                               const std::vector<Eigen::Isometry3d>& T_W_F, double radius_m,
                               int num_threads, TriangleMesh* mesh) {
     PLUMB_CHECK(fragments.size() == T_W_F.size())
@@ -181,7 +181,7 @@ void colourFromFragmentPoints(const std::vector<Fragment>& fragments,
             colours.push_back(cloud.colors[k]);
         }
     }
-    if (points.empty() || mesh->vertices.empty()) return;
+    if (points.empty() || mesh->vertices.empty()) return false;
     const PointKdTree<float> tree(points);
     const auto max_dist_sq = static_cast<float>(radius_m * radius_m);
     mesh->colors.assign(mesh->vertices.size(), Color3u8(128, 128, 128));
@@ -191,6 +191,7 @@ void colourFromFragmentPoints(const std::vector<Fragment>& fragments,
         tree.index().knnSearch(mesh->vertices[v].data(), 1, &nearest, &dist_sq);
         if (dist_sq <= max_dist_sq) mesh->colors[v] = colours[nearest];
     });
+    return true;
 }
 
 namespace {
@@ -339,15 +340,12 @@ Result<std::vector<FinalModel>> integrateRawFrames(
         return failedPrecondition(fmt::format(
             "none of the {} frames of {} matches a fragment frame", seen, source.description()));
     std::vector<FinalModel> models = finishAll(volumes, config, integrated, true);
-    const bool coloured_fragments =
-        std::any_of(fragments.begin(), fragments.end(),
-                    [](const Fragment& f) { return f.points_F.hasColors(); });
-    if (coloured == 0 && coloured_fragments && config.fragment_colour_radius_m > 0.0) {
+    if (coloured == 0 && config.fragment_colour_radius_m > 0.0) {
         // Side by side: each variant's k-d tree is built on one thread.
         parallelFor(config.num_threads, models.size(), [&](size_t v) {
-            colourFromFragmentPoints(fragments, T_W_F[v], config.fragment_colour_radius_m,
-                                     config.num_threads, &models[v].mesh);
-            models[v].colour_from_fragments = true;
+            models[v].colour_from_fragments =
+                colourFromFragmentPoints(fragments, T_W_F[v], config.fragment_colour_radius_m,
+                                         config.num_threads, &models[v].mesh);
         });
     }
     return models;

@@ -93,8 +93,9 @@ DepthImage renderPointsToDepth(const PointCloud& points_F, const PinholeCamera& 
 /// Colours `mesh` (world frame) from the coloured points of `fragments` placed at T_W_F: each
 /// vertex takes the colour of the nearest point within `radius_m` (mid grey beyond it, as a
 /// volume without colour gives). Fragments without colour contribute no points; when none has
-/// colour the mesh is left as it is. Deterministic whatever num_threads (0 = all).
-void colourFromFragmentPoints(const std::vector<Fragment>& fragments,
+/// colour, or the mesh is empty, the mesh is left as it is and the result is false.
+/// Deterministic whatever num_threads (0 = all).
+bool colourFromFragmentPoints(const std::vector<Fragment>& fragments,
                               const std::vector<Eigen::Isometry3d>& T_W_F, double radius_m,
                               int num_threads, TriangleMesh* mesh);
 
