@@ -64,7 +64,7 @@ void describe(config::Schema& s, StreamConfig& c) {
         .min(0);
     s.field("include_colors", c.include_colors, "keep per-point colours in encoded fragments");
     s.field("raw_frame_every", c.raw_frame_every,
-            "publish every N-th captured frame raw on PLUMB_RGBD3 (depth_frame3_t); 0: none. "
+            "publish every N-th captured frame raw (as stream.raw_frame_type says); 0: none. "
             "plumb-backend keeps them: its final model re-integrates them, and `plumb "
             "reconstruct store:DIR` tracks them again (1: every frame)",
             "frames")
@@ -73,6 +73,12 @@ void describe(config::Schema& s, StreamConfig& c) {
             "send the frame's colour in raw frames when it has one (lossless, about 12 ms of "
             "device CPU a VGA frame; false: depth only, about 0.3 MB a frame, and the "
             "backend's mesh takes the colour of the fragments)");
+    s.field("raw_frame_type", c.raw_frame_type,
+            "LCM type of the raw frames: 3 = depth_frame3_t on PLUMB_RGBD3, naming the session; "
+            "2 = depth_frame2_t on PLUMB_RGBD, for a plumb-backend older than depth_frame3_t, "
+            "which does not hear PLUMB_RGBD3 (without the session, two scans whose capture "
+            "clocks overlap can replace each other's raw frames in one store)")
+        .range(2, 3);
 }
 
 void describe(config::Schema& s, DeviceConfig& c) {

@@ -104,6 +104,11 @@ struct StreamConfig {
     /// of 3 bytes a pixel, and CPU the tracking competes for); false = depth only, and the
     /// backend's mesh takes the colour of the fragments' points instead.
     bool raw_frame_colour = true;
+    /// The LCM type raw frames are published as: 3 = depth_frame3_t on PLUMB_RGBD3, naming the
+    /// device session; 2 = depth_frame2_t on PLUMB_RGBD, without it, for a plumb-backend of a
+    /// release before depth_frame3_t, which does not hear PLUMB_RGBD3 (it then fuses the fragment
+    /// surfaces). A backend of this release reads both.
+    int raw_frame_type = 3;
 };
 
 struct DeviceConfig {

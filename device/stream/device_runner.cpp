@@ -107,16 +107,23 @@ void captureLoop(FrameSource& source, const CaptureConfig& config, BoundedQueue<
     if (raw.queue != nullptr) raw.queue->close();
 }
 
-/// A captured frame of session `session_id` as a depth_frame3_t (depth in millimetres,
-/// delta-varint; colour DELTA_RICE unless `colour` is false).
-Result<messages::Bytes> encodeRawFrame(const Frame& frame, bool colour, int64_t session_id,
-                                       int64_t seq) {
+/// A captured frame of session `session_id` as a depth_frame3_t, or as a depth_frame2_t without
+/// the session when `type` is 2 (depth in millimetres, delta-varint; colour DELTA_RICE unless
+/// `colour` is false).
+Result<messages::Bytes> encodeRawFrame(const Frame& frame, bool colour, int type,
+                                       int64_t session_id, int64_t seq) {
     messages::RawRgbdFrame raw;
     raw.utime = messages::toUtime(frame.timestamp_s);
     raw.frame_index = frame.index;
     raw.depth_scale = 1000.0;
     raw.depth = toRaw(frame.depth, raw.depth_scale);
     if (colour) raw.colour = frame.colour;
+    if (type == 2) {
+        auto msg = messages::toMessage(raw, messages::DepthEncoding::kDeltaVarint,
+                                       messages::ColourEncoding::kDeltaRice, seq);
+        if (!msg.isOk()) return msg.status();
+        return messages::encodeMessage(*msg);
+    }
     auto msg = messages::toSessionMessage(raw, session_id, messages::DepthEncoding::kDeltaVarint,
                                           messages::ColourEncoding::kDeltaRice, seq);
     if (!msg.isOk()) return msg.status();
@@ -372,12 +379,14 @@ class Announcer {
         int64_t n = 0;
         const StreamConfig& sc = options_.config.stream;
         while (auto raw = raw_frames.tryPop()) {
-            auto bytes = encodeRawFrame(*raw, sc.raw_frame_colour, options_.session_id, ++seq_);
+            auto bytes = encodeRawFrame(*raw, sc.raw_frame_colour, sc.raw_frame_type,
+                                        options_.session_id, ++seq_);
             if (!bytes.isOk()) {
                 log::warn("device: raw frame {}: {}", raw->index, bytes.status().toString());
                 continue;
             }
-            publish(messages::kChannelRgbdSession, *bytes);
+            publish(sc.raw_frame_type == 2 ? messages::kChannelRgbd : messages::kChannelRgbdSession,
+                    *bytes);
             ++n;
         }
         return n;

@@ -23,6 +23,7 @@
 #include "backend/ingest/ingest_run.hpp"
 #include "backend/ingest/ingestor.hpp"
 #include "backend/ingest/stored_scan.hpp"
+#include "common/config/config.hpp"
 #include "common/io/ply.hpp"
 #include "device/fusion/fuse_frames.hpp"
 #include "device/stream/device_config.hpp"
@@ -535,13 +536,17 @@ class ColourCamera final : public FrameSourceDecorator {
     }
 };
 
+/// The first `n` frames of ColourCamera over the small living room, as a device captures them.
+std::vector<Frame> colourCameraFrames(size_t n) {
+    std::vector<Frame> frames;
+    ColourCamera camera(smallLivingRoom(n));
+    for (auto f = camera.next(); f.isOk(); f = camera.next()) frames.push_back(*f);
+    return frames;
+}
+
 TEST(StreamingInProcess, RawFramesCarryColourToTheIngest) {
     // The frames as the camera delivers them, for comparison.
-    std::vector<Frame> expected;
-    {
-        ColourCamera camera(smallLivingRoom(16));
-        for (auto f = camera.next(); f.isOk(); f = camera.next()) expected.push_back(*f);
-    }
+    const std::vector<Frame> expected = colourCameraFrames(16);
     ASSERT_EQ(expected.size(), 16u);
     ColourCamera source(smallLivingRoom(16));
 
@@ -630,6 +635,57 @@ TEST(StreamingInProcess, RawFramesCarryColourToTheIngest) {
     EXPECT_EQ(std::count_if(kept->begin(), kept->end(),
                             [](const StoredRawFrame& f) { return f.frame_index == 99; }),
               1);
+    fs::remove_all(dir);
+}
+
+TEST(StreamingInProcess, RawFramesOfTheOlderTypeServeBackendsBeforeTheSession) {
+    const std::vector<Frame> expected = colourCameraFrames(8);
+    ASSERT_EQ(expected.size(), 8u);
+    ColourCamera source(smallLivingRoom(8));
+    device::DeviceRunOptions options = testDeviceOptions(81);
+    options.config.stream.raw_frame_every = 3;  // frames 0, 3, 6
+    options.config.stream.raw_frame_type = 2;
+    RecordingTransport transport;
+    auto report = runRecordedDevice(source, options, transport);
+    ASSERT_TRUE(report.isOk()) << report.status().toString();
+    EXPECT_EQ(report->raw_frames_published, 3);
+
+    // Only depth_frame2_t on PLUMB_RGBD, which a backend before depth_frame3_t subscribes to:
+    // the same depth and colour, no session.
+    std::vector<int64_t> indices;
+    for (const auto& [channel, bytes] : transport.sent) {
+        EXPECT_NE(channel, messages::kChannelRgbdSession);
+        if (channel != messages::kChannelRgbd) continue;
+        plumb::depth_frame2_t msg;
+        ASSERT_GT(msg.decode(bytes.data(), 0, static_cast<int>(bytes.size())), 0);
+        auto raw = messages::fromMessage(msg);
+        ASSERT_TRUE(raw.isOk()) << raw.status().toString();
+        EXPECT_FALSE(raw->session_id.has_value());
+        ASSERT_LT(raw->frame_index, 8);
+        const Frame& original = expected[static_cast<size_t>(raw->frame_index)];
+        EXPECT_EQ(raw->colour, original.colour) << raw->frame_index;
+        EXPECT_EQ(raw->depth, toRaw(original.depth, 1000.0)) << raw->frame_index;
+        indices.push_back(raw->frame_index);
+    }
+    EXPECT_EQ(indices, (std::vector<int64_t>{0, 3, 6}));
+
+    // This release's ingest keeps them too, without a session.
+    const fs::path dir = tempDir("raw_frames_type2");
+    LossyHub hub;
+    auto ingestor = Ingestor::open(dir / "fragments", {}, IngestConfig{}, hub);
+    ASSERT_TRUE(ingestor.isOk()) << ingestor.status().toString();
+    for (const auto& [channel, bytes] : transport.sent) (*ingestor)->onMessage(channel, bytes, 1.0);
+    auto kept = listRawFrames(rawFramesDir(dir / "fragments"));
+    ASSERT_TRUE(kept.isOk()) << kept.status().toString();
+    ASSERT_EQ(kept->size(), 3u);
+    for (const StoredRawFrame& f : *kept) EXPECT_FALSE(f.session_id.has_value());
+
+    // Any other type is refused by the configuration.
+    for (int type : {1, 4}) {
+        device::DeviceConfig config;
+        config.stream.raw_frame_type = type;
+        EXPECT_FALSE(config::validate(config).isOk()) << type;
+    }
     fs::remove_all(dir);
 }
 
