@@ -61,7 +61,7 @@ constexpr const char* kUsage =
     "                       rgb/*.png and rgb.txt when the source has colour; replay it with\n"
     "                       --source dataset:DIR\n"
     "  --session-id N       session id (default: start time in microseconds)\n"
-    "  --log-level L        trace|debug|info|warn|error (default info)\n";
+    "  --log-level L        trace|debug|info|warn|error|off (default info)\n";
 
 std::atomic<int> g_stop_requests{0};
 
