@@ -7,6 +7,8 @@
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
+#include <nlohmann/json.hpp>
+
 #include <Eigen/Core>
 #include <algorithm>
 #include <cctype>
@@ -401,7 +403,27 @@ TEST(PlumbCli, LogLevelReachesTheDemosDeviceAndBackend) {
     ASSERT_EQ(run.exit_code, 0) << run.err;
     EXPECT_EQ(run.err, "") << "plumb-device and plumb-backend log at plumb's level";
     EXPECT_TRUE(contains(run.out, "plumb demo: done")) << run.out;
-    EXPECT_TRUE(fs::exists(logs / "demo/metrics.json"));
+    // Without raw frames the backend's mesh fuses the fragment surfaces.
+    const auto metrics = nlohmann::json::parse(slurp(logs / "demo/metrics.json"));
+    EXPECT_EQ(metrics["final_model"], "fragment surfaces fused");
+}
+
+TEST(PlumbCli, DemoStreamsRawFramesForTheMesh) {
+    const fs::path logs = testing::freshTempDir("plumb_cli_demo_raw_frames");
+    if (!contains(plumb(logs, "--help").out, "  demo ") || !hasBackend(logs)) {
+        GTEST_SKIP() << "this build has no demo";
+    }
+    const ProcessRun run = plumb(logs, "--log-level error demo",
+                                 {"--frames", "60", "--noise", "parametric", "--raw-frames", "4",
+                                  "--out", (logs / "demo").string()});
+    ASSERT_EQ(run.exit_code, 0) << run.err;
+    EXPECT_TRUE(contains(run.out, "one frame in 4 streamed raw")) << run.out;
+    // The backend kept the device's every 4th frame, depth only, and re-integrated them.
+    const auto metrics = nlohmann::json::parse(slurp(logs / "demo/metrics.json"));
+    EXPECT_EQ(metrics["final_model"],
+              "raw frames re-integrated, coloured from the fragment points");
+    expectUsageError(plumb(logs, "demo", {"--raw-frames", "-1", "--out", (logs / "none").string()}),
+                     "demo", "--raw-frames needs an integer >= 0", logs / "none");
 }
 
 /// Flips one byte inside the data of the first IDAT chunk of the PNG at `path`.

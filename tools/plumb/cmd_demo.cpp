@@ -61,6 +61,11 @@ constexpr const char* kUsage =
     "  --depth-calibration X  the device's depth calibration: sensor (default; the simulated\n"
     "                   sensor is calibrated with its measured table), none (raw, bent depth),\n"
     "                   or a dist-model.txt file\n"
+    "  --raw-frames N   the device also streams every N-th frame's depth raw, and the\n"
+    "                   backend re-integrates them for the mesh, coloured from the fragments\n"
+    "                   (plumb-device's stream.raw_frame_every = N, stream.raw_frame_colour =\n"
+    "                   false; README deployment step 5); default 0: none, the mesh fuses the\n"
+    "                   fragments' surfaces (less accurate: BENCHMARKS.md)\n"
     "  --port P         LCM UDP port on 239.255.76.67 (default: 7667 + pid % 1000)\n"
     "  -h, --help       this text\n"
     "\n"
@@ -163,6 +168,7 @@ int runDemo(const std::vector<std::string>& args) {
     std::string noise = "redwood";
     std::string depth_calibration = "sensor";
     size_t frames = 520;
+    int raw_frame_every = 0;
     int port = 7667 + static_cast<int>(getpid() % 1000);
     for (size_t i = 0; i < args.size(); ++i) {
         const std::string& a = args[i];
@@ -187,6 +193,9 @@ int runDemo(const std::vector<std::string>& args) {
             depth_calibration = args[++i];
             if (Status s = checkDepthCalibration(depth_calibration); !s.isOk())
                 return usageError(kCommand, s.message());
+        } else if (a == "--raw-frames" && has_value) {
+            if (!parseNumber(args[++i], &raw_frame_every) || raw_frame_every < 0)
+                return usageError(kCommand, "--raw-frames needs an integer >= 0");
         } else if (a == "--port" && has_value) {
             if (!parseNumber(args[++i], &port) || port < 1024 || port > 65535)
                 return usageError(kCommand, "--port needs an integer in [1024, 65535]");
@@ -208,8 +217,11 @@ int runDemo(const std::vector<std::string>& args) {
         return failure(kCommand, ioError(out.string() + ": " + ec.message()));
     }
     const fs::path gt_dir = out / "ground_truth";
-    std::cout << fmt::format("plumb demo: simulated scan of '{}', {} frames, noise {}\n", scene,
-                             frames, noise);
+    std::cout << fmt::format(
+        "plumb demo: simulated scan of '{}', {} frames, noise {}{}\n", scene, frames, noise,
+        raw_frame_every > 0
+            ? fmt::format(", one frame in {} streamed raw (depth only)", raw_frame_every)
+            : std::string());
     if (Status s = writeGroundTruth(scene, frames, gt_dir); !s.isOk()) return failure(kCommand, s);
     const std::string url = fmt::format("udpm://239.255.76.67:{}?ttl=0", port);
     const std::string log_level = log::levelName(log::currentLevel());  // plumb's, for both
@@ -236,7 +248,9 @@ int runDemo(const std::vector<std::string>& args) {
     Result<pid_t> device_pid =
         spawn(*device, {"--source", "sim:" + scene, "--frames", std::to_string(frames), "--noise",
                         noise, "--depth-calibration", depth_calibration, "--lcm-url", url,
-                        "--spool-dir", (out / "device_spool").string(), "--log-level", log_level});
+                        "--spool-dir", (out / "device_spool").string(), "--log-level", log_level,
+                        "--set", fmt::format("stream.raw_frame_every={}", raw_frame_every), "--set",
+                        "stream.raw_frame_colour=false"});
     if (!device_pid.isOk()) {
         kill(*backend_pid, SIGTERM);
         waitExit(*backend_pid, {*backend_pid});
