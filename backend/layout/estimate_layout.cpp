@@ -58,6 +58,15 @@ void describe(config::Schema& s, LayoutConfig& c) {
     s.field("wall_top_margin_m", c.wall_top_margin_m, "walls must reach within this of the ceiling",
             "m")
         .positive();
+    s.field("wall_top_seen_fraction", c.wall_top_seen_fraction,
+            "a plane short of the ceiling is rejected only when lines of sight pass over its top "
+            "along at least this fraction of its extent (0: always rejected)")
+        .range(0.0, 1.0);
+    s.field("wall_top_seen_margin_m", c.wall_top_seen_margin_m,
+            "lines of sight count as over a plane's top when they pass this far above it, to "
+            "points this far beyond it",
+            "m")
+        .positive();
     s.field("min_wall_height_m", c.min_wall_height_m,
             "without a ceiling, walls must span this height", "m")
         .positive();
@@ -549,6 +558,54 @@ double reachGap(const SupportedPlane& p, const SupportedPlane& base, bool base_i
     return config.min_wall_height_m - (hi - lo);
 }
 
+/// Where the lines of sight start: each fragment's viewpoint (fragmentViewpoint) and its points.
+struct SightLines {
+    const WorldPoints& points;
+    std::vector<Eigen::Vector3d> viewpoints;  ///< per fragment
+};
+
+/// The fraction of plane p's horizontal extent (its points' 0.5-99.5 % range along it, less the
+/// margin at each end, in bins of the margin) over which a line of sight passes over its top: from
+/// a fragment's viewpoint to one of its points more than wall_top_seen_margin_m beyond the plane,
+/// crossing the plane more than that above the plane's top (its points' 99th-percentile height;
+/// below their 1st percentile, towards the base, when the base is the ceiling).
+double topSeenFraction(const SupportedPlane& p, const SupportedPlane& base, bool base_is_floor,
+                       const SightLines& sight, const LayoutConfig& config) {
+    const double m = config.wall_top_seen_margin_m;
+    std::vector<double> h;
+    for (const Eigen::Vector3d* x : p.capped) h.push_back(heightAbove(base, *x));
+    if (h.empty()) return 0.0;
+    std::sort(h.begin(), h.end());
+    // The top as a signed height that grows away from the plane's far end.
+    const double sign = base_is_floor ? 1.0 : -1.0;
+    const double top = base_is_floor ? h[h.size() - 1 - h.size() / 100] : h[h.size() / 100];
+    const Eigen::Vector3d u = (p.n - p.n.dot(base.n) * base.n).normalized();
+    const Eigen::Vector3d dir = base.n.cross(u);
+    std::vector<double> ts;
+    ts.reserve(p.all.size());
+    for (const Eigen::Vector3d* x : p.all) ts.push_back(dir.dot(*x));
+    std::sort(ts.begin(), ts.end());
+    const double t0 = ts[ts.size() / 200] + m, t1 = ts[ts.size() - 1 - ts.size() / 200] - m;
+    if (!(t1 > t0)) return 0.0;
+    const size_t bins = static_cast<size_t>(std::ceil((t1 - t0) / m));
+    std::vector<char> seen(bins, 0);
+    for (size_t i = 0; i + 1 < sight.points.begin.size(); ++i) {
+        const Eigen::Vector3d& v = sight.viewpoints[i];
+        const double sv = p.n.dot(v) + p.d;
+        for (size_t k = sight.points.begin[i]; k < sight.points.begin[i + 1]; ++k) {
+            const Eigen::Vector3d& x = sight.points.all[k];
+            const double sx = p.n.dot(x) + p.d;
+            if (std::abs(sx) <= m || (sx > 0.0) == (sv > 0.0)) continue;  // not beyond it
+            const Eigen::Vector3d q = v + (sv / (sv - sx)) * (x - v);
+            const double t = dir.dot(q);
+            if (t < t0 || t >= t1) continue;
+            if (sign * (heightAbove(base, q) - top) <= m) continue;
+            seen[std::min(bins - 1, static_cast<size_t>((t - t0) / m))] = 1;
+        }
+    }
+    return static_cast<double>(std::count(seen.begin(), seen.end(), 1)) / static_cast<double>(bins);
+}
+
 /// Merges wall candidate p into an already kept wall within wall_merge_angle_deg and
 /// wall_merge_offset_m of it and refits that wall; returns its index into `dominant`, or -1 when
 /// no kept wall is near-coplanar.
@@ -577,10 +634,11 @@ struct WallSelection {
 
 /// Step 5 (Eq. 6-7): a dominant plane is a wall when |n . n_base| < tau1 (Eq. 6), the mean
 /// distance g(dO, pi) of its points to the boundary dO is below tau2 (Eq. 7), its area reaches
-/// min_wall_area_m2 and it reaches the ceiling (reachGap); near-coplanar walls are merged. One
-/// WallDecision per dominant plane goes into diag->walls, in the order of `dominant`.
+/// min_wall_area_m2 and it reaches the ceiling (reachGap) or the space above its top was not seen
+/// (topSeenFraction); near-coplanar walls are merged. One WallDecision per dominant plane goes
+/// into diag->walls, in the order of `dominant`.
 WallSelection selectWalls(std::vector<SupportedPlane>& dominant, const BaseChoice& base,
-                          const BaseGrid& grid, const LayoutConfig& config,
+                          const BaseGrid& grid, const SightLines& sight, const LayoutConfig& config,
                           LayoutDiagnostics* diag) {
     WallSelection sel;
     const SupportedPlane& bp = dominant[base.index];
@@ -605,6 +663,11 @@ WallSelection selectWalls(std::vector<SupportedPlane>& dominant, const BaseChoic
             diag->walls.push_back(wd);
             continue;
         }
+        // Whether lines of sight pass over its top (a plane short of the ceiling).
+        const auto top_seen_over = [&] {
+            wd.top_seen_fraction = topSeenFraction(p, bp, base.is_floor, sight, config);
+            return wd.top_seen_fraction >= config.wall_top_seen_fraction;
+        };
         double g = 0.0;  // Eq. 7: g(dO, pi), the mean distance of the points to dO
         for (const Eigen::Vector3d* x : p.capped) g += grid.distance.at<float>(grid.cellOf(*x));
         wd.boundary_distance_m = p.capped.empty() ? 1e9 : g / p.capped.size() * grid.cell;
@@ -614,8 +677,10 @@ WallSelection selectWalls(std::vector<SupportedPlane>& dominant, const BaseChoic
             wd.reason = "far from boundary";
         } else if (p.area < config.min_wall_area_m2) {
             wd.reason = "too small";
-        } else if (reach_gap > config.wall_top_margin_m) {
-            wd.reason = sel.opposite >= 0 ? "does not reach the ceiling" : "too low";
+        } else if (reach_gap > config.wall_top_margin_m && sel.opposite < 0) {
+            wd.reason = "too low";
+        } else if (reach_gap > config.wall_top_margin_m && top_seen_over()) {
+            wd.reason = "does not reach the ceiling";
         } else if (const int merged = mergeIntoKeptWall(dominant, sel.wall_ids, p, config);
                    merged >= 0) {
             wd.reason = fmt::format("merged into {}", dominant[merged].id);
@@ -1254,7 +1319,11 @@ Result<LayoutEstimate> estimateLayout(const std::vector<Fragment>& fragments,
     const BaseGrid& grid = *grid_or;
     diag.ms_grid = msSince(t0);
 
-    WallSelection sel = selectWalls(dominant, base, grid, config, &diag);  // 5
+    SightLines sight{points, {}};
+    for (size_t i = 0; i < fragments.size(); ++i) {
+        sight.viewpoints.push_back(fragmentViewpoint(fragments[i], T_W_F[i]));
+    }
+    WallSelection sel = selectWalls(dominant, base, grid, sight, config, &diag);  // 5
     const std::vector<int> wall_ids =
         boundingWalls(dominant, sel.wall_ids, n_b, grid, cameras_W, config, &diag);
 
@@ -1320,6 +1389,7 @@ nlohmann::json toJson(const LayoutDiagnostics& d) {
                               {"abs_dot_base", w.abs_dot_base},
                               {"boundary_distance_m", w.boundary_distance_m},
                               {"top_gap_m", w.top_gap_m},
+                              {"top_seen_fraction", w.top_seen_fraction},
                               {"camera_behind_fraction", w.camera_behind_fraction},
                               {"reason", w.reason}});
     }

@@ -106,6 +106,14 @@ struct LayoutConfig {
     /// from 2.4 m away, so a wall scanned from closer ends 0.3 m or more below the ceiling; a
     /// 1.9-2.0 m shelf or wardrobe in a 2.6-2.7 m room stays 0.6-0.7 m below it.
     double wall_top_margin_m = 0.5;
+    /// ... unless the space above its top was never seen: a plane short of the ceiling is
+    /// furniture only when lines of sight pass over its top (more than wall_top_seen_margin_m
+    /// above it, to points more than that beyond it) along at least this fraction of its extent.
+    /// A wardrobe or shelf shows the wall or ceiling behind it above its top; a wall scanned from
+    /// too close for its top to be in view (a 2.8-3 m ceiling, a narrow room) has nothing seen
+    /// beyond it. 0: every plane short of the ceiling is rejected.
+    double wall_top_seen_fraction = 0.3;
+    double wall_top_seen_margin_m = 0.1;
     /// ... and without one, they must span at least this height, metres.
     double min_wall_height_m = 1.2;
     /// Walls closer than this in angle (degrees) and offset (metres) are merged.
@@ -171,6 +179,9 @@ struct WallDecision {
     /// How far the plane's points stay below the ceiling (above the floor when the base is the
     /// ceiling), 99th percentile; without an opposite plane, min_wall_height_m minus its span.
     double top_gap_m = 0.0;
+    /// For a plane short of the ceiling: the fraction of its extent over whose top lines of sight
+    /// pass (LayoutConfig::wall_top_seen_fraction); -1 when not measured.
+    double top_seen_fraction = -1.0;
     /// Rule a: the fraction of the camera positions within the wall's extent that lie behind it
     /// (outside the room); -1 when no camera position falls within its extent or the plane was
     /// rejected before.

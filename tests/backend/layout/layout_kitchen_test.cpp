@@ -152,6 +152,61 @@ TEST(KitchenLayoutRules, TheInnerOfTwoStackedWallsIsNoWall) {
     EXPECT_GT(static_cast<int>(without->layout.walls().size()), scan.scene.numWalls());
 }
 
+/// The living room with a 3.0 m ceiling (high_ceiling.toml), scanned by the default walk at
+/// 10 Hz, fused with the ground-truth poses, 20 frames per fragment.
+const testing::SimScan& highCeilingScan() {
+    static const testing::SimScan scan = [] {
+        sim::SimConfig cfg;
+        cfg.scene = PLUMB_HIGH_CEILING_SCENE;
+        cfg.camera = cameraPreset("ci").value();
+        cfg.noise.distortion = sim::DistortionKind::kNone;
+        cfg.trajectory.rate_hz = 10.0;
+        return testing::scanSimRoom(cfg, 20);
+    }();
+    return scan;
+}
+
+TEST(HighCeilingLayout, WallsWhoseTopsWereNeverSeenAreWalls) {
+    const testing::SimScan& scan = highCeilingScan();
+    ASSERT_FALSE(scan.fragments.empty());
+    LayoutConfig cfg;
+    auto est = estimateLayout(scan.fragments, scan.planes, scan.T_W_F, cfg);
+    ASSERT_TRUE(est.isOk()) << est.status().toString();
+    EXPECT_NEAR(est->layout.ceiling_height_m, 3.0, 0.03);
+
+    // Walls stop short of the ceiling where their tops were out of view; no line of sight
+    // passed over them, so they are walls all the same.
+    int short_walls = 0;
+    for (const WallDecision& w : est->diagnostics.walls) {
+        std::printf("plane %d: %s (top gap %.2f m, top seen over %.2f)\n", w.plane_id,
+                    w.reason.c_str(), w.top_gap_m, w.top_seen_fraction);
+        if (!w.kept || w.top_gap_m <= cfg.wall_top_margin_m) continue;
+        ++short_walls;
+        EXPECT_LT(w.top_seen_fraction, cfg.wall_top_seen_fraction) << "plane " << w.plane_id;
+    }
+    EXPECT_GE(short_walls, 1);
+
+    // The room's four walls, and none at the sofa, sideboard, shelf or bookcase (0.25-0.8 m
+    // before the walls: a wall there would not match within 3 cm).
+    EXPECT_EQ(static_cast<int>(est->layout.walls().size()), scan.scene.numWalls());
+    auto m = eval::evaluateLayout(est->layout, scan.gt);
+    ASSERT_TRUE(m.isOk()) << m.status().toString();
+    EXPECT_TRUE(m->unmatched_gt_walls.empty());
+    EXPECT_TRUE(m->unmatched_est_walls.empty());
+    for (const eval::PlaneError& e : m->walls) {
+        EXPECT_LE(e.angle_error_deg, 1.0) << "wall " << e.gt_id;
+        EXPECT_LE(std::abs(e.offset_error_m), 0.03) << "wall " << e.gt_id;
+    }
+    EXPECT_EQ(est->diagnostics.polygon_method, "walls");
+    EXPECT_DOUBLE_EQ(est->diagnostics.path_inside_fraction, 1.0);
+
+    // Rejecting every plane short of the ceiling, as before, loses those walls.
+    cfg.wall_top_seen_fraction = 0.0;
+    auto without = estimateLayout(scan.fragments, scan.planes, scan.T_W_F, cfg);
+    ASSERT_TRUE(without.isOk()) << without.status().toString();
+    EXPECT_LT(static_cast<int>(without->layout.walls().size()), scan.scene.numWalls());
+}
+
 INSTANTIATE_TEST_SUITE_P(Walks, KitchenLayout,
                          ::testing::Values(Walk::kDefault, Walk::kLookingDown),
                          [](const ::testing::TestParamInfo<Walk>& info) {
