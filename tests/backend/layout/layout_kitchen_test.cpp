@@ -72,6 +72,21 @@ std::vector<Front> furnitureFronts(const sim::Scene& scene) {
     return out;
 }
 
+/// The scan's room walls, each matched to a ground-truth wall within 1 degree and 3 cm and no
+/// other wall; the polygon from the walls.
+void expectTheRoomsWalls(const LayoutEstimate& est, const testing::SimScan& scan) {
+    EXPECT_EQ(static_cast<int>(est.layout.walls().size()), scan.scene.numWalls());
+    auto m = eval::evaluateLayout(est.layout, scan.gt);
+    ASSERT_TRUE(m.isOk()) << m.status().toString();
+    EXPECT_TRUE(m->unmatched_gt_walls.empty());
+    EXPECT_TRUE(m->unmatched_est_walls.empty());
+    for (const eval::PlaneError& e : m->walls) {
+        EXPECT_LE(e.angle_error_deg, 1.0) << "wall " << e.gt_id;
+        EXPECT_LE(std::abs(e.offset_error_m), 0.03) << "wall " << e.gt_id;
+    }
+    EXPECT_EQ(est.diagnostics.polygon_method, "walls");
+}
+
 class KitchenLayout : public ::testing::TestWithParam<Walk> {};
 
 TEST_P(KitchenLayout, FourWallsThePathInsideAndNoWallAtACounterFront) {
@@ -90,16 +105,7 @@ TEST_P(KitchenLayout, FourWallsThePathInsideAndNoWallAtACounterFront) {
     }
 
     // The room's four walls, each matched to a ground-truth wall.
-    EXPECT_EQ(static_cast<int>(layout.walls().size()), scan.scene.numWalls());
-    auto m = eval::evaluateLayout(layout, scan.gt);
-    ASSERT_TRUE(m.isOk()) << m.status().toString();
-    EXPECT_TRUE(m->unmatched_gt_walls.empty());
-    EXPECT_TRUE(m->unmatched_est_walls.empty());
-    for (const eval::PlaneError& e : m->walls) {
-        EXPECT_LE(e.angle_error_deg, 1.0) << "wall " << e.gt_id;
-        EXPECT_LE(std::abs(e.offset_error_m), 0.03) << "wall " << e.gt_id;
-    }
-    EXPECT_EQ(est->diagnostics.polygon_method, "walls");
+    expectTheRoomsWalls(*est, scan);
     ASSERT_EQ(layout.room_polygon_L.size(), scan.scene.polygon.size());
 
     // 100 % of the camera path inside the room polygon (checked here with the simulator's own
@@ -188,16 +194,7 @@ TEST(HighCeilingLayout, WallsWhoseTopsWereNeverSeenAreWalls) {
 
     // The room's four walls, and none at the sofa, sideboard, shelf or bookcase (0.25-0.8 m
     // before the walls: a wall there would not match within 3 cm).
-    EXPECT_EQ(static_cast<int>(est->layout.walls().size()), scan.scene.numWalls());
-    auto m = eval::evaluateLayout(est->layout, scan.gt);
-    ASSERT_TRUE(m.isOk()) << m.status().toString();
-    EXPECT_TRUE(m->unmatched_gt_walls.empty());
-    EXPECT_TRUE(m->unmatched_est_walls.empty());
-    for (const eval::PlaneError& e : m->walls) {
-        EXPECT_LE(e.angle_error_deg, 1.0) << "wall " << e.gt_id;
-        EXPECT_LE(std::abs(e.offset_error_m), 0.03) << "wall " << e.gt_id;
-    }
-    EXPECT_EQ(est->diagnostics.polygon_method, "walls");
+    expectTheRoomsWalls(*est, scan);
     EXPECT_DOUBLE_EQ(est->diagnostics.path_inside_fraction, 1.0);
 
     // Rejecting every plane short of the ceiling, as before, loses those walls.
