@@ -14,8 +14,10 @@
 //   4. occupancy grid of all points on the base plane, closed, hole-filled; its outer contour is
 //      the morphological boundary dO (Iwanowski 2007);
 //   5. walls (Eq. 6-7): |n . n_base| < tau1 and mean distance of the plane's projected points to
-//      dO < tau2; near-coplanar walls merged; the opposite horizontal plane (ceiling or floor);
-//      then walls must bound the space the camera moved in (below);
+//      dO < tau2; reaching the ceiling unless nothing was seen over their top (furniture shows
+//      what stands behind it above its top; a wall scanned from close by shows nothing beyond
+//      it); near-coplanar walls merged; the opposite horizontal plane (ceiling or floor); then
+//      walls must bound the space the camera moved in (below);
 //   6. weak-Manhattan snapping: walls made exactly vertical; those within snap_angle of a multiple
 //      of 90 degrees from the largest wall are made exactly orthogonal/parallel to it, the others
 //      keep their angle; offsets re-estimated with the normals fixed;
