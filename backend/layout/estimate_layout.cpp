@@ -67,6 +67,11 @@ void describe(config::Schema& s, LayoutConfig& c) {
             "points this far beyond it",
             "m")
         .positive();
+    s.field("wall_top_unseen_min_length_m", c.wall_top_unseen_min_length_m,
+            "a plane short of the ceiling and narrower than this is rejected whatever the lines "
+            "of sight show",
+            "m")
+        .min(0.0);
     s.field("min_wall_height_m", c.min_wall_height_m,
             "without a ceiling, walls must span this height", "m")
         .positive();
@@ -569,12 +574,16 @@ struct SightLines {
 /// a fragment's viewpoint to one of its points more than wall_top_seen_margin_m beyond the plane,
 /// crossing the plane more than that above the plane's top (its points' 99th-percentile height;
 /// below their 1st percentile, towards the base, when the base is the ceiling).
-double topSeenFraction(const SupportedPlane& p, const SupportedPlane& base, bool base_is_floor,
-                       const SightLines& sight, const LayoutConfig& config) {
+struct TopSeen {
+    double fraction = 0.0;
+    double length_m = 0.0;  ///< the plane's horizontal extent (0.5-99.5 % of its points)
+};
+TopSeen topSeenFraction(const SupportedPlane& p, const SupportedPlane& base, bool base_is_floor,
+                        const SightLines& sight, const LayoutConfig& config) {
     const double m = config.wall_top_seen_margin_m;
     std::vector<double> h;
     for (const Eigen::Vector3d* x : p.capped) h.push_back(heightAbove(base, *x));
-    if (h.empty()) return 0.0;
+    if (h.empty() || p.all.empty()) return {};
     std::sort(h.begin(), h.end());
     // The top as a signed height that grows away from the plane's far end.
     const double sign = base_is_floor ? 1.0 : -1.0;
@@ -585,8 +594,10 @@ double topSeenFraction(const SupportedPlane& p, const SupportedPlane& base, bool
     ts.reserve(p.all.size());
     for (const Eigen::Vector3d* x : p.all) ts.push_back(dir.dot(*x));
     std::sort(ts.begin(), ts.end());
+    TopSeen out;
+    out.length_m = ts[ts.size() - 1 - ts.size() / 200] - ts[ts.size() / 200];
     const double t0 = ts[ts.size() / 200] + m, t1 = ts[ts.size() - 1 - ts.size() / 200] - m;
-    if (!(t1 > t0)) return 0.0;
+    if (!(t1 > t0)) return out;
     const size_t bins = static_cast<size_t>(std::ceil((t1 - t0) / m));
     std::vector<char> seen(bins, 0);
     for (size_t i = 0; i + 1 < sight.points.begin.size(); ++i) {
@@ -603,7 +614,9 @@ double topSeenFraction(const SupportedPlane& p, const SupportedPlane& base, bool
             seen[std::min(bins - 1, static_cast<size_t>((t - t0) / m))] = 1;
         }
     }
-    return static_cast<double>(std::count(seen.begin(), seen.end(), 1)) / static_cast<double>(bins);
+    out.fraction =
+        static_cast<double>(std::count(seen.begin(), seen.end(), 1)) / static_cast<double>(bins);
+    return out;
 }
 
 /// Merges wall candidate p into an already kept wall within wall_merge_angle_deg and
@@ -663,10 +676,13 @@ WallSelection selectWalls(std::vector<SupportedPlane>& dominant, const BaseChoic
             diag->walls.push_back(wd);
             continue;
         }
-        // Whether lines of sight pass over its top (a plane short of the ceiling).
+        // Whether lines of sight pass over its top (a plane short of the ceiling); a plane too
+        // narrow to tell by them, such as a cabinet's side, counts as seen over.
         const auto top_seen_over = [&] {
-            wd.top_seen_fraction = topSeenFraction(p, bp, base.is_floor, sight, config);
-            return wd.top_seen_fraction >= config.wall_top_seen_fraction;
+            const TopSeen seen = topSeenFraction(p, bp, base.is_floor, sight, config);
+            wd.top_seen_fraction = seen.fraction;
+            return seen.length_m < config.wall_top_unseen_min_length_m ||
+                   seen.fraction >= config.wall_top_seen_fraction;
         };
         double g = 0.0;  // Eq. 7: g(dO, pi), the mean distance of the points to dO
         for (const Eigen::Vector3d* x : p.capped) g += grid.distance.at<float>(grid.cellOf(*x));

@@ -116,6 +116,9 @@ struct LayoutConfig {
     /// beyond it. 0: every plane short of the ceiling is rejected.
     double wall_top_seen_fraction = 0.3;
     double wall_top_seen_margin_m = 0.1;
+    /// ... and a plane short of the ceiling narrower than this, metres, is rejected whatever the
+    /// lines of sight show: a cabinet's or wardrobe's side (0.4-0.8 m deep) offers too few of them.
+    double wall_top_unseen_min_length_m = 1.0;
     /// ... and without one, they must span at least this height, metres.
     double min_wall_height_m = 1.2;
     /// Walls closer than this in angle (degrees) and offset (metres) are merged.
