@@ -569,15 +569,17 @@ struct SightLines {
     std::vector<Eigen::Vector3d> viewpoints;  ///< per fragment
 };
 
+/// What the lines of sight show of a plane's top (topSeenFraction).
+struct TopSeen {
+    double fraction = 0.0;  ///< of the plane's extent, seen over
+    double length_m = 0.0;  ///< the plane's horizontal extent (0.5-99.5 % of its points)
+};
+
 /// The fraction of plane p's horizontal extent (its points' 0.5-99.5 % range along it, less the
 /// margin at each end, in bins of the margin) over which a line of sight passes over its top: from
 /// a fragment's viewpoint to one of its points more than wall_top_seen_margin_m beyond the plane,
 /// crossing the plane more than that above the plane's top (its points' 99th-percentile height;
 /// below their 1st percentile, towards the base, when the base is the ceiling).
-struct TopSeen {
-    double fraction = 0.0;
-    double length_m = 0.0;  ///< the plane's horizontal extent (0.5-99.5 % of its points)
-};
 TopSeen topSeenFraction(const SupportedPlane& p, const SupportedPlane& base, bool base_is_floor,
                         const SightLines& sight, const LayoutConfig& config) {
     const double m = config.wall_top_seen_margin_m;
@@ -585,7 +587,7 @@ TopSeen topSeenFraction(const SupportedPlane& p, const SupportedPlane& base, boo
     for (const Eigen::Vector3d* x : p.capped) h.push_back(heightAbove(base, *x));
     if (h.empty() || p.all.empty()) return {};
     std::sort(h.begin(), h.end());
-    // The top as a signed height that grows away from the plane's far end.
+    // Heights beyond the top count positive: up from the floor, or towards a ceiling base.
     const double sign = base_is_floor ? 1.0 : -1.0;
     const double top = base_is_floor ? h[h.size() - 1 - h.size() / 100] : h[h.size() / 100];
     const Eigen::Vector3d u = (p.n - p.n.dot(base.n) * base.n).normalized();
