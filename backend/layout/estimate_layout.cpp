@@ -11,6 +11,7 @@
 #include <numbers>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
+#include <optional>
 
 #include "backend/layout/plane_fit.hpp"
 #include "backend/layout/tlinkage.hpp"
@@ -532,6 +533,39 @@ double heightAbove(const SupportedPlane& base, const Eigen::Vector3d& x) {
     return base.n.dot(x) + base.d;
 }
 
+/// The heights above the base of plane p's points (capped), 1st and 99th percentiles.
+struct HeightSpan {
+    double lo = 0.0, hi = 0.0;
+};
+std::optional<HeightSpan> heightSpan(const SupportedPlane& p, const SupportedPlane& base) {
+    std::vector<double> h;
+    for (const Eigen::Vector3d* x : p.capped) h.push_back(heightAbove(base, *x));
+    if (h.empty()) return std::nullopt;
+    std::sort(h.begin(), h.end());
+    return HeightSpan{h[h.size() / 100], h[h.size() - 1 - h.size() / 100]};
+}
+
+/// A vertical plane p seen from above: its horizontal normal u, the direction along it
+/// (n_b x u) and its extent along that direction (0.5 % / 99.5 % of all its points, which must
+/// not be empty).
+struct HorizontalExtent {
+    Eigen::Vector3d u = Eigen::Vector3d::Zero();
+    Eigen::Vector3d dir = Eigen::Vector3d::Zero();
+    double tmin = 0.0, tmax = 0.0;
+};
+HorizontalExtent horizontalExtent(const SupportedPlane& p, const Eigen::Vector3d& n_b) {
+    HorizontalExtent e;
+    e.u = (p.n - p.n.dot(n_b) * n_b).normalized();
+    e.dir = n_b.cross(e.u);
+    std::vector<double> ts;
+    ts.reserve(p.all.size());
+    for (const Eigen::Vector3d* x : p.all) ts.push_back(e.dir.dot(*x));
+    std::sort(ts.begin(), ts.end());
+    e.tmin = ts[ts.size() / 200];
+    e.tmax = ts[ts.size() - 1 - ts.size() / 200];
+    return e;
+}
+
 /// Step 5, the opposite plane: the largest dominant plane other than the base within
 /// opposite_max_angle_deg of it whose points' mean lies at least min_room_height_m above it; -1
 /// when there is none.
@@ -554,13 +588,10 @@ int oppositePlane(const std::vector<SupportedPlane>& dominant, int base,
 /// Layout walls span floor to ceiling; furniture never reaches it.
 double reachGap(const SupportedPlane& p, const SupportedPlane& base, bool base_is_floor,
                 bool have_opposite, double room_height, const LayoutConfig& config) {
-    std::vector<double> h;
-    for (const Eigen::Vector3d* x : p.capped) h.push_back(heightAbove(base, *x));
-    std::sort(h.begin(), h.end());
-    if (h.empty()) return 0.0;
-    const double lo = h[h.size() / 100], hi = h[h.size() - 1 - h.size() / 100];
-    if (have_opposite) return base_is_floor ? room_height - hi : lo;
-    return config.min_wall_height_m - (hi - lo);
+    const std::optional<HeightSpan> h = heightSpan(p, base);
+    if (!h) return 0.0;
+    if (have_opposite) return base_is_floor ? room_height - h->hi : h->lo;
+    return config.min_wall_height_m - (h->hi - h->lo);
 }
 
 /// Where the lines of sight start: each fragment's viewpoint (fragmentViewpoint) and its points.
@@ -583,22 +614,16 @@ struct TopSeen {
 TopSeen topSeenFraction(const SupportedPlane& p, const SupportedPlane& base, bool base_is_floor,
                         const SightLines& sight, const LayoutConfig& config) {
     const double m = config.wall_top_seen_margin_m;
-    std::vector<double> h;
-    for (const Eigen::Vector3d* x : p.capped) h.push_back(heightAbove(base, *x));
-    if (h.empty() || p.all.empty()) return {};
-    std::sort(h.begin(), h.end());
+    const std::optional<HeightSpan> h = heightSpan(p, base);
+    if (!h || p.all.empty()) return {};
     // Heights beyond the top count positive: up from the floor, or towards a ceiling base.
     const double sign = base_is_floor ? 1.0 : -1.0;
-    const double top = base_is_floor ? h[h.size() - 1 - h.size() / 100] : h[h.size() / 100];
-    const Eigen::Vector3d u = (p.n - p.n.dot(base.n) * base.n).normalized();
-    const Eigen::Vector3d dir = base.n.cross(u);
-    std::vector<double> ts;
-    ts.reserve(p.all.size());
-    for (const Eigen::Vector3d* x : p.all) ts.push_back(dir.dot(*x));
-    std::sort(ts.begin(), ts.end());
+    const double top = base_is_floor ? h->hi : h->lo;
+    const HorizontalExtent ext = horizontalExtent(p, base.n);
+    const Eigen::Vector3d& dir = ext.dir;
     TopSeen out;
-    out.length_m = ts[ts.size() - 1 - ts.size() / 200] - ts[ts.size() / 200];
-    const double t0 = ts[ts.size() / 200] + m, t1 = ts[ts.size() - 1 - ts.size() / 200] - m;
+    out.length_m = ext.tmax - ext.tmin;
+    const double t0 = ext.tmin + m, t1 = ext.tmax - m;
     if (!(t1 > t0)) return out;
     const size_t bins = static_cast<size_t>(std::ceil((t1 - t0) / m));
     std::vector<char> seen(bins, 0);
@@ -731,14 +756,11 @@ WallSide wallSide(const SupportedPlane& p, const Eigen::Vector3d& n_b, const Bas
     PlaneMoments mm;
     for (const Eigen::Vector3d* x : p.capped) mm.add(*x);
     ws.m = mm.mean();
-    Eigen::Vector3d u = (p.n - p.n.dot(n_b) * n_b).normalized();
-    ws.dir = n_b.cross(u);
-    std::vector<double> ts;
-    ts.reserve(p.all.size());
-    for (const Eigen::Vector3d* x : p.all) ts.push_back(ws.dir.dot(*x));
-    std::sort(ts.begin(), ts.end());
-    ws.tmin = ts[ts.size() / 200];
-    ws.tmax = ts[ts.size() - 1 - ts.size() / 200];
+    const HorizontalExtent ext = horizontalExtent(p, n_b);
+    const Eigen::Vector3d& u = ext.u;
+    ws.dir = ext.dir;
+    ws.tmin = ext.tmin;
+    ws.tmax = ext.tmax;
     const double probe = config.tau2_m + 2.0 * grid.cell;
     int plus = 0, minus = 0;
     for (double t = ws.tmin; t <= ws.tmax; t += grid.cell) {

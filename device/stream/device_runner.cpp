@@ -107,27 +107,33 @@ void captureLoop(FrameSource& source, const CaptureConfig& config, BoundedQueue<
     if (raw.queue != nullptr) raw.queue->close();
 }
 
-/// A captured frame of session `session_id` as a depth_frame3_t, or as a depth_frame2_t without
-/// the session when `type` is 2 (depth in millimetres, delta-varint; colour DELTA_RICE unless
-/// `colour` is false).
-Result<messages::Bytes> encodeRawFrame(const Frame& frame, bool colour, int type,
+/// A raw frame's message and the channel it goes out on.
+struct RawFrameMessage {
+    const char* channel = messages::kChannelRgbdSession;
+    messages::Bytes bytes;
+};
+
+/// A captured frame of session `session_id` as stream.raw_frame_type says: a depth_frame3_t on
+/// PLUMB_RGBD3, or a depth_frame2_t without the session on PLUMB_RGBD (depth in millimetres,
+/// delta-varint; colour DELTA_RICE unless stream.raw_frame_colour is false).
+Result<RawFrameMessage> encodeRawFrame(const Frame& frame, const StreamConfig& config,
                                        int64_t session_id, int64_t seq) {
     messages::RawRgbdFrame raw;
     raw.utime = messages::toUtime(frame.timestamp_s);
     raw.frame_index = frame.index;
     raw.depth_scale = 1000.0;
     raw.depth = toRaw(frame.depth, raw.depth_scale);
-    if (colour) raw.colour = frame.colour;
-    if (type == 2) {
-        auto msg = messages::toMessage(raw, messages::DepthEncoding::kDeltaVarint,
-                                       messages::ColourEncoding::kDeltaRice, seq);
+    if (config.raw_frame_colour) raw.colour = frame.colour;
+    constexpr auto kDepth = messages::DepthEncoding::kDeltaVarint;
+    constexpr auto kColour = messages::ColourEncoding::kDeltaRice;
+    if (config.raw_frame_type == 2) {
+        auto msg = messages::toMessage(raw, kDepth, kColour, seq);
         if (!msg.isOk()) return msg.status();
-        return messages::encodeMessage(*msg);
+        return RawFrameMessage{messages::kChannelRgbd, messages::encodeMessage(*msg)};
     }
-    auto msg = messages::toSessionMessage(raw, session_id, messages::DepthEncoding::kDeltaVarint,
-                                          messages::ColourEncoding::kDeltaRice, seq);
+    auto msg = messages::toSessionMessage(raw, session_id, kDepth, kColour, seq);
     if (!msg.isOk()) return msg.status();
-    return messages::encodeMessage(*msg);
+    return RawFrameMessage{messages::kChannelRgbdSession, messages::encodeMessage(*msg)};
 }
 
 void fusionLoop(const PinholeCamera& camera, const DeviceConfig& config,
@@ -379,14 +385,12 @@ class Announcer {
         int64_t n = 0;
         const StreamConfig& sc = options_.config.stream;
         while (auto raw = raw_frames.tryPop()) {
-            auto bytes = encodeRawFrame(*raw, sc.raw_frame_colour, sc.raw_frame_type,
-                                        options_.session_id, ++seq_);
-            if (!bytes.isOk()) {
-                log::warn("device: raw frame {}: {}", raw->index, bytes.status().toString());
+            auto msg = encodeRawFrame(*raw, sc, options_.session_id, ++seq_);
+            if (!msg.isOk()) {
+                log::warn("device: raw frame {}: {}", raw->index, msg.status().toString());
                 continue;
             }
-            publish(sc.raw_frame_type == 2 ? messages::kChannelRgbd : messages::kChannelRgbdSession,
-                    *bytes);
+            publish(msg->channel, msg->bytes);
             ++n;
         }
         return n;
