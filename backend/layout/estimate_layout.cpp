@@ -105,6 +105,16 @@ void describe(config::Schema& s, LayoutConfig& c) {
     s.field("camera_behind_margin_m", c.camera_behind_margin_m,
             "camera positions closer than this to a wall count on neither side", "m")
         .min(0.0);
+    s.field("wall_piece_gap_m", c.wall_piece_gap_m,
+            "rule a, the top test and the room polygon look along the pieces of a wall its points "
+            "cover, split at gaps wider than this",
+            "m")
+        .min(0.0);
+    s.field("wall_split_min_edge_m", c.wall_split_min_edge_m,
+            "a plane the room polygon follows along several edges this long is one wall per edge "
+            "(0 = one wall per plane)",
+            "m")
+        .min(0.0);
     s.field("stacked_wall_angle_deg", c.stacked_wall_angle_deg,
             "stacked walls: maximum angle between the two", "deg")
         .range(0.0, 45.0);
@@ -594,6 +604,36 @@ double reachGap(const SupportedPlane& p, const SupportedPlane& base, bool base_i
     return config.min_wall_height_m - (h->hi - h->lo);
 }
 
+/// An interval [lo, hi] along a wall's direction.
+struct Span {
+    double lo = 0.0, hi = 0.0;
+};
+
+/// The stretches of [lo, hi] that the sorted positions `ts` cover, split wherever consecutive
+/// positions leave a gap wider than gap_m.
+std::vector<Span> splitAtGaps(const std::vector<double>& ts, double lo, double hi, double gap_m) {
+    std::vector<Span> pieces;
+    for (const double t : ts) {
+        if (t < lo || t > hi) continue;
+        if (pieces.empty() || t - pieces.back().hi > gap_m) {
+            pieces.push_back({t, t});
+        } else {
+            pieces.back().hi = t;
+        }
+    }
+    return pieces;
+}
+
+/// The pieces of extent e of plane p (from horizontalExtent) that its points cover: [tmin, tmax]
+/// split wherever consecutive points along e.dir leave a gap wider than gap_m.
+std::vector<Span> coveredPieces(const SupportedPlane& p, const HorizontalExtent& e, double gap_m) {
+    std::vector<double> ts;
+    ts.reserve(p.all.size());
+    for (const Eigen::Vector3d* x : p.all) ts.push_back(e.dir.dot(*x));
+    std::sort(ts.begin(), ts.end());
+    return splitAtGaps(ts, e.tmin, e.tmax, gap_m);
+}
+
 /// Where the lines of sight start: each fragment's viewpoint (fragmentViewpoint) and its points.
 struct SightLines {
     const WorldPoints& points;
@@ -626,7 +666,15 @@ TopSeen topSeenFraction(const SupportedPlane& p, const SupportedPlane& base, boo
     const double t0 = ext.tmin + m, t1 = ext.tmax - m;
     if (!(t1 > t0)) return out;
     const size_t bins = static_cast<size_t>(std::ceil((t1 - t0) / m));
-    std::vector<char> seen(bins, 0);
+    // Only the stretches its points cover count: a wall coplanar with a furniture face across
+    // the room is not seen over where the lines of sight pass the furniture.
+    const std::vector<Span> pieces = coveredPieces(p, ext, config.wall_piece_gap_m);
+    std::vector<char> covered(bins, 0), seen(bins, 0);
+    for (size_t b = 0; b < bins; ++b) {
+        const double tc = t0 + (static_cast<double>(b) + 0.5) * m;
+        covered[b] = std::any_of(pieces.begin(), pieces.end(),
+                                 [tc](const Span& s) { return tc >= s.lo && tc <= s.hi; });
+    }
     for (size_t i = 0; i + 1 < sight.points.begin.size(); ++i) {
         const Eigen::Vector3d& v = sight.viewpoints[i];
         const double sv = p.n.dot(v) + p.d;
@@ -641,8 +689,12 @@ TopSeen topSeenFraction(const SupportedPlane& p, const SupportedPlane& base, boo
             seen[std::min(bins - 1, static_cast<size_t>((t - t0) / m))] = 1;
         }
     }
-    out.fraction =
-        static_cast<double>(std::count(seen.begin(), seen.end(), 1)) / static_cast<double>(bins);
+    size_t n_covered = 0, n_seen = 0;
+    for (size_t b = 0; b < bins; ++b) {
+        n_covered += covered[b] ? 1 : 0;
+        n_seen += covered[b] && seen[b] ? 1 : 0;
+    }
+    if (n_covered > 0) out.fraction = static_cast<double>(n_seen) / static_cast<double>(n_covered);
     return out;
 }
 
@@ -745,6 +797,7 @@ struct WallSide {
     Eigen::Vector3d dir = Eigen::Vector3d::Zero();
     Eigen::Vector3d u = Eigen::Vector3d::Zero();
     double tmin = 0.0, tmax = 0.0;
+    std::vector<Span> pieces;  ///< the parts of [tmin, tmax] its points cover (rule a)
 };
 
 /// Wall p seen from above. Its room side is the side where the room region lies, probed along
@@ -761,6 +814,7 @@ WallSide wallSide(const SupportedPlane& p, const Eigen::Vector3d& n_b, const Bas
     ws.dir = ext.dir;
     ws.tmin = ext.tmin;
     ws.tmax = ext.tmax;
+    ws.pieces = coveredPieces(p, ext, config.wall_piece_gap_m);
     const double probe = config.tau2_m + 2.0 * grid.cell;
     int plus = 0, minus = 0;
     for (double t = ws.tmin; t <= ws.tmax; t += grid.cell) {
@@ -776,19 +830,41 @@ WallSide wallSide(const SupportedPlane& p, const Eigen::Vector3d& n_b, const Bas
     return ws;
 }
 
+/// True when the horizontal path from camera position c straight to wall ws (its foot on the
+/// wall's plane, less the band `near` before the wall) stays in the room region: the camera faces
+/// the wall across the room. A camera that faces it across space outside the room (the other arm
+/// of a U behind a side wall of its notch) does not stand behind it.
+bool facesAcrossRoom(const Eigen::Vector3d& c, const WallSide& ws, const BaseGrid& grid,
+                     double near) {
+    const double dist = std::abs(ws.u.dot(c - ws.m));
+    const Eigen::Vector3d towards = ws.u.dot(c - ws.m) > 0.0 ? Eigen::Vector3d(-ws.u) : ws.u;
+    for (double s = 0.0; s <= dist - near; s += grid.cell) {
+        if (!grid.inRoom(c + s * towards)) return false;
+    }
+    return true;
+}
+
 /// Rule a (header): the walls without more than max_camera_behind_fraction of the camera
-/// positions within their extent behind them; the others are marked "camera behind it".
+/// positions within their extent behind them; the others are marked "camera behind it". Only
+/// the pieces of a wall its points cover count as its extent, and only camera positions that face
+/// the wall across the room region.
 std::vector<int> wallsWithoutCameraBehind(const std::vector<int>& wall_ids,
                                           const std::vector<WallSide>& sides,
                                           const std::vector<Eigen::Vector3d>& cameras_W,
-                                          const LayoutConfig& config, LayoutDiagnostics* diag) {
+                                          const BaseGrid& grid, const LayoutConfig& config,
+                                          LayoutDiagnostics* diag) {
+    const double near = config.tau2_m + 2.0 * grid.cell;  // the band wallSide probes beyond
     std::vector<int> kept;
     for (int k : wall_ids) {
         const WallSide& ws = sides[k];
         int within = 0, behind = 0;
         for (const Eigen::Vector3d& c : cameras_W) {
             const double t = ws.dir.dot(c);
-            if (t < ws.tmin || t > ws.tmax) continue;
+            if (std::none_of(ws.pieces.begin(), ws.pieces.end(),
+                             [t](const Span& s) { return t >= s.lo && t <= s.hi; }) ||
+                !facesAcrossRoom(c, ws, grid, near)) {
+                continue;
+            }
             ++within;
             if (ws.u.dot(c - ws.m) < -config.camera_behind_margin_m) ++behind;
         }
@@ -859,8 +935,8 @@ std::vector<int> boundingWalls(const std::vector<SupportedPlane>& dominant,
     std::vector<WallSide> sides(dominant.size());
     for (int k : wall_ids) sides[k] = wallSide(dominant[k], n_b, grid, cameras_W, config);
     const std::vector<int> kept =
-        wallsWithoutCameraBehind(wall_ids, sides, cameras_W, config, diag);  // a
-    const std::vector<Front> fronts = stackedFronts(kept, sides, config);    // b
+        wallsWithoutCameraBehind(wall_ids, sides, cameras_W, grid, config, diag);  // a
+    const std::vector<Front> fronts = stackedFronts(kept, sides, config);          // b
     const double cos_stack = std::cos(config.stacked_wall_angle_deg * kDeg);
     std::vector<int> bounding;
     for (int k : kept) {
@@ -1006,13 +1082,15 @@ LayoutFrame layoutFrame(const Eigen::Vector3d& n_b, bool base_is_floor, double d
 struct Wall2 {
     Line2 line;
     double tmin = 0.0, tmax = 0.0;  // extent along the direction (-n.y, n.x)
+    std::vector<Span> pieces;       // the parts of [tmin, tmax] its points cover
     int index = 0;                  // into the wall list
 };
 
-/// The snapped walls as lines in L, each with the extent (0.5 % / 99.5 %) of its points.
+/// The snapped walls as lines in L, each with the extent (0.5 % / 99.5 %) of its points and the
+/// pieces of it they cover (split at gaps wider than piece_gap_m).
 std::vector<Wall2> wallLines(const std::vector<SupportedPlane>& dominant,
                              const std::vector<int>& wall_ids, const SnappedWalls& walls,
-                             const Eigen::Isometry3d& T_W_L) {
+                             const Eigen::Isometry3d& T_W_L, double piece_gap_m) {
     const Eigen::Isometry3d T_L_W = T_W_L.inverse();
     std::vector<Wall2> walls2(wall_ids.size());
     for (size_t w = 0; w < wall_ids.size(); ++w) {
@@ -1030,6 +1108,7 @@ std::vector<Wall2> wallLines(const std::vector<SupportedPlane>& dominant,
         std::sort(ts.begin(), ts.end());
         w2.tmin = ts[ts.size() / 200];
         w2.tmax = ts[ts.size() - 1 - ts.size() / 200];
+        w2.pieces = splitAtGaps(ts, w2.tmin, w2.tmax, piece_gap_m);
     }
     return walls2;
 }
@@ -1085,8 +1164,9 @@ void dropAlternatingRuns(std::vector<std::pair<int, int>>* runs) {
 }
 
 /// Step 7, the walls in the order the boundary contour meets them: each contour cell is
-/// labelled with the nearest wall line it lies on (within tau2 and 0.3 m of the wall's extent),
-/// runs shorter than min_contour_run_cells are ignored, alternating runs at corners resolved.
+/// labelled with the nearest wall line it lies on (within tau2 and 0.3 m of a piece of the wall its
+/// points cover), runs shorter than min_contour_run_cells are ignored, alternating runs at corners
+/// resolved.
 std::vector<int> contourWallSequence(const GridInLayout& view, const std::vector<Wall2>& walls2,
                                      const LayoutConfig& config) {
     const std::vector<cv::Point>& contour = view.grid.contour;
@@ -1097,7 +1177,10 @@ std::vector<int> contourWallSequence(const GridInLayout& view, const std::vector
         for (const Wall2& w2 : walls2) {
             const double dd = std::abs(w2.line.n.dot(q) + w2.line.d);
             const double t = Eigen::Vector2d(-w2.line.n.y(), w2.line.n.x()).dot(q);
-            if (dd < best && t >= w2.tmin - 0.3 && t <= w2.tmax + 0.3) {
+            const bool on_piece =
+                std::any_of(w2.pieces.begin(), w2.pieces.end(),
+                            [t](const Span& p) { return t >= p.lo - 0.3 && t <= p.hi + 0.3; });
+            if (dd < best && on_piece) {
                 best = dd;
                 lab[c] = w2.index;
             }
@@ -1243,10 +1326,12 @@ LayoutPlane wallPlane(const Wall2& w2, int w, const RoomPolygon& room, const Gri
 }
 
 /// Step 7, the planes of the layout in L: the floor (id 0), the ceiling (id 1) when there is
-/// one, then the walls from id 2, those on the polygon first in polygon order.
+/// one, then the walls from id 2, those on the polygon first in polygon order. A wall the
+/// polygon follows along several edges of at least split_min_edge_m is one layout wall per such
+/// edge (its longest first).
 std::vector<LayoutPlane> layoutPlanes(const LayoutFrame& frame, const std::vector<Wall2>& walls2,
                                       const SnappedWalls& walls, const RoomPolygon& room,
-                                      const GridInLayout& view) {
+                                      const GridInLayout& view, double split_min_edge_m) {
     std::vector<LayoutPlane> planes;
     LayoutPlane floor;
     floor.id = 0;
@@ -1272,11 +1357,26 @@ std::vector<LayoutPlane> layoutPlanes(const LayoutFrame& frame, const std::vecto
         }
     }
     int next_id = 2;
+    const std::vector<Eigen::Vector2d>& polygon = room.vertices;
     for (int w : order) {
         LayoutPlane lp = wallPlane(walls2[w], w, room, view);
         lp.id = next_id++;
         lp.manhattan_snapped = walls.snapped[w];
         planes.push_back(lp);
+        // Further polygon edges on the same plane (coplanar walls apart, as the ends of a U's
+        // arms) are walls of their own, on the same plane, when they are long enough.
+        if (!(split_min_edge_m > 0.0)) continue;
+        for (size_t k = 0; k < room.edge_wall.size(); ++k) {
+            if (room.edge_wall[k] != w) continue;
+            const Eigen::Vector2d& a = polygon[k];
+            const Eigen::Vector2d& b = polygon[(k + 1) % polygon.size()];
+            if ((b - a).norm() < split_min_edge_m || (a == lp.start_L && b == lp.end_L)) continue;
+            LayoutPlane more = lp;
+            more.id = next_id++;
+            more.start_L = a;
+            more.end_L = b;
+            planes.push_back(more);
+        }
     }
     return planes;
 }
@@ -1380,12 +1480,13 @@ Result<LayoutEstimate> estimateLayout(const std::vector<Fragment>& fragments,
     layout.T_W_L = frame.T_W_L;
     layout.ceiling_height_m = frame.have_ceiling ? frame.height : 0.0;
     const GridInLayout view{grid, bp, frame.T_W_L, frame.T_W_L.inverse()};
-    const std::vector<Wall2> walls2 = wallLines(dominant, wall_ids, walls, frame.T_W_L);
+    const std::vector<Wall2> walls2 =
+        wallLines(dominant, wall_ids, walls, frame.T_W_L, config.wall_piece_gap_m);
     const RoomPolygon room = roomPolygon(contourWallSequence(view, walls2, config), walls2, view);
     diag.polygon_method = room.from_walls ? "walls" : "contour";
     layout.room_polygon_L = room.vertices;
     diag.path_inside_fraction = pathInsideFraction(cameras_W, room.vertices, view.T_L_W);
-    layout.planes = layoutPlanes(frame, walls2, walls, room, view);
+    layout.planes = layoutPlanes(frame, walls2, walls, room, view, config.wall_split_min_edge_m);
     diag.ms_total = msSince(t_start);
     return est;
 }

@@ -30,10 +30,16 @@
 // camera to its points, so the boundary dO encloses the path and the space seen from it. A wall's
 // room side is the side of it where the room region (the filled contour) lies, probed along its
 // extent; the rules, in this order:
-//   a. camera behind: of the camera positions whose projection falls within the wall's extent,
-//      more than max_camera_behind_fraction lie farther than camera_behind_margin_m behind the
-//      wall (outside the room) -> not a wall ("camera behind it": a counter front or room divider
-//      seen from its far side, a plane that would leave the path outside the polygon);
+//   a. camera behind: of the camera positions whose projection falls within the wall's extent
+//      and that face it across the room region (the straight way from the camera to the wall
+//      stays in it), more than max_camera_behind_fraction lie farther than
+//      camera_behind_margin_m behind the wall (outside the room) -> not a wall ("camera behind
+//      it": a counter front or room divider seen from its far side, a plane that would leave the
+//      path outside the polygon). The extent is the pieces the wall's points cover, split at gaps
+//      wider than wall_piece_gap_m. In a U-shaped room the other arm's path lies behind a side
+//      wall of the notch, within its extent, but across the notch, outside the room; and a wall
+//      coplanar with a furniture face elsewhere in the room is two pieces, with the path between
+//      them behind neither;
 //   b. stacked walls: of two walls within stacked_wall_angle_deg of parallel, facing the same way
 //      (room sides agree), whose planes are more than wall_merge_offset_m and at most
 //      stacked_wall_max_gap_m apart, the inner one (nearer the room, i.e. in front of the other)
@@ -110,7 +116,8 @@ struct LayoutConfig {
     double wall_top_margin_m = 0.5;
     /// ... unless the space above its top was never seen: a plane short of the ceiling is
     /// furniture only when lines of sight pass over its top (more than wall_top_seen_margin_m
-    /// above it, to points more than that beyond it) along at least this fraction of its extent.
+    /// above it, to points more than that beyond it) along at least this fraction of its extent
+    /// (of the pieces its points cover, wall_piece_gap_m).
     /// A wardrobe or shelf shows the wall or ceiling behind it above its top; a wall scanned from
     /// too close for its top to be in view (a 2.8-3 m ceiling, a narrow room) has nothing seen
     /// beyond it. 0: every plane short of the ceiling is rejected.
@@ -138,6 +145,11 @@ struct LayoutConfig {
     double refit_band_m = 0.06;
     /// Room polygon: contour runs shorter than this many cells are ignored.
     int min_contour_run_cells = 4;
+    /// Step 7: a plane the room polygon follows along several edges at least this long, metres,
+    /// is one layout wall per edge, all on the plane (coplanar walls apart: the ends of the two
+    /// arms of a U, the two sides of an alcove's opening), so that each has its own segment;
+    /// otherwise its wall is the longest edge. 0: one layout wall per plane.
+    double wall_split_min_edge_m = 0.5;
     /// Walls bound the camera's space (rules a-c above). Cells of the base grid within this
     /// distance of a camera position are occupied, metres (0: the path is not added). 0.3 m:
     /// the person holding the camera stands there, and 6 cells cover a 1.2 m gap to the seen
@@ -154,6 +166,13 @@ struct LayoutConfig {
     double max_camera_behind_fraction = 0.1;
     /// Rule a: camera positions closer than this to the wall count on neither side, metres.
     double camera_behind_margin_m = 0.1;
+    /// Rule a, the top test (wall_top_seen_fraction) and the room polygon: a wall's extent is the
+    /// pieces its points cover along it, split where they leave a gap wider than this, metres;
+    /// camera positions and lines of sight count only within a piece, and the boundary contour
+    /// is put on the wall only within 0.3 m of one. A gap where furniture hides a wall holds only
+    /// camera positions in front of it and no line of sight over it, so splitting there changes
+    /// nothing; a larger value joins a wall with a coplanar furniture face across open floor.
+    double wall_piece_gap_m = 0.5;
     /// Rule b: walls within this angle of parallel may be stacked, degrees.
     double stacked_wall_angle_deg = 10.0;
     /// Rule b: the inner of two same-facing parallel walls at most this far apart is rejected,

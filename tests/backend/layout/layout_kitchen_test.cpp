@@ -161,14 +161,7 @@ TEST(KitchenLayoutRules, TheInnerOfTwoStackedWallsIsNoWall) {
 /// The living room with a 3.0 m ceiling (high_ceiling.toml), scanned by the default walk at
 /// 10 Hz, fused with the ground-truth poses, 20 frames per fragment.
 const testing::SimScan& highCeilingScan() {
-    static const testing::SimScan scan = [] {
-        sim::SimConfig cfg;
-        cfg.scene = PLUMB_HIGH_CEILING_SCENE;
-        cfg.camera = cameraPreset("ci").value();
-        cfg.noise.distortion = sim::DistortionKind::kNone;
-        cfg.trajectory.rate_hz = 10.0;
-        return testing::scanSimRoom(cfg, 20);
-    }();
+    static const testing::SimScan scan = testing::scanSimRoomCi(PLUMB_HIGH_CEILING_SCENE);
     return scan;
 }
 

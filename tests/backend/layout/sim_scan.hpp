@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <string>
 #include <vector>
 
 #include "backend/layout/fragment_planes.hpp"
@@ -26,9 +27,11 @@ struct SimScan {
 };
 
 /// Scans `config`'s scene with its trajectory settings, the frame count set to one loop of the
-/// path at 0.35 m/s at config.trajectory.rate_hz; `frames_per_fragment` consecutive frames make
-/// a fragment. Failures are recorded as test failures (the scan is then partial or empty).
-inline SimScan scanSimRoom(sim::SimConfig config, int frames_per_fragment) {
+/// path at `speed_mps` at config.trajectory.rate_hz (slower where the walk turns: a path with
+/// tight turns needs a lower figure to close its loop); `frames_per_fragment` consecutive frames
+/// make a fragment. Failures are recorded as test failures (the scan is then partial or empty).
+inline SimScan scanSimRoom(sim::SimConfig config, int frames_per_fragment,
+                           double speed_mps = 0.35) {
     SimScan scan;
     auto scene = sim::resolveScene(config.scene);
     EXPECT_TRUE(scene.isOk()) << scene.status().toString();
@@ -41,7 +44,7 @@ inline SimScan scanSimRoom(sim::SimConfig config, int frames_per_fragment) {
         perimeter += ((*path)[(k + 1) % path->size()] - (*path)[k]).norm();
     }
     config.trajectory.num_frames =
-        static_cast<size_t>(std::ceil(perimeter / 0.35 * config.trajectory.rate_hz));
+        static_cast<size_t>(std::ceil(perimeter / speed_mps * config.trajectory.rate_hz));
     auto source = sim::SimSource::create(config);
     EXPECT_TRUE(source.isOk()) << source.status().toString();
     if (!source.isOk()) return scan;
@@ -66,6 +69,18 @@ inline SimScan scanSimRoom(sim::SimConfig config, int frames_per_fragment) {
         if (fp.isOk()) scan.planes.push_back(std::move(fp).value());
     }
     return scan;
+}
+
+/// `scene` scanned by the default walk with the small "ci" camera at 10 Hz, Redwood noise without
+/// the distortion table, fused with the ground-truth poses, 20 frames per fragment, the loop
+/// walked at `speed_mps` (scanSimRoom).
+inline SimScan scanSimRoomCi(const std::string& scene, double speed_mps = 0.35) {
+    sim::SimConfig cfg;
+    cfg.scene = scene;
+    cfg.camera = cameraPreset("ci").value();
+    cfg.noise.distortion = sim::DistortionKind::kNone;
+    cfg.trajectory.rate_hz = 10.0;
+    return scanSimRoom(cfg, 20, speed_mps);
 }
 
 }  // namespace plumb::testing
