@@ -109,7 +109,7 @@ void describe(config::Schema& s, LayoutConfig& c) {
             "rule a, the top test and the room polygon look along the pieces of a wall its points "
             "cover, split at gaps wider than this",
             "m")
-        .min(0.0);
+        .positive();
     s.field("wall_split_min_edge_m", c.wall_split_min_edge_m,
             "a plane the room polygon follows along several edges this long is one wall per edge "
             "(0 = one wall per plane)",
