@@ -22,7 +22,8 @@
 //      of 90 degrees from the largest wall are made exactly orthogonal/parallel to it, the others
 //      keep their angle; offsets re-estimated with the normals fixed;
 //   7. layout frame L: z up (the floor normal), floor at z = 0, x along the largest wall's normal;
-//      the room polygon from the walls in the order the boundary contour meets them.
+//      the room polygon from the walls in the order the boundary contour meets them; a wall the
+//      polygon follows along several long edges is one layout wall per edge.
 //
 // Walls bound the space the camera moved in. The camera positions (every tracked frame's,
 // T_W_F * T_F_C; a fragment without frames gives its origin) are occupied cells of the base grid
