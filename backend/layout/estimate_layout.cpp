@@ -555,15 +555,45 @@ std::optional<HeightSpan> heightSpan(const SupportedPlane& p, const SupportedPla
     return HeightSpan{h[h.size() / 100], h[h.size() - 1 - h.size() / 100]};
 }
 
+/// An interval [lo, hi] along a wall's direction.
+struct Span {
+    double lo = 0.0, hi = 0.0;
+};
+
+/// The stretches of [lo, hi] that the sorted positions `ts` cover, split wherever consecutive
+/// positions leave a gap wider than gap_m.
+std::vector<Span> splitAtGaps(const std::vector<double>& ts, double lo, double hi, double gap_m) {
+    std::vector<Span> pieces;
+    for (const double t : ts) {
+        if (t < lo || t > hi) continue;
+        if (pieces.empty() || t - pieces.back().hi > gap_m) {
+            pieces.push_back({t, t});
+        } else {
+            pieces.back().hi = t;
+        }
+    }
+    return pieces;
+}
+
+/// True when t lies within `margin` of one of the pieces.
+bool onPiece(const std::vector<Span>& pieces, double t, double margin = 0.0) {
+    return std::any_of(pieces.begin(), pieces.end(), [t, margin](const Span& s) {
+        return t >= s.lo - margin && t <= s.hi + margin;
+    });
+}
+
 /// A vertical plane p seen from above: its horizontal normal u, the direction along it
-/// (n_b x u) and its extent along that direction (0.5 % / 99.5 % of all its points, which must
-/// not be empty).
+/// (n_b x u), its extent along that direction (0.5 % / 99.5 % of all its points, which must
+/// not be empty) and the pieces of the extent its points cover, split at gaps wider than
+/// piece_gap_m.
 struct HorizontalExtent {
     Eigen::Vector3d u = Eigen::Vector3d::Zero();
     Eigen::Vector3d dir = Eigen::Vector3d::Zero();
     double tmin = 0.0, tmax = 0.0;
+    std::vector<Span> pieces;
 };
-HorizontalExtent horizontalExtent(const SupportedPlane& p, const Eigen::Vector3d& n_b) {
+HorizontalExtent horizontalExtent(const SupportedPlane& p, const Eigen::Vector3d& n_b,
+                                  double piece_gap_m) {
     HorizontalExtent e;
     e.u = (p.n - p.n.dot(n_b) * n_b).normalized();
     e.dir = n_b.cross(e.u);
@@ -573,6 +603,7 @@ HorizontalExtent horizontalExtent(const SupportedPlane& p, const Eigen::Vector3d
     std::sort(ts.begin(), ts.end());
     e.tmin = ts[ts.size() / 200];
     e.tmax = ts[ts.size() - 1 - ts.size() / 200];
+    e.pieces = splitAtGaps(ts, e.tmin, e.tmax, piece_gap_m);
     return e;
 }
 
@@ -604,36 +635,6 @@ double reachGap(const SupportedPlane& p, const SupportedPlane& base, bool base_i
     return config.min_wall_height_m - (h->hi - h->lo);
 }
 
-/// An interval [lo, hi] along a wall's direction.
-struct Span {
-    double lo = 0.0, hi = 0.0;
-};
-
-/// The stretches of [lo, hi] that the sorted positions `ts` cover, split wherever consecutive
-/// positions leave a gap wider than gap_m.
-std::vector<Span> splitAtGaps(const std::vector<double>& ts, double lo, double hi, double gap_m) {
-    std::vector<Span> pieces;
-    for (const double t : ts) {
-        if (t < lo || t > hi) continue;
-        if (pieces.empty() || t - pieces.back().hi > gap_m) {
-            pieces.push_back({t, t});
-        } else {
-            pieces.back().hi = t;
-        }
-    }
-    return pieces;
-}
-
-/// The pieces of extent e of plane p (from horizontalExtent) that its points cover: [tmin, tmax]
-/// split wherever consecutive points along e.dir leave a gap wider than gap_m.
-std::vector<Span> coveredPieces(const SupportedPlane& p, const HorizontalExtent& e, double gap_m) {
-    std::vector<double> ts;
-    ts.reserve(p.all.size());
-    for (const Eigen::Vector3d* x : p.all) ts.push_back(e.dir.dot(*x));
-    std::sort(ts.begin(), ts.end());
-    return splitAtGaps(ts, e.tmin, e.tmax, gap_m);
-}
-
 /// Where the lines of sight start: each fragment's viewpoint (fragmentViewpoint) and its points.
 struct SightLines {
     const WorldPoints& points;
@@ -659,7 +660,7 @@ TopSeen topSeenFraction(const SupportedPlane& p, const SupportedPlane& base, boo
     // Heights beyond the top count positive: up from the floor, or towards a ceiling base.
     const double sign = base_is_floor ? 1.0 : -1.0;
     const double top = base_is_floor ? h->hi : h->lo;
-    const HorizontalExtent ext = horizontalExtent(p, base.n);
+    const HorizontalExtent ext = horizontalExtent(p, base.n, config.wall_piece_gap_m);
     const Eigen::Vector3d& dir = ext.dir;
     TopSeen out;
     out.length_m = ext.tmax - ext.tmin;
@@ -668,12 +669,9 @@ TopSeen topSeenFraction(const SupportedPlane& p, const SupportedPlane& base, boo
     const size_t bins = static_cast<size_t>(std::ceil((t1 - t0) / m));
     // Only the stretches its points cover count: a wall coplanar with a furniture face across
     // the room is not seen over where the lines of sight pass the furniture.
-    const std::vector<Span> pieces = coveredPieces(p, ext, config.wall_piece_gap_m);
     std::vector<char> covered(bins, 0), seen(bins, 0);
     for (size_t b = 0; b < bins; ++b) {
-        const double tc = t0 + (static_cast<double>(b) + 0.5) * m;
-        covered[b] = std::any_of(pieces.begin(), pieces.end(),
-                                 [tc](const Span& s) { return tc >= s.lo && tc <= s.hi; });
+        covered[b] = onPiece(ext.pieces, t0 + (static_cast<double>(b) + 0.5) * m);
     }
     for (size_t i = 0; i + 1 < sight.points.begin.size(); ++i) {
         const Eigen::Vector3d& v = sight.viewpoints[i];
@@ -809,12 +807,12 @@ WallSide wallSide(const SupportedPlane& p, const Eigen::Vector3d& n_b, const Bas
     PlaneMoments mm;
     for (const Eigen::Vector3d* x : p.capped) mm.add(*x);
     ws.m = mm.mean();
-    const HorizontalExtent ext = horizontalExtent(p, n_b);
+    const HorizontalExtent ext = horizontalExtent(p, n_b, config.wall_piece_gap_m);
     const Eigen::Vector3d& u = ext.u;
     ws.dir = ext.dir;
     ws.tmin = ext.tmin;
     ws.tmax = ext.tmax;
-    ws.pieces = coveredPieces(p, ext, config.wall_piece_gap_m);
+    ws.pieces = ext.pieces;
     const double probe = config.tau2_m + 2.0 * grid.cell;
     int plus = 0, minus = 0;
     for (double t = ws.tmin; t <= ws.tmax; t += grid.cell) {
@@ -860,11 +858,7 @@ std::vector<int> wallsWithoutCameraBehind(const std::vector<int>& wall_ids,
         int within = 0, behind = 0;
         for (const Eigen::Vector3d& c : cameras_W) {
             const double t = ws.dir.dot(c);
-            if (std::none_of(ws.pieces.begin(), ws.pieces.end(),
-                             [t](const Span& s) { return t >= s.lo && t <= s.hi; }) ||
-                !facesAcrossRoom(c, ws, grid, near)) {
-                continue;
-            }
+            if (!onPiece(ws.pieces, t) || !facesAcrossRoom(c, ws, grid, near)) continue;
             ++within;
             if (ws.u.dot(c - ws.m) < -config.camera_behind_margin_m) ++behind;
         }
@@ -1177,10 +1171,7 @@ std::vector<int> contourWallSequence(const GridInLayout& view, const std::vector
         for (const Wall2& w2 : walls2) {
             const double dd = std::abs(w2.line.n.dot(q) + w2.line.d);
             const double t = Eigen::Vector2d(-w2.line.n.y(), w2.line.n.x()).dot(q);
-            const bool on_piece =
-                std::any_of(w2.pieces.begin(), w2.pieces.end(),
-                            [t](const Span& p) { return t >= p.lo - 0.3 && t <= p.hi + 0.3; });
-            if (dd < best && on_piece) {
+            if (dd < best && onPiece(w2.pieces, t, 0.3)) {
                 best = dd;
                 lab[c] = w2.index;
             }
